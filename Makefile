@@ -1,0 +1,57 @@
+# Entry points for a fresh machine:  make run  (the paper's study)  and  make test.
+# Each target creates the virtual environment .venv from pyproject.toml first
+# (again only when pyproject.toml changed).
+
+SHELL := /bin/bash
+.SHELLFLAGS := -eu -o pipefail -c
+
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+SNAKEMAKE := $(VENV)/bin/snakemake
+STAMP := $(VENV)/.installed
+PROFILE := workflow/profiles/default
+SMOKE := --configfile config/smoke.yaml --replace-workflow-config
+
+# One Numba cache for every process started from here (the workflow's rules set
+# the same directory themselves).
+export NUMBA_CACHE_DIR := $(CURDIR)/.numba_cache
+
+.PHONY: venv run smoke test bench lint clean distclean
+
+venv: $(STAMP)
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet -e '.[test]'
+	touch $@
+
+# The paper's study (config/config.yaml): all piles, pictures and the analysis.
+run: venv
+	mkdir -p logs
+	$(SNAKEMAKE) --cores all --profile $(PROFILE) 2>&1 | tee logs/make-run.log
+
+# Tiny piles (config/smoke.yaml), end to end in minutes.
+smoke: venv
+	mkdir -p logs
+	$(SNAKEMAKE) --cores all --profile $(PROFILE) $(SMOKE) 2>&1 | tee logs/make-smoke.log
+
+test: venv
+	$(PY) -m pytest
+
+bench: venv
+	$(PY) -m sim bench
+
+lint: venv
+	$(SNAKEMAKE) --lint
+	$(SNAKEMAKE) --lint $(SMOKE)
+
+# Removes everything the workflow made (results/ except its README, logs,
+# benchmarks, Snakemake's metadata) and the caches; keeps .venv.
+clean:
+	find results -mindepth 1 -maxdepth 1 ! -name README.md -exec rm -rf {} +
+	rm -rf logs benchmarks .snakemake .numba_cache .pytest_cache
+	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
+
+distclean: clean
+	rm -rf $(VENV)

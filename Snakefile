@@ -1,0 +1,43 @@
+# Sand piles of soft convex polygons: Roul, Schinner & Kassner,
+# Granular Matter (2010). Thin entry point: configuration, its validation and
+# the rule files; see README.md for the stages and CONTRACT.md for the files.
+
+from snakemake.utils import min_version, validate
+
+min_version("9.0")
+
+
+configfile: "config/config.yaml"
+
+
+# Fills in every default of the schema, so the rules see a complete config.
+validate(config, "workflow/schemas/config.schema.yaml")
+validate(config["analysis"], "workflow/schemas/analysis.schema.yaml")
+
+
+report: "workflow/report/workflow.rst"
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/pour.smk"
+include: "workflow/rules/relax.smk"
+include: "workflow/rules/probe.smk"
+include: "workflow/rules/figures_piles.smk"
+include: "workflow/rules/analysis.smk"
+
+
+rule all:
+    # Every pile stage, the picture of every relaxed pile, and the analysis.
+    input:
+        pile_targets(),
+        pile_figure_targets("relaxed"),
+        analysis_targets(),
+    default_target: True
+    localrule: True
+
+
+rule piles:
+    # The simulation part only: poured, relaxed and every gravity probe.
+    input:
+        pile_targets(),
+    localrule: True

@@ -1,0 +1,152 @@
+"""workflow/schemas/config.schema.yaml: the study's configs validate, defaults
+are filled in, and bad configs fail with a message that names the key, the
+value and what is allowed."""
+
+import copy
+from pathlib import Path
+
+import pytest
+import yaml
+from snakemake.exceptions import WorkflowError
+from snakemake.utils import validate
+
+REPO = Path(__file__).resolve().parents[1]
+SCHEMA = str(REPO / "workflow" / "schemas" / "config.schema.yaml")
+
+
+def load(name):
+    return yaml.safe_load((REPO / "config" / name).read_text())
+
+
+def schema():
+    return yaml.safe_load(Path(SCHEMA).read_text())
+
+
+@pytest.mark.parametrize("name", ["config.yaml", "smoke.yaml"])
+def test_shipped_configs_validate(name):
+    config = load(name)
+    validate(config, SCHEMA)
+    assert config["model"]["integrator"] in ("gear", "verlet")
+
+
+def test_paper_study():
+    config = load("config.yaml")
+    validate(config, SCHEMA)
+    assert config["protocols"]["wedge"]["seeds"] == list(range(1, 10))
+    assert config["protocols"]["layered"]["seeds"] == list(range(1, 11))
+    assert config["pour"]["n_particles"] == 3500
+    assert config["probe"]["levels"] == [0.10]
+    assert config["model"]["youngs_modulus"] == 1.0e7
+
+
+def test_defaults_are_filled_in():
+    config = {"protocols": {"wedge": {"seeds": [3]}}}
+    validate(config, SCHEMA)
+    assert config["threads"] == 2
+    assert config["model"] == {
+        "youngs_modulus": 1.0e7, "damping": 0.1, "friction": 0.5,
+        "support_friction": 0.5, "density": 2500.0, "integrator": "gear",
+        "dt": None, "dt_safety": 0.5, "max_overlap_fraction": 0.2,
+    }
+    assert config["particles"] == {
+        "corners_min": 6, "corners_max": 8, "semi_axis_mean": 3.4e-3,
+        "semi_axis_spread": 0.3, "min_edge_fraction": 0.1, "min_angle_deg": 15.0,
+    }
+    assert config["pour"] == {
+        "n_particles": 3500, "rate": 100.0, "release_height": 0.02,
+        "release_speed": 0.5, "jitter": 1.0e-3, "line_margin": 0.0,
+        "top_band": 0.01, "checkpoint_interval": 120.0, "progress_interval": 10.0,
+    }
+    assert config["relax"] == {
+        "kinetic_energy_fraction": 1.0e-6, "max_speed": 1.0e-3,
+        "hold_time": 0.05, "max_time": 10.0,
+    }
+    assert config["probe"] == {"levels": [0.10], "mode": "step", "ramp_time": 0.1}
+    assert config["analysis"] == {}
+    assert "layered" not in config["protocols"]  # a protocol not asked for is not run
+
+
+def _set(path, value):
+    def change(config):
+        node = config
+        for key in path[:-1]:
+            node = node[key]
+        node[path[-1]] = value
+    return change
+
+
+def _drop(key):
+    return lambda config: config.pop(key)
+
+
+# (change, substrings the error message must contain: key, value, what is allowed)
+BAD = {
+    "wrong type": (_set(["pour", "n_particles"], "many"),
+                   ["'n_particles'", "'many'", "is not of type 'integer'"]),
+    "missing protocols": (_drop("protocols"), ["'protocols' is a required property"]),
+    "out of range": (_set(["model", "damping"], -1),
+                     ["'damping'", "-1", "less than the minimum of 0"]),
+    "level out of range": (_set(["probe", "levels"], [0.1, 1.5]),
+                           ["'levels'", "1.5", "maximum of 1"]),
+    "unknown key": (_set(["model", "fricton"], 0.3),
+                    ["'fricton'", "'model'", "is not one of", "'friction'"]),
+    "unknown top-level key": (_set(["thread"], 4),
+                              ["'thread'", "is not one of", "'threads'"]),
+    "unknown protocol": (_set(["protocols", "conical"], {"seeds": [1]}),
+                         ["'conical'", "is not one of ['wedge', 'layered']"]),
+    "no protocol": (_set(["protocols"], {}), ["'protocols'", "should be non-empty"]),
+    "repeated seed": (_set(["protocols", "wedge", "seeds"], [1, 2, 1]),
+                      ["'seeds'", "[1, 2, 1]", "non-unique"]),
+    "negative seed": (_set(["protocols", "wedge", "seeds"], [-3]),
+                      ["'seeds'", "-3", "minimum of 0"]),
+    "bad enum": (_set(["model", "integrator"], "rk4"),
+                 ["'integrator'", "'rk4'", "is not one of ['gear', 'verlet']"]),
+    "dt not positive": (_set(["model", "dt"], 0.0),
+                        ["'dt'", "0.0", "less than or equal to the minimum of 0"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_config_is_rejected_with_a_clear_message(case):
+    change, expected = BAD[case]
+    config = load("config.yaml")
+    change(config)
+    with pytest.raises(WorkflowError) as err:
+        validate(config, SCHEMA)
+    message = str(err.value)
+    for text in expected:
+        assert text in message, f"{text!r} not in:\n{message}"
+
+
+def _objects(node, path=()):
+    """Every object schema with `properties`, with its path."""
+    if isinstance(node, dict):
+        if "properties" in node:
+            yield path, node
+        for key, value in node.items():
+            yield from _objects(value, path + (key,))
+
+
+def test_every_object_is_closed_and_lists_its_keys():
+    for path, obj in _objects(schema()):
+        assert obj.get("additionalProperties") is False, path
+        assert obj["propertyNames"]["enum"] == list(obj["properties"]), path
+
+
+def test_every_key_is_documented_and_optional_keys_have_defaults():
+    for path, obj in _objects(schema()):
+        required = set(obj.get("required", []))
+        for key, sub in obj["properties"].items():
+            where = "/".join(path + (key,))
+            if "$ref" in sub:  # protocols.wedge / .layered: absent = not run
+                continue
+            assert sub.get("description"), f"{where} has no description"
+            if key not in required:
+                assert "default" in sub, f"{where} is optional but has no default"
+
+
+def test_defaults_satisfy_the_schema():
+    """The defaults alone (plus one protocol) form a valid config."""
+    config = {"protocols": {"layered": {"seeds": [0]}}}
+    validate(config, SCHEMA)
+    validate(copy.deepcopy(config), SCHEMA, set_default=False)

@@ -1,0 +1,114 @@
+"""sim/draw.py: pictures of particle states and the Eq. 2 particle pressure,
+on a tiny hand-made state file that follows CONTRACT.md section 1."""
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from sim import draw
+
+A = 0.01        # side of the squares, m
+DENSITY = 2500.0  # kg/m^2
+G = 9.81        # m/s^2
+M = DENSITY * A * A  # mass of one square, kg
+
+
+def _square(side):
+    h = side / 2
+    return [-h, h, h, -h], [-h, -h, h, h]  # counter-clockwise
+
+
+def write_state(path, theta=(0.0, 0.0, 0.0)):
+    """Three squares of side A at rest: B on the support, T on top of B, and
+    L alone on the support at x = 3A. Forces balance the weights by hand."""
+    xs = np.array([0.0, 0.0, 3 * A])
+    ys = np.array([A / 2, 3 * A / 2, A / 2])
+    sx, sy = _square(A)
+    node_x = np.array(sx * 3)
+    node_y = np.array(sy * 3)
+    mg = M * G
+    # contact 0: T (i) on B (j), at the middle of their common edge; the
+    #            force on T is +mg upwards, B gets -mg.
+    # contact 1: B (i) on the support (j = -1): carries B and T, 2 mg.
+    # contact 2: L (i) on the support: mg.
+    ds = xr.Dataset(
+        {
+            "x": ("particle", xs, {"units": "m", "long_name": "x"}),
+            "y": ("particle", ys, {"units": "m", "long_name": "y"}),
+            "theta": ("particle", np.array(theta), {"units": "rad", "long_name": "angle"}),
+            "vx": ("particle", np.zeros(3)),
+            "vy": ("particle", np.zeros(3)),
+            "omega": ("particle", np.zeros(3)),
+            "mass": ("particle", np.full(3, M)),
+            "inertia": ("particle", np.full(3, M * A * A / 6)),
+            "area": ("particle", np.full(3, A * A)),
+            "node_count": ("particle", np.array([4, 4, 4], dtype=np.int32)),
+            "node_x": ("node", node_x),
+            "node_y": ("node", node_y),
+            "contact_i": ("contact", np.array([1, 0, 2], dtype=np.int32)),
+            "contact_j": ("contact", np.array([0, -1, -1], dtype=np.int32)),
+            "contact_x": ("contact", np.array([0.0, 0.0, 3 * A])),
+            "contact_y": ("contact", np.array([A, 0.0, 0.0])),
+            "force_x": ("contact", np.zeros(3)),
+            "force_y": ("contact", np.array([mg, 2 * mg, mg])),
+            "normal_x": ("contact", np.zeros(3)),
+            "normal_y": ("contact", np.array([-1.0, -1.0, -1.0])),
+            "overlap_area": ("contact", np.full(3, 1e-9)),
+        },
+        attrs={
+            "Conventions": "CF-1.10", "title": "test state", "source": "test",
+            "history": "", "config": "{}", "time": 0.0, "gravity": G,
+            "protocol": "wedge", "seed": 0,
+        },
+    )
+    ds.to_netcdf(path)
+    return path
+
+
+def test_pressure_matches_hand_computed_values(tmp_path):
+    ds = xr.open_dataset(write_state(tmp_path / "relaxed.nc")).load()
+    mg = M * G
+    sigma = draw.particle_stress(ds)
+    # T: branch (0, -A/2) x force (0, mg), over A^2.
+    assert sigma[1] == pytest.approx(np.array([[0, 0], [0, -mg / (2 * A)]]))
+    # B: (0, A/2) x (0, -mg) from T plus (0, -A/2) x (0, 2 mg) from the support.
+    assert sigma[0] == pytest.approx(np.array([[0, 0], [0, -3 * mg / (2 * A)]]))
+    p = draw.particle_pressure(ds)
+    assert p == pytest.approx([3 * mg / (4 * A), mg / (4 * A), mg / (4 * A)])
+    assert np.all(p > 0)  # compression gives a positive pressure
+
+
+def test_polygons_rotate_about_the_centre(tmp_path):
+    ds = xr.open_dataset(write_state(tmp_path / "s.nc", theta=(0.0, np.pi / 4, 0.0))).load()
+    polys = draw.polygons_world(ds)
+    assert len(polys) == 3
+    # Unrotated bottom square: corners at the centre +- A/2.
+    assert polys[0] == pytest.approx(np.array(
+        [[-A / 2, 0], [A / 2, 0], [A / 2, A], [-A / 2, A]]))
+    # The top square turned by 45 degrees: its first corner (-A/2, -A/2)
+    # goes straight below the centre, at distance A/sqrt(2).
+    assert polys[1][0] == pytest.approx([0.0, 3 * A / 2 - A / np.sqrt(2)])
+    assert polys[1].mean(axis=0) == pytest.approx([0.0, 3 * A / 2])
+
+
+@pytest.mark.parametrize("extra", [[], ["--no-forces", "--color-by", "none"]])
+def test_main_writes_a_png(tmp_path, extra):
+    state = write_state(tmp_path / "relaxed.nc")
+    out = tmp_path / "figs" / "wedge_seed0_relaxed.png"
+    assert draw.main(["--input", str(state), "--out", str(out), *extra]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert out.stat().st_size > 1000
+    # No temporary file left behind.
+    assert [f.name for f in out.parent.iterdir()] == [out.name]
+
+
+def test_main_fails_clearly(tmp_path):
+    with pytest.raises(SystemExit) as err:
+        draw.main(["--input", str(tmp_path / "missing.nc"), "--out", str(tmp_path / "x.png")])
+    assert "missing.nc" in str(err.value)
+    bad = tmp_path / "bad.nc"
+    xr.Dataset({"x": ("particle", np.zeros(2))}).to_netcdf(bad)
+    with pytest.raises(SystemExit) as err:
+        draw.main(["--input", str(bad), "--out", str(tmp_path / "x.png")])
+    assert "missing variables" in str(err.value) and "node_count" in str(err.value)
+    assert not (tmp_path / "x.png").exists()

@@ -1,0 +1,307 @@
+"""The Snakemake workflow: lint, the jobs of a dry run, what re-runs after an
+edit, and (slow) the smoke study end to end.
+
+Every test works in a temporary copy of the workflow, so the repository's own
+results/ and .snakemake/ are never touched.
+"""
+
+import contextlib
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+SMOKE = ["--configfile", "config/smoke.yaml", "--replace-workflow-config"]
+SMOKE_CONFIG = yaml.safe_load((REPO / "config" / "smoke.yaml").read_text())
+PILE_RULES = ("compile_kernels", "pour", "relax", "probe")
+
+
+def copy_workflow(dest, with_sim=True):
+    """Copy what the workflow needs (no results, no caches) to `dest`."""
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
+    dest.mkdir(parents=True, exist_ok=True)
+    shutil.copy2(REPO / "Snakefile", dest / "Snakefile")
+    names = ["workflow", "config", "analysis"] + (["sim"] if with_sim else [])
+    for name in names:
+        shutil.copytree(REPO / name, dest / name, ignore=ignore)
+    return dest
+
+
+def snakemake(cwd, *args, timeout=300):
+    """Run Snakemake in `cwd`; stdout and stderr together."""
+    proc = subprocess.run(
+        [*SNAKEMAKE, *args], cwd=cwd, capture_output=True, text=True,
+        timeout=timeout, env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"},
+    )
+    proc.output = proc.stdout + proc.stderr
+    return proc
+
+
+def job_counts(output):
+    """The 'Job stats' table of a (dry) run as {rule: count}; {} when there is
+    nothing to do."""
+    counts = {}
+    if "Job stats:" not in output:
+        return counts
+    table = output.split("Job stats:", 1)[1]
+    for line in table.splitlines()[3:]:
+        match = re.fullmatch(r"\s*(\w+)\s+(\d+)\s*", line)
+        if not match or match.group(1) == "total":
+            break
+        counts[match.group(1)] = int(match.group(2))
+    return counts
+
+
+def with_overrides(root, name, overrides):
+    """Snakemake arguments: the smoke config plus a file of overrides (nested
+    values given with --config lose their types)."""
+    path = root / "config" / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(overrides))
+    return ["--configfile", "config/smoke.yaml", str(path.relative_to(root)),
+            "--replace-workflow-config"]
+
+
+def smoke_piles():
+    return [(p, s) for p in ("wedge", "layered") for s in SMOKE_CONFIG["protocols"][p]["seeds"]]
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory):
+    return copy_workflow(tmp_path_factory.mktemp("workflow"))
+
+
+# --- (a) lint --------------------------------------------------------------
+
+@pytest.mark.parametrize("configfile", [[], SMOKE], ids=["config", "smoke"])
+def test_lint_passes(workdir, configfile):
+    proc = snakemake(workdir, "--lint", *configfile)
+    assert proc.returncode == 0, proc.output
+
+
+# --- (b) dry runs ------------------------------------------------------------
+
+def test_smoke_dry_run_lists_the_pile_jobs(workdir):
+    proc = snakemake(workdir, "-n", "-p", "--cores", "2", *SMOKE)
+    assert proc.returncode == 0, proc.output
+    counts = job_counts(proc.output)
+    n = len(smoke_piles())
+    assert n == 4
+    expected = {"compile_kernels": 1, "pour": n, "relax": n, "probe": n, "draw_pile": n}
+    assert {rule: counts.get(rule) for rule in expected} == expected, proc.output
+    assert counts["all"] == 1
+    for protocol, seed in smoke_piles():
+        base = f"results/piles/{protocol}/seed{seed}"
+        for stage in ("poured", "relaxed", "reduced"):
+            assert f"{base}/{stage}.nc" in proc.output
+        assert f"--checkpoint {base}/pour.checkpoint.nc" in proc.output
+        assert f"results/figures/piles/{protocol}_seed{seed}_relaxed.png" in proc.output
+    assert "--level 0.1 " in proc.output
+    assert "NUMBA_NUM_THREADS=1 " in proc.output  # smoke.yaml: threads 1
+
+
+def test_paper_dry_run_has_19_piles(workdir):
+    proc = snakemake(workdir, "-n", "--cores", "2", "piles")
+    assert proc.returncode == 0, proc.output
+    counts = job_counts(proc.output)
+    assert counts == {"compile_kernels": 1, "pour": 19, "relax": 19, "probe": 19, "piles": 1}
+
+
+def test_each_probe_level_is_a_stage(workdir):
+    config = with_overrides(workdir, "levels", {"probe": {"levels": [0.1, 0.05]}})
+    proc = snakemake(workdir, "-n", "-p", "--cores", "2", *config, "piles")
+    assert proc.returncode == 0, proc.output
+    assert job_counts(proc.output)["probe"] == 2 * len(smoke_piles())
+    assert "results/piles/wedge/seed1/reduced.nc" in proc.output
+    assert "results/piles/wedge/seed1/reduced05.nc" in proc.output
+    assert "--level 0.05 " in proc.output
+
+
+@pytest.mark.parametrize("name, override, message", [
+    ("corners", {"particles": {"corners_min": 8, "corners_max": 6}}, "corners_min"),
+    ("levels", {"probe": {"levels": [0.1, 0.05, 0.051]}}, "percent resolution"),
+    ("threads", {"threads": 0}, "threads"),
+])
+def test_bad_config_stops_before_any_job(workdir, name, override, message):
+    config = with_overrides(workdir, f"bad_{name}", override)
+    proc = snakemake(workdir, "-n", "--cores", "2", *config)
+    assert proc.returncode != 0
+    assert message in proc.output, proc.output
+
+
+# --- (c) what re-runs after an edit -------------------------------------------
+
+# A stand-in for `python -m sim`: checks the command line the rules build
+# against the simulator's interface and writes what it was given as "output".
+FAKE_SIM_MAIN = '''
+import argparse, json, os, sys
+from pathlib import Path
+
+SECTIONS = {"model", "particles", "pour", "relax", "probe"}
+cmd, rest = sys.argv[1], sys.argv[2:]
+if cmd == "warmup":
+    assert os.environ["NUMBA_CACHE_DIR"].endswith(".numba_cache")
+    sys.exit(0)
+parser = argparse.ArgumentParser()
+for option in ("--params", "--protocol", "--seed", "--out", "--checkpoint",
+               "--input", "--level"):
+    parser.add_argument(option)
+args = parser.parse_args(rest)
+if cmd in ("pour", "relax", "probe"):
+    assert set(json.loads(args.params)) == SECTIONS, args.params
+    assert int(os.environ["NUMBA_NUM_THREADS"]) >= 1
+if cmd != "pour":
+    assert Path(args.input).exists()
+if cmd == "probe":
+    float(args.level)
+record = {"cmd": cmd, "args": vars(args),
+          "env": {k: os.environ.get(k) for k in ("NUMBA_NUM_THREADS", "NUMBA_CACHE_DIR")}}
+Path(args.out).write_text(json.dumps(record))
+'''
+
+
+@pytest.fixture(scope="module")
+def ran(tmp_path_factory):
+    """A copy with a fake simulator whose pile and picture jobs have all run."""
+    root = copy_workflow(tmp_path_factory.mktemp("edits"), with_sim=False)
+    (root / "sim").mkdir()
+    (root / "sim" / "__init__.py").write_text("")
+    (root / "sim" / "__main__.py").write_text(FAKE_SIM_MAIN)
+    (root / "sim" / "kernels.py").write_text("# stands for the Numba kernels\n")
+    (root / "sim" / "draw.py").write_text("# stands for the picture code\n")
+    targets = ["piles"] + [f"results/figures/piles/{p}_seed{s}_relaxed.png"
+                           for p, s in smoke_piles()]
+    proc = snakemake(root, "--cores", "2", *SMOKE, *targets)
+    assert proc.returncode == 0, proc.output
+    return root, targets
+
+
+def dry_run(root, targets, *extra):
+    proc = snakemake(root, "-n", "--cores", "2", *SMOKE, *targets, *extra)
+    assert proc.returncode == 0, proc.output
+    return job_counts(proc.output)
+
+
+class edited:
+    """Context: `path` is edited (a line appended, mtime in the future), then
+    restored. Snakemake 9 re-runs a job only when an input is newer than its
+    output *and* its checksum differs from the recorded one, so a mere touch
+    would not do."""
+
+    def __init__(self, path):
+        self.path = path
+
+    def __enter__(self):
+        self.text = self.path.read_bytes()
+        self.stat = self.path.stat()
+        self.path.write_bytes(self.text + b"\n# edited\n")
+        future = time.time() + 60
+        os.utime(self.path, (future, future))
+
+    def __exit__(self, *exc):
+        self.path.write_bytes(self.text)
+        os.utime(self.path, ns=(self.stat.st_atime_ns, self.stat.st_mtime_ns))
+
+
+def test_fake_run_passed_the_expected_command_lines(ran):
+    root, _ = ran
+    pour = json.loads((root / "results/piles/wedge/seed1/poured.nc").read_text())
+    assert pour["args"]["protocol"] == "wedge" and pour["args"]["seed"] == "1"
+    assert pour["args"]["checkpoint"] == "results/piles/wedge/seed1/pour.checkpoint.nc"
+    assert pour["env"]["NUMBA_NUM_THREADS"] == str(SMOKE_CONFIG["threads"])
+    assert pour["env"]["NUMBA_CACHE_DIR"] == str(root / ".numba_cache")
+    params = json.loads(pour["args"]["params"])
+    assert params["pour"]["n_particles"] == SMOKE_CONFIG["pour"]["n_particles"]
+    assert params["model"]["integrator"] == "gear"  # a default filled in by the schema
+    probe = json.loads((root / "results/piles/layered/seed2/reduced.nc").read_text())
+    assert probe["args"]["input"] == "results/piles/layered/seed2/relaxed.nc"
+    assert float(probe["args"]["level"]) == 0.1
+    figure = json.loads((root / "results/figures/piles/layered_seed2_relaxed.png").read_text())
+    assert figure["cmd"] == "draw"
+    assert figure["args"]["input"] == "results/piles/layered/seed2/relaxed.nc"
+
+
+def test_nothing_to_do_after_a_run(ran):
+    assert dry_run(*ran) == {}
+
+
+def test_editing_simulator_code_reruns_the_piles(ran):
+    root, targets = ran
+    with edited(root / "sim" / "kernels.py"):
+        counts = dry_run(root, targets)
+    n = len(smoke_piles())
+    assert counts == {"compile_kernels": 1, "pour": n, "relax": n, "probe": n,
+                      "draw_pile": n, "piles": 1}
+
+
+def test_editing_the_picture_code_redraws_only(ran):
+    root, targets = ran
+    with edited(root / "sim" / "draw.py"):
+        assert dry_run(root, targets) == {"draw_pile": len(smoke_piles())}
+
+
+@pytest.mark.parametrize("folder", ["analysis", "workflow/report"])
+def test_editing_analysis_code_or_a_caption_leaves_the_piles(ran, folder):
+    root, targets = ran
+    files = sorted(p for p in (root / folder).iterdir() if p.is_file())
+    assert files
+    with contextlib.ExitStack() as stack:
+        for path in files:
+            stack.enter_context(edited(path))
+        assert dry_run(root, targets) == {}
+
+
+def test_simulation_parameters_rerun_the_piles_but_threads_do_not(ran):
+    root, targets = ran
+    assert dry_run(root, targets, "--config", "threads=2") == {}
+    config = with_overrides(root, "relax", {"relax": {"max_time": 2.0}})
+    proc = snakemake(root, "-n", "--cores", "2", *config, *targets)
+    assert proc.returncode == 0, proc.output
+    counts = job_counts(proc.output)
+    n = len(smoke_piles())
+    assert {rule: counts.get(rule) for rule in ("pour", "relax", "probe")} == \
+        {"pour": n, "relax": n, "probe": n}
+    assert "compile_kernels" not in counts
+
+
+# --- (d) the smoke study, end to end ----------------------------------------
+
+CONTRACT_VARIABLES = [
+    "x", "y", "theta", "vx", "vy", "omega", "mass", "inertia", "area",
+    "node_count", "node_x", "node_y", "contact_i", "contact_j", "contact_x",
+    "contact_y", "force_x", "force_y", "normal_x", "normal_y", "overlap_area",
+]
+
+
+@pytest.mark.slow
+def test_smoke_study_end_to_end(tmp_path):
+    """config/smoke.yaml, all targets (piles, pictures, analysis), 2 cores.
+    Needs the real simulator (python -m sim) and analysis."""
+    import xarray as xr
+
+    root = copy_workflow(tmp_path / "smoke")
+    proc = snakemake(root, "--cores", "2", *SMOKE, "--show-failed-logs", timeout=3600)
+    assert proc.returncode == 0, proc.output[-20000:]
+    for protocol, seed in smoke_piles():
+        for stage in ("poured", "relaxed", "reduced"):
+            path = root / f"results/piles/{protocol}/seed{seed}/{stage}.nc"
+            with xr.open_dataset(path) as ds:
+                missing = [v for v in CONTRACT_VARIABLES if v not in ds.variables]
+                assert not missing, (path, missing)
+                assert ds.attrs["protocol"] == protocol and int(ds.attrs["seed"]) == seed
+                assert ds.sizes["particle"] == SMOKE_CONFIG["pour"]["n_particles"]
+        assert not (root / f"results/piles/{protocol}/seed{seed}/pour.checkpoint.nc").exists()
+        png = root / f"results/figures/piles/{protocol}_seed{seed}_relaxed.png"
+        assert png.read_bytes()[:4] == b"\x89PNG"
+        assert (root / f"benchmarks/pour/{protocol}/seed{seed}.tsv").exists()
+    # A second run has nothing to do: no parameter or code trigger fires spuriously.
+    again = snakemake(root, "-n", "--cores", "2", *SMOKE)
+    assert again.returncode == 0 and job_counts(again.output) == {}, again.output

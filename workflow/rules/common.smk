@@ -1,0 +1,194 @@
+# Shared names for all rule files. The Snakefile validates `config` (and fills
+# its defaults) before this file is included, so every key is present here.
+# No rules in this file (snakemake --lint wants functions and rules apart).
+
+import json
+import re
+import shlex
+import sys
+from pathlib import Path
+
+from snakemake.settings.types import DeploymentMethod
+
+REPO = Path(workflow.basedir).resolve()
+
+# Protocols to run, in a fixed order (wedge before layered), subset of the
+# two the simulator knows.
+PROTOCOLS = [p for p in ("wedge", "layered") if p in config["protocols"]]
+
+
+def seeds(protocol):
+    """Seeds (ints) of the piles of `protocol`, in config order."""
+    return [int(s) for s in config["protocols"][protocol]["seeds"]]
+
+
+# Code as input: Snakemake re-runs a job when an input is newer than its
+# output, but it does not look inside imported packages. Listing the package
+# sources as inputs makes an edit of sim/ re-run the simulations and an edit of
+# analysis/ re-run only the analysis. Absolute, sorted paths.
+SIM_CODE = sorted(str(p) for p in (REPO / "sim").glob("*.py"))
+ANALYSIS_CODE = sorted(str(p) for p in (REPO / "analysis").glob("*.py"))
+# The simulation kernels do not depend on the picture code: editing
+# sim/draw.py re-draws the piles but does not re-pour them.
+SIM_KERNEL_CODE = [p for p in SIM_CODE if Path(p).name != "draw.py"]
+
+# Python that runs the jobs: the interpreter running Snakemake (the project's
+# venv under `make run`), so jobs see the same packages without activating
+# anything. Under --software-deployment-method conda the rule's conda
+# environment provides `python` instead.
+_USE_CONDA = DeploymentMethod.CONDA in workflow.deployment_settings.deployment_method
+PY = "python" if _USE_CONDA else sys.executable
+
+# Environment prefix of every simulation command. Snakemake sets
+# OMP_NUM_THREADS from `threads:` but not NUMBA_NUM_THREADS; a project-local
+# Numba cache is filled once by rule compile_kernels before the jobs fan out.
+NUMBA_CACHE = REPO / ".numba_cache"
+NUMBA_ENV = f"NUMBA_NUM_THREADS={{threads}} NUMBA_CACHE_DIR={shlex.quote(str(NUMBA_CACHE))}"
+
+# The simulator's command lines: SIM_CMD with the Numba settings (it keeps
+# `{threads}` for Snakemake to fill in), PY_SIM without them for commands that
+# run no kernels (draw).
+PY_SIM = f"{shlex.quote(PY)} -m sim"
+SIM_CMD = f"{NUMBA_ENV} {PY_SIM}"
+
+
+def sim_shell(command, numba=True):
+    """Shell command of a rule: `python -m sim <command>`, with the Numba
+    environment unless numba=False."""
+    return f"{SIM_CMD if numba else PY_SIM} {command}"
+
+
+# Flag file written by rule compile_kernels; every simulation rule takes it as
+# input so that no two jobs compile (and write the Numba cache) at once.
+COMPILED_FLAG = "results/.numba/compiled.ok"
+
+SIM_THREADS = int(config["threads"])
+
+# Stage names: the gravity probes, and every stage of a pile.
+STAGE_PATTERN = r"reduced|reduced\d\d"
+PILE_STAGE_PATTERN = r"poured|relaxed|reduced|reduced\d\d"
+
+
+def pile(protocol, seed, stage):
+    """Path of a particle-state file (CONTRACT.md section 1)."""
+    return f"results/piles/{protocol}/seed{seed}/{stage}.nc"
+
+
+def pour_checkpoint(protocol, seed):
+    """Checkpoint of a running pour. Deliberately not a Snakemake output: it
+    must survive a killed job so that the re-run resumes from it; the
+    simulator deletes it when the pour has finished."""
+    return f"results/piles/{protocol}/seed{seed}/pour.checkpoint.nc"
+
+
+def stage_for_level(level):
+    """Stage name of the gravity probe with reduction `level` (Delta).
+
+    The first level in config probe.levels is the stage `reduced` of
+    CONTRACT.md; any other is reducedNN with NN = round(100 * level).
+    """
+    levels = [float(x) for x in config["probe"]["levels"]]
+    if float(level) == levels[0]:
+        return "reduced"
+    return f"reduced{round(100 * float(level)):02d}"
+
+
+def probe_stages():
+    """Stage names of all configured gravity probes, in config order."""
+    return [stage_for_level(level) for level in config["probe"]["levels"]]
+
+
+def level_for_stage(stage):
+    """Inverse of stage_for_level, for the probe rule's `stage` wildcard."""
+    for level in config["probe"]["levels"]:
+        if stage_for_level(level) == stage:
+            return float(level)
+    raise ValueError(
+        f"stage {stage!r} is not a configured gravity probe; "
+        f"probe.levels {config['probe']['levels']} give {probe_stages()}"
+    )
+
+
+def sim_params():
+    """The simulator's parameters as canonical JSON (sorted keys).
+
+    Passed as `params:` so that changing any of these sections re-runs the
+    simulations, while a change in `analysis` or `protocols` does not.
+    """
+    return json.dumps(
+        {k: config[k] for k in ("model", "particles", "pour", "relax", "probe")},
+        sort_keys=True,
+    )
+
+
+def pile_targets(stages=None):
+    """All particle-state files of the configured piles."""
+    if stages is None:
+        stages = ["poured", "relaxed"] + probe_stages()
+    return [
+        pile(protocol, seed, stage)
+        for protocol in PROTOCOLS
+        for seed in seeds(protocol)
+        for stage in stages
+    ]
+
+
+def pile_figure(protocol, seed, stage):
+    """Path of the picture of one pile state."""
+    return f"results/figures/piles/{protocol}_seed{seed}_{stage}.png"
+
+
+def pile_figure_targets(stage="relaxed"):
+    """Pictures of all configured piles at one stage."""
+    return [
+        pile_figure(protocol, seed, stage)
+        for protocol in PROTOCOLS
+        for seed in seeds(protocol)
+    ]
+
+
+def _check_config():
+    """Checks JSON schema cannot express; fail before any job runs."""
+    problems = []
+    part = config["particles"]
+    if part["corners_min"] > part["corners_max"]:
+        problems.append(
+            f"particles.corners_min ({part['corners_min']}) is larger than "
+            f"particles.corners_max ({part['corners_max']})"
+        )
+    stages = probe_stages()
+    if len(set(stages)) != len(stages):
+        problems.append(
+            f"probe.levels {config['probe']['levels']} give repeated stage names "
+            f"{stages}: levels must differ at percent resolution"
+        )
+    bad = [s for s in stages if not re.fullmatch(STAGE_PATTERN, s)]
+    if bad:
+        problems.append(
+            f"probe.levels {config['probe']['levels']} give stage names {bad} "
+            f"outside 'reduced' / 'reducedNN': keep each level in [0.005, 0.995)"
+        )
+    if problems:
+        raise ValueError("invalid configuration:\n  " + "\n  ".join(problems))
+
+
+_check_config()
+
+
+wildcard_constraints:
+    protocol="wedge|layered",
+    seed=r"\d+",
+
+
+# Rough resource estimates for schedulers (runtime in minutes). A pour of
+# 3500 particles is hours on 2 cores; relaxations are shorter. They only
+# matter under a cluster executor or with --resources limits.
+SIM_MEM_MB = 2000
+
+
+def pour_runtime_min():
+    return max(10, round(0.2 * config["pour"]["n_particles"]))
+
+
+def relax_runtime_min():
+    return max(10, round(0.05 * config["pour"]["n_particles"]))

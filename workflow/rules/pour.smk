@@ -1,0 +1,52 @@
+# Building a pile: particles poured from a point source (wedge) or from a line
+# source following the width of the pile's top (layered).
+
+
+rule compile_kernels:
+    # Compile (and cache in .numba_cache) every Numba kernel once, before the
+    # simulation jobs fan out, so that parallel jobs do not race on the cache.
+    input:
+        code=SIM_KERNEL_CODE,
+    output:
+        touch(COMPILED_FLAG),
+    log:
+        "logs/compile_kernels.log",
+    benchmark:
+        "benchmarks/compile_kernels.tsv"
+    threads: SIM_THREADS
+    resources:
+        mem_mb=SIM_MEM_MB,
+        runtime=15,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        sim_shell(
+            "warmup > {log:q} 2>&1"
+        )
+
+
+rule pour:
+    input:
+        code=SIM_KERNEL_CODE,
+        compiled=COMPILED_FLAG,
+    output:
+        pile("{protocol}", "{seed}", "poured"),
+    params:
+        sim=sim_params(),
+        checkpoint=lambda wildcards: pour_checkpoint(wildcards.protocol, wildcards.seed),
+    log:
+        "logs/pour/{protocol}/seed{seed}.log",
+    benchmark:
+        "benchmarks/pour/{protocol}/seed{seed}.tsv"
+    threads: SIM_THREADS
+    resources:
+        mem_mb=SIM_MEM_MB,
+        runtime=pour_runtime_min(),
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        sim_shell(
+            "pour --params {params.sim:q}"
+            " --protocol {wildcards.protocol} --seed {wildcards.seed}"
+            " --out {output:q} --checkpoint {params.checkpoint:q} > {log:q} 2>&1"
+        )

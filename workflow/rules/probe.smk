@@ -1,0 +1,33 @@
+# Gravity probes: lower gravity of a relaxed pile to (1 - Delta) g0 and let it
+# come to rest again. One stage per level in config probe.levels: the first is
+# `reduced` (CONTRACT.md), the others reducedNN (NN = round(100 Delta)).
+
+
+rule probe:
+    input:
+        state=pile("{protocol}", "{seed}", "relaxed"),
+        code=SIM_KERNEL_CODE,
+        compiled=COMPILED_FLAG,
+    output:
+        pile("{protocol}", "{seed}", "{stage}"),
+    wildcard_constraints:
+        stage=STAGE_PATTERN,
+    params:
+        sim=sim_params(),
+        level=lambda wildcards: level_for_stage(wildcards.stage),
+    log:
+        "logs/probe/{protocol}/seed{seed}_{stage}.log",
+    benchmark:
+        "benchmarks/probe/{protocol}/seed{seed}_{stage}.tsv"
+    threads: SIM_THREADS
+    resources:
+        mem_mb=SIM_MEM_MB,
+        runtime=relax_runtime_min(),
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        sim_shell(
+            "probe --params {params.sim:q}"
+            " --input {input.state:q} --level {params.level}"
+            " --out {output:q} > {log:q} 2>&1"
+        )

@@ -1,0 +1,27 @@
+# Letting a poured pile come to rest under full gravity g0.
+
+
+rule relax:
+    input:
+        state=pile("{protocol}", "{seed}", "poured"),
+        code=SIM_KERNEL_CODE,
+        compiled=COMPILED_FLAG,
+    output:
+        pile("{protocol}", "{seed}", "relaxed"),
+    params:
+        sim=sim_params(),
+    log:
+        "logs/relax/{protocol}/seed{seed}.log",
+    benchmark:
+        "benchmarks/relax/{protocol}/seed{seed}.tsv"
+    threads: SIM_THREADS
+    resources:
+        mem_mb=SIM_MEM_MB,
+        runtime=relax_runtime_min(),
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        sim_shell(
+            "relax --params {params.sim:q}"
+            " --input {input.state:q} --out {output:q} > {log:q} 2>&1"
+        )
