@@ -1,0 +1,113 @@
+"""Benchmark: ns per particle-step and per contact on a dense, settling heap.
+
+``python -m sim bench`` builds, for each N, a dense packing of the paper's
+particles between two walls on the support (a triangular lattice with spacing
+equal to the mean circumdiameter, so neighbours touch or overlap slightly),
+lets it settle for a short simulated time so the contact network forms, then
+times a fixed number of steps on 1 and on 2 threads.  It prints a table and
+ends with one JSON line of the figures.  Timings are medians of repeats.
+"""
+
+from __future__ import annotations
+
+import json
+import resource
+import time
+
+import numba
+import numpy as np
+
+from .config import ModelParams, ParticleParams
+from .engine import Simulation
+from .shapes import make_shapes
+
+
+def dense_packing(n, seed=0, model=None, particles=None):
+    """A box-confined packing of ``n`` particles on the support.
+
+    Parameters
+    ----------
+    n : int
+        Number of particles.
+    seed : int
+        Seed of the shapes and orientations.
+    model : ModelParams, optional
+    particles : ParticleParams, optional
+
+    Returns
+    -------
+    Simulation
+    """
+    model = model or ModelParams()
+    pp = particles or ParticleParams()
+    rng = np.random.default_rng(seed)
+    shapes = make_shapes(rng, n, pp.corners_min, pp.corners_max, pp.semi_axis_mean,
+                         pp.semi_axis_spread, model.density, pp.min_edge_fraction,
+                         pp.min_angle_deg)
+    d = 2.0 * float(np.mean(shapes.radius))
+    ncol = max(int(np.sqrt(n)), 1)
+    width = (ncol + 0.5) * d
+    sim = Simulation(shapes, model, walls=(-0.5 * width - 0.5 * d, 0.5 * width + 0.5 * d))
+    for k in range(n):
+        row, col = divmod(k, ncol)
+        x = -0.5 * width + (col + 0.5 + 0.5 * (row % 2)) * d
+        y = (0.5 + row * np.sqrt(3.0) / 2.0) * d
+        sim.place(k, x, y, rng.uniform(0, 2 * np.pi))
+    return sim
+
+
+def _array_bytes(sim):
+    """Bytes held by the simulation's arrays."""
+    total = 0
+    for v in list(vars(sim).values()) + list(vars(sim.shapes).values()):
+        if isinstance(v, np.ndarray):
+            total += v.nbytes
+    return total
+
+
+def measure(n, steps=300, settle=0.01, repeats=3, threads=(1, 2), seed=0):
+    """Time ``steps`` steps of a settled packing of ``n`` particles.
+
+    Returns
+    -------
+    dict
+        ``n``, ``contacts``, ``ns_per_particle_step`` and ``ns_per_contact``
+        for each thread count, ``bytes_per_particle``.
+    """
+    sim = dense_packing(n, seed)
+    sim.run(duration=settle)
+    n_contacts = len(sim.contacts()["i"])
+    out = {"n": n, "contacts": n_contacts, "dt": sim.dt,
+           "bytes_per_particle": _array_bytes(sim) / n}
+    for t in threads:
+        if t > numba.config.NUMBA_NUM_THREADS:
+            continue
+        numba.set_num_threads(t)
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            sim.run(steps=steps)
+            times.append(time.perf_counter() - t0)
+        med = float(np.median(times))
+        out[f"ns_per_particle_step_{t}t"] = med / steps / n * 1e9
+        out[f"ns_per_contact_{t}t"] = med / steps / max(n_contacts, 1) * 1e9
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    return out
+
+
+def main(sizes=(1000, 3000, 10000, 30000), steps=300):
+    """Run the benchmark and print a table and a final JSON line."""
+    rows = []
+    print(f"{'N':>7} {'contacts':>9} {'ns/p-step 1t':>13} {'ns/p-step 2t':>13} "
+          f"{'ns/contact 2t':>14} {'B/particle':>11}", flush=True)
+    for n in sizes:
+        r = measure(n, steps=steps)
+        rows.append(r)
+        print(f"{n:>7} {r['contacts']:>9} {r.get('ns_per_particle_step_1t', np.nan):>13.1f} "
+              f"{r.get('ns_per_particle_step_2t', np.nan):>13.1f} "
+              f"{r.get('ns_per_contact_2t', np.nan):>14.1f} "
+              f"{r['bytes_per_particle']:>11.0f}", flush=True)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    print(json.dumps({"bench": rows, "peak_rss_bytes": peak,
+                      "threads_available": numba.config.NUMBA_NUM_THREADS}))
+    return rows

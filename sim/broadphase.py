@@ -1,0 +1,172 @@
+"""Broad phase: O(N) candidate pairs from a cell list with a Verlet skin.
+
+Every particle is enclosed by its circumcircle (radius ``R_i``, invariant under
+rotation).  Two particles are *candidates* when their centres are closer than
+``R_i + R_j + skin``.  The candidate list is rebuilt only when some particle
+has moved more than ``skin / 2`` since the last build, so between builds it
+is guaranteed to contain every overlapping pair; each step then tests only the
+candidates (bounding boxes, then the exact narrow phase of :mod:`sim.geometry`).
+
+The build sorts particles into square cells of side ``2 R_max + skin`` (a
+counting sort, O(N)) and scans the 3 × 3 neighbourhood of each particle's cell,
+so its cost grows linearly with N and does not depend on corner counts.  The
+list is ordered by ``(i, j)`` with ``i < j``; that order, and the per-particle
+index built by :func:`particle_pair_index`, make force sums deterministic, so
+a restarted run retraces the same trajectory.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True)
+def _cell_grid(x, y, n, cell):
+    """Origin, cell counts and cell index of each of the first n particles."""
+    xmin = x[0]
+    xmax = x[0]
+    ymin = y[0]
+    ymax = y[0]
+    for i in range(1, n):
+        xmin = min(xmin, x[i])
+        xmax = max(xmax, x[i])
+        ymin = min(ymin, y[i])
+        ymax = max(ymax, y[i])
+    # never more cells than a few per particle, however far particles spread
+    while ((xmax - xmin) / cell + 1.0) * ((ymax - ymin) / cell + 1.0) > 4.0 * n + 64.0:
+        cell *= 2.0
+    nx = int((xmax - xmin) / cell) + 1
+    ny = int((ymax - ymin) / cell) + 1
+    cx = np.empty(n, np.int64)
+    cy = np.empty(n, np.int64)
+    for i in range(n):
+        cx[i] = min(int((x[i] - xmin) / cell), nx - 1)
+        cy[i] = min(int((y[i] - ymin) / cell), ny - 1)
+    return nx, ny, cx, cy
+
+
+@njit(cache=True, parallel=True)
+def candidate_pairs(x, y, radius, n, skin):
+    """All pairs ``i < j`` of the first ``n`` particles closer than ``R_i + R_j + skin``.
+
+    Parameters
+    ----------
+    x, y : numpy.ndarray
+        Centres, m.
+    radius : numpy.ndarray
+        Circumradii, m.
+    n : int
+        Number of active particles (the first n entries).
+    skin : float
+        Verlet skin, m.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        ``pi``, ``pj`` (int64), sorted by ``(pi, pj)``.
+    """
+    if n < 2:
+        return np.empty(0, np.int64), np.empty(0, np.int64)
+    rmax = 0.0
+    for i in range(n):
+        rmax = max(rmax, radius[i])
+    nx, ny, cx, cy = _cell_grid(x, y, n, 2.0 * rmax + skin)
+    ncell = nx * ny
+    start = np.zeros(ncell + 1, np.int64)
+    for i in range(n):
+        start[cx[i] + nx * cy[i] + 1] += 1
+    for c in range(ncell):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(n, np.int64)
+    for i in range(n):
+        c = cx[i] + nx * cy[i]
+        order[fill[c]] = i
+        fill[c] += 1
+
+    count = np.zeros(n + 1, np.int64)
+    for i in prange(n):
+        k = 0
+        for gy in range(max(cy[i] - 1, 0), min(cy[i] + 2, ny)):
+            for gx in range(max(cx[i] - 1, 0), min(cx[i] + 2, nx)):
+                c = gx + nx * gy
+                for q in range(start[c], start[c + 1]):
+                    j = order[q]
+                    if j > i:
+                        reach = radius[i] + radius[j] + skin
+                        dx = x[j] - x[i]
+                        dy = y[j] - y[i]
+                        if dx * dx + dy * dy < reach * reach:
+                            k += 1
+        count[i + 1] = k
+    for i in range(n):
+        count[i + 1] += count[i]
+    total = count[n]
+    pi = np.empty(total, np.int64)
+    pj = np.empty(total, np.int64)
+    for i in prange(n):
+        k = count[i]
+        for gy in range(max(cy[i] - 1, 0), min(cy[i] + 2, ny)):
+            for gx in range(max(cx[i] - 1, 0), min(cx[i] + 2, nx)):
+                c = gx + nx * gy
+                for q in range(start[c], start[c + 1]):
+                    j = order[q]
+                    if j > i:
+                        reach = radius[i] + radius[j] + skin
+                        dx = x[j] - x[i]
+                        dy = y[j] - y[i]
+                        if dx * dx + dy * dy < reach * reach:
+                            # insertion sort keeps each particle's partners ordered
+                            m = k
+                            while m > count[i] and pj[m - 1] > j:
+                                pj[m] = pj[m - 1]
+                                m -= 1
+                            pj[m] = j
+                            pi[k] = i
+                            k += 1
+    return pi, pj
+
+
+@njit(cache=True)
+def particle_pair_index(pi, pj, n):
+    """CSR index of the pairs each particle belongs to, in pair order.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        ``offset`` (n + 1) and ``pairs``: the pairs of particle ``p`` are
+        ``pairs[offset[p]:offset[p + 1]]``.
+    """
+    offset = np.zeros(n + 1, np.int64)
+    for p in range(pi.shape[0]):
+        offset[pi[p] + 1] += 1
+        offset[pj[p] + 1] += 1
+    for i in range(n):
+        offset[i + 1] += offset[i]
+    fill = offset[:-1].copy()
+    pairs = np.empty(offset[n], np.int64)
+    for p in range(pi.shape[0]):
+        pairs[fill[pi[p]]] = p
+        fill[pi[p]] += 1
+        pairs[fill[pj[p]]] = p
+        fill[pj[p]] += 1
+    return offset, pairs
+
+
+@njit(cache=True)
+def carry_history(old_i, old_j, old_value, new_i, new_j):
+    """Carry per-pair history from an old sorted pair list to a new one.
+
+    Pairs absent from the old list start at zero (a new contact's spring is
+    zero, Appendix).  Both lists must be sorted by ``(i, j)``.
+    """
+    out = np.zeros(new_i.shape[0])
+    a = 0
+    for b in range(new_i.shape[0]):
+        while a < old_i.shape[0] and (old_i[a] < new_i[b] or
+                                      (old_i[a] == new_i[b] and old_j[a] < new_j[b])):
+            a += 1
+        if a < old_i.shape[0] and old_i[a] == new_i[b] and old_j[a] == new_j[b]:
+            out[b] = old_value[a]
+    return out

@@ -1,0 +1,306 @@
+"""Run parameters of the simulator, with validation and defaults.
+
+Every parameter that changes between runs lives here and is passed to the
+kernels as an argument; nothing is a module global that Numba could freeze into
+compiled code.  The defaults equal those of ``workflow/schemas/config.schema.yaml``
+(a test checks this), so the command line and the workflow agree.
+
+Units are SI in two dimensions: lengths in m, masses in kg, the particle
+Young's modulus in N/m, 2D densities in kg/m².
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+
+class ConfigError(ValueError):
+    """A setting has a wrong type or a value outside what is allowed."""
+
+
+def _check_number(section: str, name: str, value: Any, lo=None, hi=None,
+                  lo_open=False, hi_open=False, integer=False) -> None:
+    """Raise :class:`ConfigError` unless ``value`` is a finite number in range."""
+    key = f"{section}.{name}"
+    kind = "an integer" if integer else "a number"
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or (
+            integer and not isinstance(value, int)):
+        raise ConfigError(f"{key} = {value!r}: must be {kind}")
+    if not math.isfinite(value):
+        raise ConfigError(f"{key} = {value!r}: must be finite")
+    lo_txt = None if lo is None else (f"> {lo}" if lo_open else f">= {lo}")
+    hi_txt = None if hi is None else (f"< {hi}" if hi_open else f"<= {hi}")
+    allowed = " and ".join(t for t in (lo_txt, hi_txt) if t)
+    if lo is not None and (value < lo or (lo_open and value == lo)):
+        raise ConfigError(f"{key} = {value!r}: must be {allowed}")
+    if hi is not None and (value > hi or (hi_open and value == hi)):
+        raise ConfigError(f"{key} = {value!r}: must be {allowed}")
+
+
+@dataclass(frozen=True)
+class ModelParams:
+    """Contact law, material and integration parameters.
+
+    Attributes
+    ----------
+    youngs_modulus : float
+        Particle Young's modulus Y in N/m (2D), F⊥ = Y·A/l (paper, Appendix).
+    damping : float
+        Dimensionless normal damping coefficient γ of the Appendix.
+    friction : float
+        Coulomb coefficient μ between particles (static = dynamic).
+    support_friction : float
+        Coulomb coefficient between particles and the support and walls.
+    density : float
+        2D mass density in kg/m² (mass = density × polygon area).
+    integrator : str
+        ``"gear"`` (5th-order Gear predictor–corrector, the paper's) or
+        ``"verlet"`` (velocity Verlet).
+    dt : float or None
+        Time step in s; ``None`` selects it by the rule of :mod:`sim.timestep`.
+    dt_safety : float
+        Fraction of the integrator's stability limit that the automatic rule
+        uses, and beyond which a given ``dt`` is refused.
+    max_overlap_fraction : float
+        Blow-up detector: an overlap area above this fraction of the smaller
+        particle's area stops the run.
+    """
+
+    youngs_modulus: float = 1.0e7
+    damping: float = 0.1
+    friction: float = 0.5
+    support_friction: float = 0.5
+    density: float = 2500.0
+    integrator: str = "gear"
+    dt: float | None = None
+    dt_safety: float = 0.5
+    max_overlap_fraction: float = 0.2
+
+    def __post_init__(self):
+        s = "model"
+        _check_number(s, "youngs_modulus", self.youngs_modulus, lo=0, lo_open=True)
+        _check_number(s, "damping", self.damping, lo=0, hi=10)
+        _check_number(s, "friction", self.friction, lo=0, hi=10)
+        _check_number(s, "support_friction", self.support_friction, lo=0, hi=10)
+        _check_number(s, "density", self.density, lo=0, lo_open=True)
+        if self.integrator not in ("gear", "verlet"):
+            raise ConfigError(f"model.integrator = {self.integrator!r}: must be one of "
+                              "'gear', 'verlet'")
+        if self.dt is not None:
+            _check_number(s, "dt", self.dt, lo=0, lo_open=True)
+        _check_number(s, "dt_safety", self.dt_safety, lo=0, hi=1, lo_open=True)
+        _check_number(s, "max_overlap_fraction", self.max_overlap_fraction,
+                      lo=0, hi=1, lo_open=True, hi_open=True)
+
+
+@dataclass(frozen=True)
+class ParticleParams:
+    """How particle shapes are drawn (paper, Section 3.1).
+
+    Attributes
+    ----------
+    corners_min, corners_max : int
+        Range of the corner count, drawn uniformly.
+    semi_axis_mean : float
+        Mean semi-axis of the circumscribing ellipse in m (3.4 mm in the paper).
+    semi_axis_spread : float
+        Both semi-axes are uniform in ``mean·(1 ± spread)`` (0.3 in the paper).
+    min_edge_fraction : float
+        Shortest allowed edge as a fraction of the smaller ellipse diameter.
+    min_angle_deg : float
+        Interior angles must lie in ``[min_angle_deg, 180 - min_angle_deg]``.
+    """
+
+    corners_min: int = 6
+    corners_max: int = 8
+    semi_axis_mean: float = 3.4e-3
+    semi_axis_spread: float = 0.3
+    min_edge_fraction: float = 0.1
+    min_angle_deg: float = 15.0
+
+    def __post_init__(self):
+        s = "particles"
+        _check_number(s, "corners_min", self.corners_min, lo=3, hi=32, integer=True)
+        _check_number(s, "corners_max", self.corners_max, lo=3, hi=32, integer=True)
+        if self.corners_max < self.corners_min:
+            raise ConfigError(f"particles.corners_max = {self.corners_max}: must be >= "
+                              f"particles.corners_min = {self.corners_min}")
+        _check_number(s, "semi_axis_mean", self.semi_axis_mean, lo=0, lo_open=True)
+        _check_number(s, "semi_axis_spread", self.semi_axis_spread, lo=0, hi=0.9)
+        _check_number(s, "min_edge_fraction", self.min_edge_fraction, lo=0, hi=0.5,
+                      lo_open=True)
+        _check_number(s, "min_angle_deg", self.min_angle_deg, lo=0, hi=60,
+                      lo_open=True, hi_open=True)
+
+
+@dataclass(frozen=True)
+class PourParams:
+    """Pouring protocols (wedge: point source; layered: line source).
+
+    Attributes
+    ----------
+    n_particles : int
+        Particles to pour.
+    rate : float
+        Release rate in particles per second.
+    release_height : float
+        Height of the release point above the current top of the pile, m.
+    release_speed : float
+        Downward speed given to a released particle, m/s.
+    jitter : float
+        Half-width of the uniform horizontal jitter of the point source, m.
+    line_margin : float
+        Layered sequence: extra length on each side of the measured top width, m.
+    top_band : float
+        Layered sequence: the top width is the horizontal extent of the settled
+        particles whose centres lie within this band below the pile's top, m.
+    checkpoint_interval : float
+        Wall-clock seconds between checkpoints.
+    progress_interval : float
+        Wall-clock seconds between progress lines.
+    """
+
+    n_particles: int = 3500
+    rate: float = 100.0
+    release_height: float = 0.02
+    release_speed: float = 0.5
+    jitter: float = 1.0e-3
+    line_margin: float = 0.0
+    top_band: float = 0.01
+    checkpoint_interval: float = 120.0
+    progress_interval: float = 10.0
+
+    def __post_init__(self):
+        s = "pour"
+        _check_number(s, "n_particles", self.n_particles, lo=1, integer=True)
+        _check_number(s, "rate", self.rate, lo=0, lo_open=True)
+        _check_number(s, "release_height", self.release_height, lo=0, lo_open=True)
+        _check_number(s, "release_speed", self.release_speed, lo=0)
+        _check_number(s, "jitter", self.jitter, lo=0)
+        _check_number(s, "line_margin", self.line_margin, lo=0)
+        _check_number(s, "top_band", self.top_band, lo=0, lo_open=True)
+        _check_number(s, "checkpoint_interval", self.checkpoint_interval, lo=0,
+                      lo_open=True)
+        _check_number(s, "progress_interval", self.progress_interval, lo=0, lo_open=True)
+
+
+@dataclass(frozen=True)
+class RelaxParams:
+    """Criterion for "at rest" and the cap on relaxation time.
+
+    Attributes
+    ----------
+    kinetic_energy_fraction : float
+        Mean kinetic energy per particle must fall below this fraction of
+        ``m g d`` (mean mass, gravity, mean diameter).
+    max_speed : float
+        No particle may move faster than this, m/s.
+    hold_time : float
+        Both criteria must hold for this long, s.
+    max_time : float
+        Simulated time after which relaxation fails loudly, s.
+    """
+
+    kinetic_energy_fraction: float = 1.0e-6
+    max_speed: float = 1.0e-3
+    hold_time: float = 0.05
+    max_time: float = 10.0
+
+    def __post_init__(self):
+        s = "relax"
+        _check_number(s, "kinetic_energy_fraction", self.kinetic_energy_fraction, lo=0,
+                      lo_open=True)
+        _check_number(s, "max_speed", self.max_speed, lo=0, lo_open=True)
+        _check_number(s, "hold_time", self.hold_time, lo=0)
+        _check_number(s, "max_time", self.max_time, lo=0, lo_open=True)
+
+
+@dataclass(frozen=True)
+class ProbeParams:
+    """The gravity probe: lower gravity by each level Δ and relax again.
+
+    Attributes
+    ----------
+    levels : tuple of float
+        Relative gravity reductions Δ, each in (0, 1); the first one's stage is
+        called ``reduced``.
+    mode : str
+        ``"step"`` lowers gravity at once, ``"ramp"`` linearly over ``ramp_time``.
+    ramp_time : float
+        Duration of the ramp, s.
+    """
+
+    levels: tuple = (0.10,)
+    mode: str = "step"
+    ramp_time: float = 0.1
+
+    def __post_init__(self):
+        if not isinstance(self.levels, (list, tuple)) or len(self.levels) == 0:
+            raise ConfigError(f"probe.levels = {self.levels!r}: must be a non-empty list "
+                              "of numbers in (0, 1)")
+        for lev in self.levels:
+            _check_number("probe", "levels[]", lev, lo=0, hi=1, lo_open=True, hi_open=True)
+        if len(set(self.levels)) != len(self.levels):
+            raise ConfigError(f"probe.levels = {list(self.levels)!r}: must be unique")
+        object.__setattr__(self, "levels", tuple(float(v) for v in self.levels))
+        if self.mode not in ("step", "ramp"):
+            raise ConfigError(f"probe.mode = {self.mode!r}: must be one of 'step', 'ramp'")
+        _check_number("probe", "ramp_time", self.ramp_time, lo=0, lo_open=True)
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """All simulator sections of a run configuration."""
+
+    model: ModelParams = field(default_factory=ModelParams)
+    particles: ParticleParams = field(default_factory=ParticleParams)
+    pour: PourParams = field(default_factory=PourParams)
+    relax: RelaxParams = field(default_factory=RelaxParams)
+    probe: ProbeParams = field(default_factory=ProbeParams)
+
+    @classmethod
+    def from_dict(cls, data: dict | None) -> "SimConfig":
+        """Build from a nested dict (missing keys take defaults, unknown keys fail).
+
+        Parameters
+        ----------
+        data : dict or None
+            Mapping of section name to a mapping of settings.
+
+        Returns
+        -------
+        SimConfig
+        """
+        data = dict(data or {})
+        sections = {}
+        for f in dataclasses.fields(cls):
+            sub = data.pop(f.name, None) or {}
+            if not isinstance(sub, dict):
+                raise ConfigError(f"{f.name} = {sub!r}: must be a mapping of settings")
+            klass = f.default_factory
+            known = {g.name for g in dataclasses.fields(klass)}
+            unknown = sorted(set(sub) - known)
+            if unknown:
+                raise ConfigError(f"{f.name}: unknown setting(s) {unknown}; allowed: "
+                                  f"{sorted(known)}")
+            sections[f.name] = klass(**sub)
+        return cls(**sections)
+
+    @classmethod
+    def from_json(cls, text: str) -> "SimConfig":
+        """Build from JSON text (see :meth:`from_dict`)."""
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ConfigError(f"--params is not valid JSON: {exc}") from None
+        return cls.from_dict(data)
+
+    def to_dict(self) -> dict:
+        """Plain nested dict of all settings (JSON-serialisable)."""
+        out = dataclasses.asdict(self)
+        out["probe"]["levels"] = list(out["probe"]["levels"])
+        return out

@@ -1,0 +1,104 @@
+"""The contact force law of the paper's Appendix, one function per formula.
+
+All functions are Numba kernels operating on scalars, called from the pair and
+body loops of :mod:`sim.forces`.  Notation (Appendix, Fig. 6): ``A`` overlap
+area, ``l`` characteristic length, ``n`` unit normal of the contact line
+pointing from particle i to particle j, ``t = (−n_y, n_x)`` the tangent,
+``v_rel`` the velocity of i's material point at the force point ``s`` relative
+to j's.
+
+Sign conventions.  The normal force on i is ``−(F⊥ + D⊥) n``.  The tangential
+force on i is ``−T t`` where ``T`` is the (capped) Cundall–Strack spring plus
+tangential damping; the spring integrates ``(2/7) Y v∥ dt`` so its force
+opposes the accumulated relative tangential displacement and the damping
+opposes the relative tangential velocity, which is how a contact can stick
+(the block on the incline) while always resisting the relative motion.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+
+@njit(cache=True, inline="always")
+def characteristic_length(ri, rj):
+    """Contact length ``l = r_i r_j / (r_i + r_j)`` (Appendix).
+
+    For a fixed body (support, wall) pass ``rj = inf``: then ``l = r_i``.
+    """
+    if math.isinf(rj):
+        return ri
+    return ri * rj / (ri + rj)
+
+
+@njit(cache=True, inline="always")
+def reduced_mass(inv_mi, inv_mj):
+    """Normal reduced mass ``m⊥ = m_i m_j / (m_i + m_j)`` from inverse masses (Appendix)."""
+    return 1.0 / (inv_mi + inv_mj)
+
+
+@njit(cache=True, inline="always")
+def tangential_mass(inv_mi, inv_mj, ri, rj, inv_ii, inv_ij):
+    """Tangential mass ``m∥ = 1 / (1/m_i + 1/m_j + r_i²/I_i + r_j²/I_j)`` (Appendix)."""
+    return 1.0 / (inv_mi + inv_mj + ri * ri * inv_ii + rj * rj * inv_ij)
+
+
+@njit(cache=True, inline="always")
+def normal_force(area, area_rate, l, m_perp, youngs_modulus, damping):
+    """Elastic plus damping normal force ``F⊥ + D⊥`` (Appendix, (i) and (ii)).
+
+    ``F⊥ = Y A / l`` and ``D*⊥ = γ sqrt(Y m⊥) dA/dt / l``.  On approach
+    (``dA/dt > 0``) ``D⊥ = D*⊥``; on separation ``D⊥ = max(D*⊥, −F⊥)`` so the
+    total never attracts.  ``dA/dt`` is the exact rate ``L v_n`` of the
+    contact-line length times the normal approach speed (the paper's
+    ``ΔA / Δt`` is its finite-difference estimate).
+
+    Returns
+    -------
+    (float, float)
+        Elastic part ``F⊥`` and total ``F⊥ + D⊥`` (>= 0).
+    """
+    f_el = youngs_modulus * area / l
+    d = damping * math.sqrt(youngs_modulus * m_perp) * area_rate / l
+    if area_rate < 0.0 and d < -f_el:
+        d = -f_el
+    return f_el, f_el + d
+
+
+@njit(cache=True, inline="always")
+def tangential_force(spring, v_par, f_el, m_par, youngs_modulus, friction, dt):
+    """Cundall–Strack tangential force with Coulomb cap (Appendix, (iii)).
+
+    ``F*∥(t+dt) = min(F*∥(t) + (2/7) Y v∥ dt, μ F⊥)`` is the spring (its
+    magnitude capped, sign kept), ``D∥ = v∥ sqrt((2/7) Y m∥)`` the damping, and
+    the total is ``± min(|F*∥ + D∥|, μ F⊥)``.  Static and dynamic μ are equal.
+
+    Parameters
+    ----------
+    spring : float
+        Spring force from the previous step (0 for a new contact), N.
+    v_par : float
+        Relative tangential velocity ``v_rel · t``, m/s.
+    f_el : float
+        Elastic normal force ``F⊥`` (the cap is ``μ F⊥``), N.
+
+    Returns
+    -------
+    (float, float)
+        The total tangential force ``T`` and the updated spring.
+    """
+    k_t = 2.0 / 7.0 * youngs_modulus
+    cap = friction * f_el
+    s = spring + k_t * v_par * dt
+    if s > cap:
+        s = cap
+    elif s < -cap:
+        s = -cap
+    total = s + v_par * math.sqrt(k_t * m_par)
+    if total > cap:
+        total = cap
+    elif total < -cap:
+        total = -cap
+    return total, s

@@ -1,0 +1,253 @@
+"""State files: save and load the particle state of CONTRACT.md §1.
+
+A state file holds exactly the contract's variables plus what a restart needs
+to continue the same trajectory: ``gear_derivatives`` (all time derivatives
+the integrator keeps) and ``contact_spring`` (the Cundall–Strack history of
+each contact).  Files are written to a temporary name and renamed when
+complete, so a killed job never leaves a file that looks whole.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time as _time
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from . import __version__
+from .config import ModelParams
+from .engine import BODY_SUPPORT, Simulation
+from .shapes import shapes_from_nodes
+
+PARTICLE_VARS = {
+    "x": ("m", "x coordinate of the centre of mass"),
+    "y": ("m", "y coordinate of the centre of mass (support surface at y = 0)"),
+    "theta": ("rad", "orientation"),
+    "vx": ("m/s", "x velocity"),
+    "vy": ("m/s", "y velocity"),
+    "omega": ("rad/s", "angular velocity"),
+    "mass": ("kg", "mass (2D density times area)"),
+    "inertia": ("kg m2", "moment of inertia about the centre of mass"),
+    "area": ("m2", "polygon area"),
+}
+CONTACT_VARS = {
+    "contact_x": ("m", "x of the force point (midpoint of the contact line)"),
+    "contact_y": ("m", "y of the force point (midpoint of the contact line)"),
+    "force_x": ("N", "x of the total contact force on contact_i"),
+    "force_y": ("N", "y of the total contact force on contact_i"),
+    "normal_x": ("1", "x of the unit normal from contact_i towards contact_j"),
+    "normal_y": ("1", "y of the unit normal from contact_i towards contact_j"),
+    "overlap_area": ("m2", "overlap area A"),
+    "contact_spring": ("N", "tangential spring force (Cundall-Strack history) of the "
+                            "contact, along t = (-normal_y, normal_x), acting on "
+                            "contact_i as -contact_spring * t"),
+}
+
+
+class StateFileError(ValueError):
+    """A state file is missing a variable or holds invalid values."""
+
+
+def atomic_write(ds: xr.Dataset, path) -> None:
+    """Write a dataset to ``path`` through a temporary file and a rename.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+    path : str or Path
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        ds.to_netcdf(tmp, engine="netcdf4")
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Dataset:
+    """The CONTRACT.md §1 dataset of a simulation's current state.
+
+    Parameters
+    ----------
+    sim : Simulation
+    config : dict, optional
+        Effective configuration of the run (stored as JSON text).
+    **attrs
+        Further global attributes (``protocol``, ``seed``, ...).
+
+    Returns
+    -------
+    xarray.Dataset
+    """
+    n = sim.n
+    sh = sim.shapes
+    pos = sim.position
+    vel = sim.velocity
+    off = int(sh.node_offset[n])
+    data = {
+        "x": pos[:, 0], "y": pos[:, 1], "theta": sim.theta,
+        "vx": vel[:, 0], "vy": vel[:, 1], "omega": sim.omega,
+        "mass": sh.mass[:n], "inertia": sh.inertia[:n], "area": sh.area[:n],
+    }
+    ds = xr.Dataset()
+    for name, (units, long_name) in PARTICLE_VARS.items():
+        ds[name] = xr.DataArray(np.asarray(data[name], float), dims="particle",
+                                attrs={"units": units, "long_name": long_name})
+    ds["node_count"] = xr.DataArray(sh.node_count[:n].astype(np.int32), dims="particle",
+                                    attrs={"units": "1", "long_name": "corners of each "
+                                           "polygon", "sample_dimension": "node"})
+    ds["node_x"] = xr.DataArray(sh.node_x[:off], dims="node", attrs={
+        "units": "m", "long_name": "corner x in the body frame (centre of mass, theta = 0), "
+        "counter-clockwise, polygon after polygon"})
+    ds["node_y"] = xr.DataArray(sh.node_y[:off], dims="node", attrs={
+        "units": "m", "long_name": "corner y in the body frame"})
+    c = sim.contacts()
+    ds["contact_i"] = xr.DataArray(c["i"].astype(np.int32), dims="contact",
+                                   attrs={"units": "1", "long_name": "particle index i"})
+    ds["contact_j"] = xr.DataArray(c["j"].astype(np.int32), dims="contact", attrs={
+        "units": "1", "long_name": "particle index j; -1 support, -2 left wall, "
+        "-3 right wall"})
+    values = {"contact_x": c["x"], "contact_y": c["y"], "force_x": c["fx"],
+              "force_y": c["fy"], "normal_x": c["nx"], "normal_y": c["ny"],
+              "overlap_area": c["area"], "contact_spring": c["spring"]}
+    for name, (units, long_name) in CONTACT_VARS.items():
+        ds[name] = xr.DataArray(values[name], dims="contact",
+                                attrs={"units": units, "long_name": long_name})
+    ds["gear_derivatives"] = xr.DataArray(
+        sim.derivatives(), dims=("derivative", "dof", "particle"),
+        coords={"dof": ["x", "y", "theta"]},
+        attrs={"units": "m s-k (rad s-k for theta)", "long_name": "k-th time derivatives "
+               "of x, y, theta kept by the integrator (restart data)"})
+    m = sim.model
+    g = float(np.hypot(*sim.gravity))
+    walls = sim.walls if sim.walls is not None else (np.nan, np.nan)
+    ds.attrs = {
+        "Conventions": "CF-1.8",
+        "title": "Particle state of a 2D pile of soft convex polygons",
+        "source": f"polypile sim {__version__}",
+        "history": f"{_time.strftime('%Y-%m-%dT%H:%M:%SZ', _time.gmtime())} written by "
+                   "sim.io.state_dataset",
+        "config": json.dumps(config or {}, sort_keys=True),
+        "time": float(sim.time), "step": int(sim.step),
+        "gravity": g, "gravity_x": sim.gravity[0], "gravity_y": sim.gravity[1],
+        "youngs_modulus": m.youngs_modulus, "damping": m.damping, "friction": m.friction,
+        "support_friction": m.support_friction, "density": m.density,
+        "dt": float(sim.dt), "integrator": m.integrator,
+        "support": int(BODY_SUPPORT in sim.body_ids.tolist()),
+        "wall_left": float(walls[0]), "wall_right": float(walls[1]),
+        "rotate": int(sim.rotate),
+    }
+    ds.attrs.update(attrs)
+    return ds
+
+
+def save_state(sim: Simulation, path, config: dict | None = None, **attrs) -> None:
+    """Write the simulation's state to ``path`` atomically (see :func:`state_dataset`)."""
+    atomic_write(state_dataset(sim, config, **attrs), path)
+
+
+REQUIRED = list(PARTICLE_VARS) + ["node_count", "node_x", "node_y", "contact_i",
+                                  "contact_j", "gear_derivatives"] + list(CONTACT_VARS)
+
+
+def read_state(path) -> xr.Dataset:
+    """Open and validate a state file (every variable present and finite).
+
+    Raises
+    ------
+    StateFileError
+        Naming the file, the variable and the problem.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise StateFileError(f"state file {path} does not exist")
+    with xr.open_dataset(path, engine="netcdf4") as ds:
+        ds = ds.load()
+    missing = [v for v in REQUIRED if v not in ds]
+    if missing:
+        raise StateFileError(f"state file {path}: missing variable(s) {missing}")
+    for v in REQUIRED:
+        vals = np.asarray(ds[v].values, float)
+        if not np.all(np.isfinite(vals)):
+            k = int(np.argmax(~np.isfinite(vals.ravel())))
+            raise StateFileError(f"state file {path}: variable {v} holds NaN or Inf "
+                                 f"(first at flat index {k})")
+    n = ds.sizes["particle"]
+    if int(ds["node_count"].sum()) != ds.sizes["node"]:
+        raise StateFileError(f"state file {path}: node_count sums to "
+                             f"{int(ds['node_count'].sum())} but there are "
+                             f"{ds.sizes['node']} nodes")
+    ci = ds["contact_i"].values
+    cj = ds["contact_j"].values
+    if ci.size and (ci.min() < 0 or ci.max() >= n or cj.max() >= n or cj.min() < -3):
+        raise StateFileError(f"state file {path}: contact indices outside 0..{n - 1} "
+                             "(contact_j may also be -1, -2, -3)")
+    return ds
+
+
+def model_from_attrs(ds: xr.Dataset) -> ModelParams:
+    """The model parameters a state file was made with (its dt included)."""
+    a = ds.attrs
+    return ModelParams(youngs_modulus=float(a["youngs_modulus"]),
+                       damping=float(a["damping"]), friction=float(a["friction"]),
+                       support_friction=float(a["support_friction"]),
+                       density=float(a["density"]), integrator=str(a["integrator"]),
+                       dt=float(a["dt"]))
+
+
+def load_simulation(path, model: ModelParams | None = None, capacity_shapes=None):
+    """Rebuild a :class:`Simulation` from a state file to continue its run.
+
+    Parameters
+    ----------
+    path : str or Path
+    model : ModelParams, optional
+        Parameters to continue with (default: those stored in the file,
+        including its time step).  With ``model.dt`` None the file's dt is kept
+        so the trajectory continues unchanged.
+    capacity_shapes : Shapes, optional
+        Shapes of a larger set whose first particles are the file's (a pour
+        resumed from a checkpoint); their corners must match the file's.
+
+    Returns
+    -------
+    (Simulation, xarray.Dataset)
+    """
+    ds = read_state(path)
+    stored = model_from_attrs(ds)
+    if model is None:
+        model = stored
+    elif model.dt is None:
+        model = ModelParams(**{**model.__dict__, "dt": stored.dt})
+    n = ds.sizes["particle"]
+    node_count = ds["node_count"].values.astype(np.int64)
+    shapes = shapes_from_nodes(node_count, ds["node_x"].values, ds["node_y"].values,
+                               model.density)
+    if capacity_shapes is not None:
+        off = int(shapes.node_offset[n])
+        if not (np.array_equal(capacity_shapes.node_count[:n], node_count) and
+                np.allclose(capacity_shapes.node_x[:off], shapes.node_x, rtol=0,
+                            atol=1e-12 * float(np.max(shapes.radius)))):
+            raise StateFileError(f"state file {path}: its particles are not the first {n} "
+                                 "of the requested set (different seed or shapes?)")
+        shapes = capacity_shapes
+    walls = None
+    if np.isfinite(ds.attrs.get("wall_left", np.nan)):
+        walls = (float(ds.attrs["wall_left"]), float(ds.attrs["wall_right"]))
+    sim = Simulation(shapes, model, gravity=(float(ds.attrs["gravity_x"]),
+                                             float(ds.attrs["gravity_y"])),
+                     support=bool(ds.attrs.get("support", 1)), walls=walls,
+                     rotate=bool(ds.attrs.get("rotate", 1)))
+    sim.set_derivatives(ds["gear_derivatives"].values)
+    sim.time = float(ds.attrs["time"])
+    sim.step = int(ds.attrs["step"])
+    sim.set_springs(ds["contact_i"].values.astype(np.int64),
+                    ds["contact_j"].values.astype(np.int64),
+                    ds["contact_spring"].values)
+    return sim, ds
