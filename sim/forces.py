@@ -23,6 +23,7 @@ Numba's thread id.
 from __future__ import annotations
 
 import math
+import warnings
 
 import numba
 import numpy as np
@@ -245,6 +246,9 @@ def gather_and_correct(r, n, coeffs, dt, pi, pout, pair_offset, pair_index, body
             for k in range(1, nv):
                 r[k, 2, i] = 0.0
 
+
+# kernels are passed to advance() as first-class functions
+warnings.filterwarnings("ignore", category=numba.NumbaExperimentalFeatureWarning)
 
 # each kernel in a parallel and a serial build: below a few hundred particles
 # the cost of starting a parallel region exceeds the work
