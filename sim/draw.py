@@ -185,16 +185,23 @@ def draw_state(path_in, path_out, color_by="pressure", forces=True, dpi=150):
     pad = 0.03 * max(width, height)
 
     fig_w = 10.0
-    fig_h = min(max(2.5, fig_w * (height + 2 * pad) / (width + 2 * pad) + 1.2), 14.0)
+    fig_h = min(max(3.0, fig_w * (height + 2 * pad) / (width + 2 * pad) + 2.0), 14.0)
     fig = Figure(figsize=(fig_w, fig_h), layout="constrained")
     ax = fig.add_subplot()
 
     coll = PolyCollection(polys, edgecolors="0.25", linewidths=0.3)
+    extend = "neither"
     if color_by == "pressure":
         p = particle_pressure(ds)
         coll.set_array(p)
         coll.set_cmap("viridis")
-        lo, hi = (float(np.min(p)), float(np.max(p))) if p.size else (0.0, 1.0)
+        # Colour range: from min(0, lowest) to the highest value, or to the
+        # 99th percentile in a pile of 100 particles or more, so that a single
+        # impact does not wash out the pile.
+        lo = min(0.0, float(np.min(p))) if p.size else 0.0
+        hi = float(np.percentile(p, 99) if p.size >= 100 else np.max(p)) if p.size else 1.0
+        if p.size and hi < float(np.max(p)):
+            extend = "max"
         coll.set_clim(lo, hi if hi > lo else lo + 1.0)
     else:
         coll.set_facecolor("0.85")
@@ -229,7 +236,8 @@ def draw_state(path_in, path_out, color_by="pressure", forces=True, dpi=150):
     title.append(f"{ds.sizes['particle']} particles")
     ax.set_title(", ".join(title))
     if color_by == "pressure":
-        fig.colorbar(coll, ax=ax, shrink=0.8,
+        fig.colorbar(coll, ax=ax, orientation="horizontal", shrink=0.5,
+                     aspect=40, extend=extend,
                      label="particle pressure −(σxx+σyy)/2 [N/m] (Eq. 2)")
 
     _atomic_savefig(fig, path_out, dpi)
