@@ -1,3 +1,25 @@
-"""Micro-to-macro analysis of particle states: RVE fields, ensembles, elastic fits."""
+"""Micro-to-macro analysis of particle states: RVE fields, ensembles, elastic fits.
+
+Reads particle-state files only through the data contract (CONTRACT.md §1)
+and never imports the simulator. Modules, one concern each:
+
+``states``        read and validate contract state files
+``rve``           grid of RVE centres, membership of particles and contacts
+``stress``        Eq. 2 (particle and RVE stress)
+``strain``        Eqs 3–9 (Cambou best-fit displacement gradient)
+``fabric``        Eqs 10–12 (fabric tensor)
+``orientation``   principal values and axis angles
+``solid_fraction``, ``surface``  packing fraction, free surface and depth
+``fields``        the per-pile fields file (CONTRACT.md §2)
+``ensemble``      seed averages with standard errors (CONTRACT.md §3)
+``elastic``       Eqs 16–22 (isotropic and cubic fits)
+``invariants``    Sect. 6 (trace of stress vs trace of strain)
+``base_pressure`` forces per unit length on the support
+``balance``       balance-law checks
+``convergence``   RVE-size convergence (Fig. 1)
+``figures``       Figs 1–5 and the base pressure
+``netcdf``        CF attributes and atomic writes
+Command line: ``python -m analysis --help``.
+"""
 
 __version__ = "0.1.0"

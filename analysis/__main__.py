@@ -1,0 +1,264 @@
+"""Command line of the analysis: ``python -m analysis <command> ...`` (see ``--help``).
+
+Every command takes ``--params``: the ``analysis`` section of the workflow
+configuration as JSON text (or ``@file.json``); it is validated, with the
+defaults of :mod:`analysis.params` filled in, before any input is read. Bad
+parameters or inputs end with a one-line ``error: ...`` naming the setting,
+file or variable, and exit status 2 (parameters) or 1 (inputs, failed checks).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from typing import Any
+
+from . import __version__
+from .errors import AnalysisError, InputError, ParamError
+from .params import parse_params
+
+
+def _log(msg: str) -> None:
+    print(f"[analysis] {msg}", file=sys.stderr, flush=True)
+
+
+def _read(path: str):
+    from .netcdf import read_dataset
+
+    if not os.path.exists(path):
+        raise InputError(f"{path}: no such file")
+    try:
+        return read_dataset(path)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: cannot be read as netCDF ({exc})") from exc
+
+
+def _require(ds, path: str, names: tuple[str, ...]) -> None:
+    missing = [n for n in names if n not in ds.variables]
+    if missing:
+        raise InputError(f"{path}: missing variable(s) {', '.join(missing)}")
+
+
+def _labelled(items: list[str]) -> dict[str, str]:
+    """``label=path`` pairs (label defaults to the name of the file's folder)."""
+    out = {}
+    for it in items:
+        if "=" in it and "/" not in it.split("=", 1)[0]:
+            lab, path = it.split("=", 1)
+        else:
+            path = it
+            lab = os.path.basename(os.path.dirname(os.path.abspath(it))) or it
+        out[lab] = path
+    return out
+
+
+# ------------------------------------------------------------------ commands
+def cmd_params(args, params) -> None:
+    from .params import params_json
+
+    print(params_json(params))
+
+
+def cmd_fields(args, params) -> None:
+    from .balance import balance_report, enforce
+    from .fields import compute_fields
+    from .netcdf import write_dataset, write_json
+    from .states import check_same_particles, load_state
+
+    t0 = time.perf_counter()
+    relaxed = load_state(args.relaxed)
+    reduced = load_state(args.reduced)
+    check_same_particles(relaxed, reduced)
+    reports = {"relaxed": balance_report(relaxed, params["checks"]),
+               "reduced": balance_report(reduced, params["checks"])}
+    passed = all(r["passed"] for r in reports.values())
+    if args.checks:
+        write_json({"passed": passed, "tolerances": params["checks"], "stages": reports,
+                    "source": f"analysis {__version__}"}, args.checks)
+    for stage, r in reports.items():
+        _log(f"checks {stage}: support reaction rel. error {r.get('support_reaction_rel_error', float('nan')):.3g}, "
+             f"Love yy rel. error {r.get('love_rel_error_yy', float('nan')):.3g}, "
+             f"max net force / weight {r.get('net_force_ratio_max', float('nan')):.3g}")
+    if params["checks"]["enforce"]:
+        enforce(list(reports.values()))
+    ds = compute_fields(relaxed, reduced, params)
+    ds.attrs["balance_checks_passed"] = int(passed)
+    for stage, r in reports.items():
+        for k in ("support_reaction_rel_error", "love_rel_error_yy", "net_force_ratio_max"):
+            if k in r:
+                ds.attrs[f"{k}_{stage}"] = r[k]
+    write_dataset(ds, args.out, title=f"RVE fields of pile {os.path.basename(args.relaxed)} "
+                  f"({ds.attrs.get('protocol', '')}, seed {ds.attrs.get('seed', '')})", params=params)
+    _log(f"fields: {relaxed.n_particles} particles, {ds.sizes['y'] * ds.sizes['x']} RVEs, "
+         f"{time.perf_counter() - t0:.2f} s -> {args.out}")
+
+
+def cmd_ensemble(args, params) -> None:
+    from .ensemble import ensemble_fields
+    from .netcdf import write_dataset
+
+    dss = []
+    for p in args.fields:
+        ds = _read(p)
+        _require(ds, p, ("stress", "stress_increment", "strain_increment", "displacement_gradient", "fabric",
+                         "n_particles", "solid_fraction"))
+        dss.append(ds)
+    out = ensemble_fields(dss, list(args.fields))
+    write_dataset(out, args.out, title=f"ensemble fields, protocol {out.attrs.get('protocol', '')}, "
+                  f"{len(dss)} piles", params=params)
+    _log(f"ensemble of {len(dss)} piles -> {args.out}")
+
+
+def cmd_moduli(args, params) -> None:
+    from .elastic import moduli_dataset
+    from .netcdf import write_dataset
+
+    ens = _read(args.ensemble)
+    _require(ens, args.ensemble, ("stress_increment", "strain_increment"))
+    piles = []
+    for p in args.fields or []:
+        ds = _read(p)
+        _require(ds, p, ("stress_increment", "strain_increment"))
+        piles.append(ds)
+    out = moduli_dataset(ens, piles, params)
+    write_dataset(out, args.out, title=f"elastic moduli, protocol {out.attrs.get('protocol', '')}", params=params)
+    _log(f"moduli -> {args.out}")
+
+
+def cmd_base_pressure(args, params) -> None:
+    from .base_pressure import base_pressure_dataset
+    from .netcdf import write_dataset
+    from .states import load_state
+
+    states = [load_state(p) for p in args.states]
+    out = base_pressure_dataset(states, params)
+    write_dataset(out, args.out, title=f"forces on the support, protocol {out.attrs.get('protocol', '')}, "
+                  f"{len(states)} piles", params=params)
+    _log(f"base pressure of {len(states)} piles -> {args.out}")
+
+
+def cmd_invariants(args, params) -> None:
+    from .invariants import invariants_dataset
+    from .netcdf import write_dataset
+
+    ens = _read(args.ensemble)
+    _require(ens, args.ensemble, ("stress_increment", "strain_increment", "depth"))
+    out = invariants_dataset(ens, params)
+    write_dataset(out, args.out, title=f"stress and strain invariants, protocol {out.attrs.get('protocol', '')}",
+                  params=params)
+    _log(f"invariants -> {args.out}")
+
+
+def cmd_convergence(args, params) -> None:
+    from .convergence import convergence_dataset
+    from .netcdf import write_dataset
+    from .states import check_same_particles, load_state
+
+    relaxed, reduced = load_state(args.relaxed), load_state(args.reduced)
+    check_same_particles(relaxed, reduced)
+    out = convergence_dataset(relaxed, reduced, params)
+    write_dataset(out, args.out, title="RVE-size convergence", params=params)
+    _log(f"convergence -> {args.out}")
+
+
+def cmd_figure(args, params) -> None:
+    from . import figures
+
+    inputs = _labelled(args.inputs)
+    data = {lab: _read(p) for lab, p in inputs.items()}
+    first_lab, first = next(iter(data.items()))
+    f = params["figures"]
+    dpi = f["dpi"]
+    name = args.name
+    if name == "convergence":
+        _require(first, inputs[first_lab], ("stress", "strain_increment", "n_particles"))
+        figures.fig_convergence(first, args.out, dpi)
+    elif name == "vertical-strain":
+        for lab, ds in data.items():
+            _require(ds, inputs[lab], ("strain_increment",))
+        figures.fig_vertical_strain(data, f["heights"], args.out, dpi)
+    elif name == "fabric":
+        _require(first, inputs[first_lab], ("fabric_trace", "fabric_orientation", "stress_orientation"))
+        figures.fig_fabric(first, f["heights"], args.out, dpi, protocol=first_lab)
+    elif name == "moduli":
+        _require(first, inputs[first_lab], ("bulk_modulus", "E_av", "G_av"))
+        figures.fig_moduli(first, f["heights"], args.out, dpi, protocol=first_lab)
+    elif name == "invariants":
+        _require(first, inputs[first_lab], ("trace_stress_increment", "differential_bulk_modulus"))
+        figures.fig_invariants(first, args.out, dpi, protocol=first_lab)
+    elif name == "base-pressure":
+        for lab, ds in data.items():
+            _require(ds, inputs[lab], ("normal_force_density", "shear_force_density"))
+        figures.fig_base_pressure(data, args.out, dpi)
+    _log(f"figure {name} -> {', '.join(args.out)}")
+
+
+# ------------------------------------------------------------------ parser
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m analysis",
+        description="Micro-to-macro analysis of polygon piles (Roul, Schinner & Kassner 2010): RVE fields, "
+                    "ensembles, elastic fits, invariants, base pressure, figures. Reads particle states through "
+                    "CONTRACT.md section 1 only.")
+    p.add_argument("--version", action="version", version=f"analysis {__version__}")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def add(name, help_, func):
+        sp = sub.add_parser(name, help=help_, description=help_)
+        sp.add_argument("--params", default="{}", help="the 'analysis' config section as JSON text, or @file.json "
+                        "(defaults filled in; see analysis/params.py)")
+        sp.set_defaults(func=func)
+        return sp
+
+    add("params", "validate --params and print the effective parameters as JSON", cmd_params)
+    sp = add("fields", "per-pile RVE fields (CONTRACT.md section 2) and balance-law checks", cmd_fields)
+    sp.add_argument("--relaxed", required=True, help="state file at full gravity")
+    sp.add_argument("--reduced", required=True, help="state file at reduced gravity")
+    sp.add_argument("--out", required=True, help="fields netCDF to write")
+    sp.add_argument("--checks", help="JSON file for the balance-law checks")
+    sp = add("ensemble", "average per-pile fields over seeds (fields.nc with _sem)", cmd_ensemble)
+    sp.add_argument("--fields", nargs="+", required=True, help="per-pile fields files")
+    sp.add_argument("--out", required=True)
+    sp = add("moduli", "isotropic and cubic elastic fits (moduli.nc)", cmd_moduli)
+    sp.add_argument("--ensemble", required=True, help="ensemble fields.nc")
+    sp.add_argument("--fields", nargs="*", default=[], help="per-pile fields files (for the uncertainties)")
+    sp.add_argument("--out", required=True)
+    sp = add("base-pressure", "forces per unit length on the support (base_pressure.nc)", cmd_base_pressure)
+    sp.add_argument("--states", nargs="+", required=True, help="state files (one per seed)")
+    sp.add_argument("--out", required=True)
+    sp = add("invariants", "trace of stress vs trace of strain, bulk modulus vs depth (invariants.nc)",
+             cmd_invariants)
+    sp.add_argument("--ensemble", required=True)
+    sp.add_argument("--out", required=True)
+    sp = add("convergence", "stress and strain at fixed points against RVE size (Fig. 1 data)", cmd_convergence)
+    sp.add_argument("--relaxed", required=True)
+    sp.add_argument("--reduced", required=True)
+    sp.add_argument("--out", required=True)
+    sp = add("figure", "draw one figure (PNG/PDF by extension)", cmd_figure)
+    sp.add_argument("name", choices=["convergence", "vertical-strain", "fabric", "moduli", "invariants",
+                                     "base-pressure"])
+    sp.add_argument("--inputs", nargs="+", required=True,
+                    help="input netCDF files, optionally as label=path (label = protocol; default: folder name)")
+    sp.add_argument("--out", nargs="+", required=True, help="output files, e.g. fig.png fig.pdf")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        params = parse_params(args.params)
+    except ParamError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        args.func(args, params)
+    except AnalysisError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,75 @@
+"""Forces per unit length on the support (``base_pressure.nc``, CONTRACT.md section 3).
+
+The support contacts are those with ``contact_j = -1``; ``force_x, force_y``
+act on the particle, so the support receives ``(-force_x, -force_y)``.
+Per x bin (``analysis.base_pressure``; contacts binned by ``contact_x``):
+
+* ``normal_force_density`` = Σ force_y / bin width: the downward push of the
+  pile on the support (positive = compressive), N/m;
+* ``shear_force_density`` = Σ (−force_x) / bin width: the horizontal force the
+  pile exerts on the support, positive towards +x (on the right flank of a
+  spreading pile positive, on the left negative).
+
+Means and standard errors are over the seeds of one protocol.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from .ensemble import nan_mean_sem
+from .netcdf import var
+from .states import State
+
+
+def bin_edges(bp: dict[str, Any]) -> np.ndarray:
+    n = int(np.floor((bp["x_max"] - bp["x_min"]) / bp["bin_width"] + 1e-9))
+    return bp["x_min"] + bp["bin_width"] * np.arange(n + 1)
+
+
+def support_force_density(state: State, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Normal and shear force per unit length on the support in each bin of ``edges``."""
+    s = state.support
+    cx = state.contact_x[s]
+    nb = edges.size - 1
+    b = np.digitize(cx, edges) - 1
+    ok = (b >= 0) & (b < nb)
+    width = np.diff(edges)
+    normal = np.bincount(b[ok], weights=state.force_y[s][ok], minlength=nb) / width
+    shear = np.bincount(b[ok], weights=-state.force_x[s][ok], minlength=nb) / width
+    return normal, shear
+
+
+def base_pressure_dataset(states: list[State], params: dict[str, Any]) -> xr.Dataset:
+    """Mean and standard error over seeds of the support force densities."""
+    edges = bin_edges(params["base_pressure"])
+    per = [support_force_density(s, edges) for s in states]
+    normal = np.stack([p[0] for p in per])
+    shear = np.stack([p[1] for p in per])
+    mn, sn, _ = nan_mean_sem(normal)
+    ms, ssh, _ = nan_mean_sem(shear)
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    seeds = [str(s.attrs.get("seed", k)) for k, s in enumerate(states)]
+    ds = xr.Dataset(coords={
+        "x": var("x", centres, "centre of the x bin on the support (0 at the pouring axis)", "m", axis="X",
+                 bounds="x_bounds"),
+        "seed": var("seed", np.array(seeds), "seed of the pile", "1"),
+    })
+    ds["x_bounds"] = var(("x", "nv"), np.column_stack([edges[:-1], edges[1:]]), "x bin edges", "m")
+    ds["normal_force_density"] = var("x", mn, "normal force per unit length exerted by the pile on the support "
+                                     "(positive = compressive)", "N m-1", cell_methods="seed: mean")
+    ds["normal_force_density_sem"] = var("x", sn, "standard error over seeds of normal_force_density", "N m-1")
+    ds["shear_force_density"] = var("x", ms, "horizontal force per unit length exerted by the pile on the "
+                                    "support (positive towards +x)", "N m-1", cell_methods="seed: mean")
+    ds["shear_force_density_sem"] = var("x", ssh, "standard error over seeds of shear_force_density", "N m-1")
+    ds["normal_force_density_per_seed"] = var(("seed", "x"), normal, "normal_force_density of each pile", "N m-1")
+    ds["shear_force_density_per_seed"] = var(("seed", "x"), shear, "shear_force_density of each pile", "N m-1")
+    ds["weight"] = var("seed", np.array([s.mass.sum() * s.gravity for s in states]), "weight M g of each pile", "N")
+    ds.attrs["n_seeds"] = len(states)
+    ds.attrs["stage"] = params["base_pressure"]["stage"]
+    ds.attrs["protocol"] = str(states[0].attrs.get("protocol", "")) if states else ""
+    ds.attrs["bin_width"] = params["base_pressure"]["bin_width"]
+    return ds

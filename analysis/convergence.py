@@ -1,0 +1,50 @@
+"""RVE-size convergence (paper Fig. 1).
+
+At a few fixed points (``analysis.convergence.points``) of one pile, the
+stress at full gravity, the stress increment and the strain increment are
+computed with RVEs of growing size (``analysis.convergence.sizes``, shape
+``analysis.rve.shape``), from a few particles to several hundred, without
+the ``min_particles``/``min_solid_fraction`` mask (the point of the study is
+to show small RVEs) but with the strain conditioning checks.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from .fields import META, rve_quantities
+from .netcdf import tensor_coords, var
+from .states import State
+
+
+def convergence_dataset(relaxed: State, reduced: State, params: dict[str, Any]) -> xr.Dataset:
+    """Fields at the configured points for every configured RVE size."""
+    pts = np.asarray(params["convergence"]["points"], dtype=float).reshape(-1, 2)
+    sizes = np.asarray(sorted(params["convergence"]["sizes"]), dtype=float)
+    shape = params["rve"]["shape"]
+    keys = ("stress", "stress_increment", "displacement_gradient", "strain_increment", "fabric", "n_particles",
+            "n_contacts_strain", "solid_fraction", "strain_flag", "strain_residual")
+    acc: dict[str, list] = {k: [] for k in keys}
+    for s in sizes:  # loop over RVE sizes
+        q = rve_quantities(relaxed, reduced, pts, shape, float(s), params, apply_mask=False)
+        for k in keys:
+            acc[k].append(q[k])
+    coords = {
+        "rve_size": var("rve_size", sizes, "RVE size (square side or disc diameter)", "m"),
+        "point": var("point", np.arange(pts.shape[0], dtype=np.int32), "index of the fixed point", "1"),
+        **tensor_coords(),
+    }
+    ds = xr.Dataset(coords=coords)
+    ds["point_x"] = var("point", pts[:, 0], "x of the RVE centre", "m")
+    ds["point_y"] = var("point", pts[:, 1], "y of the RVE centre", "m")
+    for k in keys:
+        a = np.stack(acc[k])
+        dims = ("rve_size", "point", "i", "j") if a.ndim == 4 else ("rve_size", "point")
+        ds[k] = var(dims, a, *META[k])
+    ds.attrs.update({"rve_shape": shape, "protocol": str(relaxed.attrs.get("protocol", "")),
+                     "seed": str(relaxed.attrs.get("seed", "")), "relaxed_file": relaxed.path,
+                     "reduced_file": reduced.path})
+    return ds

@@ -1,0 +1,236 @@
+"""Figures 1–5 of the paper and the base pressure, from the workflow's netCDF files.
+
+Each function takes datasets (never particle states), draws with the Agg
+backend and writes every requested file (PNG, PDF, … by extension)
+atomically. Titles give the number of piles and the RVE size.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import xarray as xr  # noqa: E402
+
+COMPONENTS = (("x", "x", "xx"), ("y", "y", "yy"), ("x", "y", "xy"))
+
+
+def save(fig, outputs: list[str], dpi: int = 150) -> None:
+    """Write ``fig`` to every path in ``outputs`` (format from the extension), atomically."""
+    for path in outputs:
+        ext = os.path.splitext(path)[1].lstrip(".").lower() or "png"
+        os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+        d, b = os.path.split(os.path.abspath(path))
+        tmp = os.path.join(d, f".{b}.{os.getpid()}.tmp")
+        try:
+            fig.savefig(tmp, format=ext, dpi=dpi, bbox_inches="tight")
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+    plt.close(fig)
+
+
+def _rve_label(ds: xr.Dataset) -> str:
+    size = ds.attrs.get("rve_size")
+    shape = ds.attrs.get("rve_shape", "")
+    return f"{shape} RVE {float(size) * 100:.1f} cm" if size is not None else "RVE"
+
+
+def _npiles(ds: xr.Dataset) -> str:
+    n = ds.attrs.get("n_seeds")
+    return f"{int(n)} pile{'s' if int(n) != 1 else ''}" if n is not None else "1 pile"
+
+
+def _rows(ds: xr.Dataset, heights: list[float]) -> list[tuple[int, float]]:
+    """Grid rows nearest to the requested heights (index, actual height), duplicates dropped."""
+    y = ds["y"].values
+    out, seen = [], set()
+    for h in heights:
+        k = int(np.argmin(np.abs(y - h)))
+        if k not in seen:
+            seen.add(k)
+            out.append((k, float(y[k])))
+    return out
+
+
+def _band(ax, x, mean, sem, **kw):
+    line, = ax.plot(x, mean, **kw)
+    if sem is not None:
+        ok = np.isfinite(mean) & np.isfinite(sem)
+        ax.fill_between(x, np.where(ok, mean - sem, np.nan), np.where(ok, mean + sem, np.nan),
+                        color=line.get_color(), alpha=0.25, linewidth=0)
+    return line
+
+
+def _sem(ds, name, sel=None):
+    k = f"{name}_sem"
+    if k not in ds:
+        return None
+    v = ds[k]
+    return (v.sel(sel) if sel else v).values
+
+
+def fig_convergence(conv: xr.Dataset, outputs: list[str], dpi: int = 150) -> None:
+    """Fig. 1: stress (a) and strain-increment (b) components against the particle count of the RVE."""
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    markers = "os^vD<>"
+    for p in range(conv.sizes["point"]):
+        sub = conv.isel(point=p)
+        n = sub["n_particles"].values
+        lab = f"({float(sub['point_x']):.2f}, {float(sub['point_y']):.2f}) m"
+        for (i, j, c), ls in zip(COMPONENTS, ("-", "--", ":")):
+            axes[0].plot(n, sub["stress"].sel(i=i, j=j).values, ls, marker=markers[p % 7], ms=3,
+                         label=f"σ_{c} at {lab}")
+            axes[1].plot(n, sub["strain_increment"].sel(i=i, j=j).values, ls, marker=markers[p % 7], ms=3,
+                         label=f"u_{c} at {lab}")
+    for ax, t in zip(axes, ("a  stress at full gravity", "b  strain increment (relaxed → reduced)")):
+        ax.set_xscale("log")
+        ax.set_xlabel("particles in the RVE")
+        ax.axvspan(100, 200, color="0.9", zorder=0)
+        ax.set_title(t, loc="left", fontsize=10)
+        ax.legend(fontsize=6, ncol=1)
+    axes[0].set_ylabel("stress (N/m)")
+    axes[1].set_ylabel("strain (1)")
+    fig.suptitle(f"RVE-size convergence, protocol {conv.attrs.get('protocol', '')}, 1 pile "
+                 f"(seed {conv.attrs.get('seed', '')}), {conv.attrs.get('rve_shape', '')} RVEs; "
+                 "shaded: 100–200 particles", fontsize=10)
+    save(fig, outputs, dpi)
+
+
+def fig_vertical_strain(ensembles: dict[str, xr.Dataset], heights: list[float], outputs: list[str],
+                        dpi: int = 150) -> None:
+    """Fig. 2: vertical normal strain increment u_yy against x at several heights, one panel per protocol."""
+    fig, axes = plt.subplots(1, len(ensembles), figsize=(5.5 * len(ensembles), 4.2), squeeze=False, sharey=True)
+    for ax, (proto, ds) in zip(axes[0], ensembles.items()):
+        x = ds["x"].values
+        for k, h in _rows(ds, heights):
+            sel = {"i": "y", "j": "y"}
+            mean = ds["strain_increment"].isel(y=k).sel(sel).values
+            sem = _sem(ds, "strain_increment", sel)
+            _band(ax, x, mean, sem[k] if sem is not None else None, label=f"y = {h * 100:.1f} cm")
+        ax.set_title(f"{proto} ({_npiles(ds)}, {_rve_label(ds)})", fontsize=10)
+        ax.set_xlabel("x (m)")
+        ax.axhline(0, color="0.6", lw=0.5)
+        ax.legend(fontsize=7)
+    axes[0][0].set_ylabel("vertical normal strain increment u_yy (1)")
+    fig.suptitle("Vertical normal strain (relaxed → reduced gravity), mean ± standard error over piles",
+                 fontsize=10)
+    save(fig, outputs, dpi)
+
+
+def fig_fabric(ds: xr.Dataset, heights: list[float], outputs: list[str], dpi: int = 150, protocol: str = "") -> None:
+    """Fig. 3: (a) fabric trace, (b) deviatoric fraction, (c) fabric orientation against x;
+    (d) orientation of fabric, stress and strain increment in the two lowest layers."""
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    x = ds["x"].values
+    rows = _rows(ds, heights)
+    panels = (("fabric_trace", "trace of fabric (1)", "a"),
+              ("fabric_deviatoric_fraction", "deviatoric fraction (1)", "b"),
+              ("fabric_orientation", "fabric orientation (degree)", "c"))
+    for ax, (name, ylab, letter) in zip(axes.ravel()[:3], panels):
+        for k, h in rows:
+            sem = _sem(ds, name)
+            _band(ax, x, ds[name].isel(y=k).values, sem[k] if sem is not None else None,
+                  label=f"y = {h * 100:.1f} cm")
+        ax.set_ylabel(ylab)
+        ax.set_xlabel("x (m)")
+        ax.set_title(letter, loc="left")
+        ax.legend(fontsize=7)
+    ax = axes[1, 1]
+    for (k, h), ls in zip(rows[:2], ("-", "--")):
+        for name, lab in (("fabric_orientation", "fabric"), ("stress_orientation", "stress"),
+                          ("strain_orientation", "strain increment")):
+            ax.plot(x, ds[name].isel(y=k).values, ls, label=f"{lab}, y = {h * 100:.1f} cm")
+    ax.set_ylabel("orientation from vertical, counter-clockwise (degree)")
+    ax.set_xlabel("x (m)")
+    ax.set_title("d", loc="left")
+    ax.legend(fontsize=7)
+    fig.suptitle(f"Fabric, protocol {protocol or ds.attrs.get('protocol', '')} ({_npiles(ds)}, {_rve_label(ds)})",
+                 fontsize=10)
+    save(fig, outputs, dpi)
+
+
+def fig_moduli(mod: xr.Dataset, heights: list[float], outputs: list[str], dpi: int = 150, protocol: str = "") -> None:
+    """Fig. 4: left isotropic K, E, G (S′, m = 1); right cubic K, E_av, G_av (S̃, m = 5)."""
+    fig, axes = plt.subplots(3, 2, figsize=(11, 10), sharex=True)
+    x = mod["x"].values
+    rows = _rows(mod, heights)
+    left = mod.sel(fit="modulus", points=1)
+    right = mod.sel(fit="compliance", points=5)
+    spec = ((("bulk_modulus", "K"), ("bulk_modulus_cubic", "K")),
+            (("youngs_modulus", "E = 3G − G²/K"), ("E_av", "E_av")),
+            (("shear_modulus", "G"), ("G_av", "G_av")))
+    for r, ((ln, ll), (rn, rl)) in enumerate(spec):
+        for (k, h) in rows:
+            _band(axes[r, 0], x, left[ln].isel(y=k).values, left[f"{ln}_sem"].isel(y=k).values,
+                  label=f"y = {h * 100:.1f} cm")
+            _band(axes[r, 1], x, right[rn].isel(y=k).values, right[f"{rn}_sem"].isel(y=k).values,
+                  label=f"y = {h * 100:.1f} cm")
+        axes[r, 0].set_ylabel(f"{ll} (N/m)")
+        axes[r, 1].set_ylabel(f"{rl} (N/m)")
+    axes[0, 0].set_title("isotropic, fit of moduli (S′, Eq. 21), m = 1", fontsize=9)
+    axes[0, 1].set_title("cubic, fit of compliances (S̃, Eq. 18), m = 5", fontsize=9)
+    axes[0, 0].legend(fontsize=7)
+    for ax in axes[-1]:
+        ax.set_xlabel("x (m)")
+    fig.suptitle(f"Elastic moduli, protocol {protocol or mod.attrs.get('protocol', '')} "
+                 f"({_npiles(mod)}, {_rve_label(mod)}); bands: {mod.attrs.get('uncertainty_method', '')}",
+                 fontsize=10)
+    save(fig, outputs, dpi)
+
+
+def fig_invariants(inv: xr.Dataset, outputs: list[str], dpi: int = 150, protocol: str = "") -> None:
+    """Fig. 5: −tr Δσ against −tr u (loading step) for all RVEs, and the bulk modulus against depth."""
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    ts, tu, d = (inv[k].values.ravel() for k in ("trace_stress_increment", "trace_strain_increment", "depth"))
+    ok = np.isfinite(ts) & np.isfinite(tu)
+    sc = axes[0].scatter(tu[ok], ts[ok], c=d[ok], s=6, cmap="viridis")
+    fig.colorbar(sc, ax=axes[0], label="depth below surface (m)")
+    axes[0].set_xlabel("−tr u (loading reduced → full gravity) (1)")
+    axes[0].set_ylabel("−tr Δσ (N/m)")
+    axes[0].set_title("a", loc="left")
+    db = inv["depth_bin"].values
+    axes[1].plot(db, inv["differential_bulk_modulus"].values, "o-", label="differential ½ d tr Δσ / d tr u")
+    axes[1].plot(db, inv["secant_bulk_modulus"].values, "s--", label="secant ½ tr Δσ / tr u")
+    axes[1].set_xlabel("depth below the free surface (m)")
+    axes[1].set_ylabel("bulk modulus (N/m)")
+    axes[1].set_title("b", loc="left")
+    axes[1].legend(fontsize=7)
+    fig.suptitle(f"Stress and strain invariants, protocol {protocol or inv.attrs.get('protocol', '')} "
+                 f"({_npiles(inv)}, {_rve_label(inv)})", fontsize=10)
+    save(fig, outputs, dpi)
+
+
+def fig_base_pressure(bps: dict[str, xr.Dataset], outputs: list[str], dpi: int = 150) -> None:
+    """Normal and shear force per unit length on the support, mean ± standard error, all protocols."""
+    fig, axes = plt.subplots(2, 1, figsize=(7.5, 7), sharex=True)
+    for proto, ds in bps.items():
+        x = ds["x"].values
+        lab = f"{proto} ({_npiles(ds)})"
+        _band(axes[0], x, ds["normal_force_density"].values, ds["normal_force_density_sem"].values, label=lab)
+        _band(axes[1], x, ds["shear_force_density"].values, ds["shear_force_density_sem"].values, label=lab)
+    axes[0].set_ylabel("normal force per length (N/m)")
+    axes[1].set_ylabel("shear force per length, +x (N/m)")
+    axes[1].set_xlabel("x (m)")
+    axes[1].axhline(0, color="0.6", lw=0.5)
+    axes[0].legend(fontsize=8)
+    bw = next(iter(bps.values())).attrs.get("bin_width", "") if bps else ""
+    fig.suptitle(f"Forces on the support at full gravity (bins {float(bw) * 100:.1f} cm), "
+                 "mean ± standard error over piles" if bw != "" else "Forces on the support", fontsize=10)
+    save(fig, outputs, dpi)
+
+
+FIGURES: dict[str, Any] = {
+    "convergence": fig_convergence,
+    "vertical-strain": fig_vertical_strain,
+    "fabric": fig_fabric,
+    "moduli": fig_moduli,
+    "invariants": fig_invariants,
+    "base-pressure": fig_base_pressure,
+}

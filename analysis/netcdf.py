@@ -1,0 +1,121 @@
+"""netCDF and JSON output: CF attributes and atomic writes.
+
+Every file gets the global attributes ``Conventions``, ``title``, ``source``
+(``analysis <version>``), ``history`` and ``config`` (the effective analysis
+parameters as JSON text); every variable and coordinate must carry ``units``
+and ``long_name`` (checked before writing). Files are written to a temporary
+name in the destination folder and renamed, so a killed job never leaves a
+complete-looking file.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import sys
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from . import __version__
+
+CONVENTIONS = "CF-1.10"
+TENSOR_COORDS = {"i": ["x", "y"], "j": ["x", "y"]}
+
+
+def tensor_coords() -> dict[str, xr.Variable]:
+    """Coordinates of the tensor component dimensions ``i`` and ``j``."""
+    return {
+        "i": xr.Variable("i", np.array(["x", "y"]), {"long_name": "tensor component (first index)", "units": "1"}),
+        "j": xr.Variable("j", np.array(["x", "y"]), {"long_name": "tensor component (second index)", "units": "1"}),
+    }
+
+
+def check_cf(ds: xr.Dataset) -> None:
+    """Raise ``ValueError`` naming any variable or coordinate without ``units`` or ``long_name``."""
+    bad = [str(n) for n, v in ds.variables.items() if "units" not in v.attrs or "long_name" not in v.attrs]
+    if bad:
+        raise ValueError(f"variables without units/long_name: {', '.join(sorted(bad))}")
+
+
+def finalize(ds: xr.Dataset, title: str, params: dict[str, Any] | None, command: str | None = None) -> xr.Dataset:
+    """Set the global attributes required by CONTRACT.md and check CF metadata."""
+    now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    cmd = command if command is not None else " ".join([os.path.basename(sys.executable), "-m", "analysis"] + sys.argv[1:])
+    ds.attrs["Conventions"] = CONVENTIONS
+    ds.attrs["title"] = title
+    ds.attrs["source"] = f"analysis {__version__} (polypile)"
+    prior = ds.attrs.get("history", "")
+    ds.attrs["history"] = (f"{now}: {cmd}" + ("\n" + prior if prior and isinstance(prior, str) else ""))[:20000]
+    ds.attrs["config"] = json.dumps(params if params is not None else {}, sort_keys=True)
+    for k, v in list(ds.attrs.items()):
+        if isinstance(v, bool):
+            ds.attrs[k] = int(v)
+    check_cf(ds)
+    return ds
+
+
+def _tmp_name(path: str) -> str:
+    d, b = os.path.split(os.path.abspath(path))
+    stem = b[:-3] if b.endswith(".nc") else b
+    return os.path.join(d, f".{stem}.{os.getpid()}.tmp.nc")
+
+
+def write_dataset(ds: xr.Dataset, path: str, *, title: str, params: dict[str, Any] | None,
+                  command: str | None = None) -> None:
+    """Finalise ``ds`` and write it to ``path`` atomically (temporary name, then rename)."""
+    finalize(ds, title, params, command)
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    tmp = _tmp_name(path)
+    encoding = {}
+    for name, v in ds.variables.items():
+        if v.dtype.kind == "f":
+            encoding[name] = {"zlib": True, "complevel": 4}
+            if name not in ds.coords:
+                encoding[name]["_FillValue"] = np.nan
+            else:
+                encoding[name]["_FillValue"] = None
+        elif v.dtype.kind in "iu":
+            encoding[name] = {"zlib": True, "complevel": 4, "_FillValue": None}
+    try:
+        ds.to_netcdf(tmp, format="NETCDF4", engine="netcdf4", encoding=encoding)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def write_json(obj: Any, path: str) -> None:
+    """Write ``obj`` as JSON atomically."""
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    d, b = os.path.split(os.path.abspath(path))
+    tmp = os.path.join(d, f".{b}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            json.dump(obj, fh, indent=2, sort_keys=True, default=_json_default)
+            fh.write("\n")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def read_dataset(path: str) -> xr.Dataset:
+    """Open a netCDF file, load it into memory and close it."""
+    with xr.open_dataset(path) as ds:
+        return ds.load()
+
+
+def var(dims: tuple[str, ...] | str, data: Any, long_name: str, units: str, **attrs: Any) -> xr.Variable:
+    """An ``xr.Variable`` with the CF attributes filled in."""
+    return xr.Variable(dims, data, {"long_name": long_name, "units": units, **attrs})

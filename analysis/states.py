@@ -1,0 +1,170 @@
+"""Reading particle-state files through the data contract (CONTRACT.md section 1).
+
+The analysis never imports the simulator: everything it knows about a pile
+comes from these files. :func:`load_state` checks names, dimensions, finiteness
+and index ranges and raises :class:`~analysis.errors.StateError` with the file,
+variable and first offending index, before any computation starts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from .errors import StateError
+
+PARTICLE_VARS = ("x", "y", "theta", "vx", "vy", "omega", "mass", "inertia", "area", "node_count")
+NODE_VARS = ("node_x", "node_y")
+CONTACT_VARS = ("contact_i", "contact_j", "contact_x", "contact_y", "force_x", "force_y",
+                "normal_x", "normal_y", "overlap_area")
+INTEGER_VARS = ("node_count", "contact_i", "contact_j")
+REQUIRED_ATTRS = ("gravity",)
+DIMS = {**{v: "particle" for v in PARTICLE_VARS}, **{v: "node" for v in NODE_VARS},
+        **{v: "contact" for v in CONTACT_VARS}}
+
+
+@dataclass(frozen=True)
+class State:
+    """One particle state as plain numpy arrays (names as in CONTRACT.md section 1)."""
+
+    path: str
+    x: np.ndarray
+    y: np.ndarray
+    theta: np.ndarray
+    vx: np.ndarray
+    vy: np.ndarray
+    omega: np.ndarray
+    mass: np.ndarray
+    inertia: np.ndarray
+    area: np.ndarray
+    node_count: np.ndarray
+    node_x: np.ndarray
+    node_y: np.ndarray
+    contact_i: np.ndarray
+    contact_j: np.ndarray
+    contact_x: np.ndarray
+    contact_y: np.ndarray
+    force_x: np.ndarray
+    force_y: np.ndarray
+    normal_x: np.ndarray
+    normal_y: np.ndarray
+    overlap_area: np.ndarray
+    attrs: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_particles(self) -> int:
+        return int(self.x.size)
+
+    @property
+    def gravity(self) -> float:
+        """Magnitude of gravity at this stage (m/s²); it points along −y."""
+        return float(self.attrs["gravity"])
+
+    @property
+    def support(self) -> np.ndarray:
+        """Boolean mask of the contacts with the support (``contact_j == -1``)."""
+        return self.contact_j < 0
+
+    def world_vertices(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Polygon corners in the lab frame, padded to ``(n_particles, k_max)``.
+
+        Each row repeats its last corner up to ``k_max`` (a zero-length edge,
+        harmless for convex-polygon tests). Returns ``(vx, vy, node_count)``.
+        """
+        counts = self.node_count.astype(np.int64)
+        kmax = int(counts.max()) if counts.size else 0
+        offsets = np.concatenate([[0], np.cumsum(counts)[:-1]]) if counts.size else counts
+        k = np.minimum(np.arange(kmax)[None, :], counts[:, None] - 1)
+        idx = offsets[:, None] + k
+        bx, by = self.node_x[idx], self.node_y[idx]
+        c, s = np.cos(self.theta)[:, None], np.sin(self.theta)[:, None]
+        return self.x[:, None] + c * bx - s * by, self.y[:, None] + s * bx + c * by, counts
+
+
+def _fail(path: str, msg: str) -> StateError:
+    return StateError(f"{path}: {msg}")
+
+
+def state_from_dataset(ds: xr.Dataset, path: str = "<dataset>") -> State:
+    """Validate a contract dataset and return it as a :class:`State`."""
+    missing = [v for v in DIMS if v not in ds.variables]
+    if missing:
+        raise _fail(path, f"missing variable(s) {', '.join(missing)} required by CONTRACT.md section 1")
+    arrays: dict[str, np.ndarray] = {}
+    for name, dim in DIMS.items():
+        da = ds[name]
+        if da.dims != (dim,):
+            raise _fail(path, f"variable {name!r} has dimensions {da.dims}, expected ({dim!r},)")
+        a = np.asarray(da.values)
+        if not (np.issubdtype(a.dtype, np.number)):
+            raise _fail(path, f"variable {name!r} has non-numeric type {a.dtype}")
+        bad = ~np.isfinite(a) if np.issubdtype(a.dtype, np.floating) else np.zeros(a.shape, bool)
+        if bad.any():
+            first = int(np.flatnonzero(bad)[0])
+            raise _fail(path, f"variable {name!r} contains {int(bad.sum())} NaN/inf value(s) "
+                              f"(first at {dim} index {first}); a state file must be finite everywhere")
+        if name in INTEGER_VARS:
+            if np.issubdtype(a.dtype, np.floating):
+                if np.any(a != np.round(a)):
+                    raise _fail(path, f"variable {name!r} must hold integers")
+            a = a.astype(np.int64)
+        else:
+            a = a.astype(np.float64)
+        arrays[name] = a
+    for a in REQUIRED_ATTRS:
+        if a not in ds.attrs:
+            raise _fail(path, f"missing global attribute {a!r} required by CONTRACT.md section 1")
+    try:
+        g = float(ds.attrs["gravity"])
+    except (TypeError, ValueError):
+        raise _fail(path, f"global attribute 'gravity' = {ds.attrs['gravity']!r} is not a number") from None
+    if not np.isfinite(g) or g < 0:
+        raise _fail(path, f"global attribute 'gravity' = {g!r} must be a finite magnitude >= 0 (m/s²)")
+    n = arrays["x"].size
+    if n == 0:
+        raise _fail(path, "the state holds no particles")
+    if np.any(arrays["mass"] <= 0) or np.any(arrays["area"] <= 0):
+        raise _fail(path, "'mass' and 'area' must be positive for every particle")
+    counts = arrays["node_count"]
+    if np.any(counts < 3):
+        raise _fail(path, f"'node_count' must be >= 3 (first bad particle {int(np.flatnonzero(counts < 3)[0])})")
+    if counts.sum() != arrays["node_x"].size:
+        raise _fail(path, f"sum of node_count ({int(counts.sum())}) differs from the node dimension "
+                          f"({arrays['node_x'].size})")
+    ci, cj = arrays["contact_i"], arrays["contact_j"]
+    bad = (ci < 0) | (ci >= n)
+    if bad.any():
+        raise _fail(path, f"contact_i out of range [0, {n}) at contact {int(np.flatnonzero(bad)[0])}")
+    bad = (cj < -1) | (cj >= n)
+    if bad.any():
+        raise _fail(path, f"contact_j out of range [-1, {n}) at contact {int(np.flatnonzero(bad)[0])}")
+    bad = ci == cj
+    if bad.any():
+        raise _fail(path, f"contact {int(np.flatnonzero(bad)[0])} joins a particle to itself")
+    attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in ds.attrs.items()}
+    return State(path=path, attrs=attrs, **arrays)
+
+
+def load_state(path: str) -> State:
+    """Read and validate one particle-state file (CONTRACT.md section 1)."""
+    try:
+        with xr.open_dataset(path, decode_times=False) as ds:
+            ds = ds.load()
+    except FileNotFoundError:
+        raise StateError(f"{path}: no such file") from None
+    except (OSError, ValueError) as exc:
+        raise StateError(f"{path}: cannot be read as netCDF ({exc})") from exc
+    return state_from_dataset(ds, str(path))
+
+
+def check_same_particles(a: State, b: State) -> None:
+    """Refuse two stages that do not hold the same particles in the same order."""
+    if a.n_particles != b.n_particles:
+        raise StateError(f"{b.path}: holds {b.n_particles} particles but {a.path} holds {a.n_particles}; "
+                         "the two stages of one pile must hold the same particles")
+    if not (np.allclose(a.mass, b.mass, rtol=1e-9, atol=0) and np.allclose(a.area, b.area, rtol=1e-9, atol=0)):
+        raise StateError(f"{b.path}: particle masses/areas differ from {a.path}; "
+                         "the two stages of one pile must hold the same particles in the same order")

@@ -1,0 +1,208 @@
+"""Elastic fits (Eqs 16–22): recovery of known moduli, refusal of degenerate data, formulas checked
+against a numerical rotation of the 2D cubic stiffness tensor."""
+
+import numpy as np
+import pytest
+
+from analysis.elastic import (FIT_DEGENERATE, FIT_INSUFFICIENT_POINTS, FITS, POINTS, cubic_engineering_moduli,
+                              cubic_moduli_from_compliances, fit_all, fit_cubic_compliances, fit_cubic_moduli,
+                              fit_isotropic_compliances, fit_isotropic_moduli, gather_points, youngs_modulus_2d,
+                              youngs_modulus_isotropic)
+
+K0, G0 = 1.0e6, 0.4e6
+L1, L2, L3 = 1.2e6, 0.3e6, 0.2e6
+M = 400
+STRAIN = 1e-4
+
+
+def _stress(u, l1, l2, l3):
+    s = np.empty_like(u)
+    s[..., 0, 0] = l1 * u[..., 0, 0] + l2 * u[..., 1, 1]
+    s[..., 1, 1] = l2 * u[..., 0, 0] + l1 * u[..., 1, 1]
+    s[..., 0, 1] = s[..., 1, 0] = 2 * l3 * u[..., 0, 1]
+    return s
+
+
+def _sym(rng, shape, scale):
+    a = rng.standard_normal(shape + (2, 2)) * scale
+    return 0.5 * (a + np.swapaxes(a, -1, -2))
+
+
+def test_isotropic_moduli_recovered_from_noisy_stress():
+    rng = np.random.default_rng(0)
+    u = _sym(rng, (M,), STRAIN)
+    noise_sd = 1.0  # N/m, about 1% of the stresses
+    sig = _stress(u, K0 + G0, K0 - G0, G0) + _sym(rng, (M,), noise_sd)
+    K, G, flag = fit_isotropic_moduli(sig, u)
+    assert flag == 0
+    tr = u[:, 0, 0] + u[:, 1, 1]
+    # K = <T t>/(2<t^2>): noise in T (sd of the trace noise) propagates as sd/(2 sqrt(M <t^2>))
+    sd_T = np.sqrt(2) * noise_sd
+    sd_K = sd_T / (2 * np.sqrt(np.sum(tr**2)))
+    assert abs(K - K0) < 5 * sd_K
+    d = u[:, 0, 0] - u[:, 1, 1]
+    sd_G = sd_T / (2 * np.sqrt(np.sum(d**2) + 4 * np.sum(u[:, 0, 1] ** 2)))
+    assert abs(G - G0) < 5 * sd_G
+
+
+def test_isotropic_compliances_recovered_from_noisy_strain():
+    rng = np.random.default_rng(1)
+    sig = _sym(rng, (M,), 100.0)
+    # invert the isotropic law: tr u = tr s / (2K), deviatoric u = dev s / (2G)
+    tr = sig[:, 0, 0] + sig[:, 1, 1]
+    u = (sig - 0.5 * tr[:, None, None] * np.eye(2)) / (2 * G0) + 0.5 * tr[:, None, None] * np.eye(2) / (2 * K0)
+    noise_sd = 1e-6  # about 1% of the strains
+    u_noisy = u + _sym(rng, (M,), noise_sd)
+    K, G, flag = fit_isotropic_compliances(sig, u_noisy)
+    assert flag == 0
+    # a = 1/(2K) = <t T>/<T^2>; sd(a) = sd_t / sqrt(sum T^2); sd(K) = 2 K^2 sd(a)
+    sd_a = np.sqrt(2) * noise_sd / np.sqrt(np.sum(tr**2))
+    assert abs(K - K0) < 5 * 2 * K0**2 * sd_a
+    D = sig[:, 0, 0] - sig[:, 1, 1]
+    sd_b = np.sqrt(2) * noise_sd / np.sqrt(np.sum(D**2) + 4 * np.sum(sig[:, 0, 1] ** 2))
+    assert abs(G - G0) < 5 * 2 * G0**2 * sd_b
+
+
+def test_cubic_moduli_recovered_by_both_methods():
+    rng = np.random.default_rng(2)
+    u = _sym(rng, (M,), STRAIN)
+    sig = _stress(u, L1, L2, L3)
+    # noiseless: both methods exact
+    l1, l2, l3, f = fit_cubic_moduli(sig, u)
+    assert f == 0 and (l1, l2, l3) == pytest.approx((L1, L2, L3), rel=1e-10)
+    s1, s2, s3, f = fit_cubic_compliances(sig, u)
+    assert f == 0
+    c1, c2, c3, f = cubic_moduli_from_compliances(s1, s2, s3)
+    assert f == 0 and (c1, c2, c3) == pytest.approx((L1, L2, L3), rel=1e-10)
+    # noisy stress (1%): modulus fit unbiased, error ~ noise / (strain sqrt(M))
+    noisy = sig + _sym(rng, (M,), 1.0)
+    l1, l2, l3, f = fit_cubic_moduli(noisy, u)
+    tol = 5 * np.sqrt(2) * 1.0 / (STRAIN * np.sqrt(M))  # generous bound for every combination
+    assert abs(l1 - L1) < tol and abs(l2 - L2) < tol and abs(l3 - L3) < tol
+
+
+def test_isotropic_data_give_isotropic_cubic_fit():
+    rng = np.random.default_rng(3)
+    u = _sym(rng, (50,), STRAIN)
+    sig = _stress(u, K0 + G0, K0 - G0, G0)
+    l1, l2, l3, _ = fit_cubic_moduli(sig, u)
+    e = cubic_engineering_moduli(l1, l2, l3)
+    assert e["G_p"] == pytest.approx(G0) and e["G_b"] == pytest.approx(G0)
+    assert e["bulk_modulus_cubic"] == pytest.approx(K0)
+    assert e["E_p"] == pytest.approx(youngs_modulus_2d(K0, G0)) and e["E_b"] == pytest.approx(e["E_p"])
+
+
+def _voigt_stiffness(C):
+    """3x3 matrix mapping (u_xx, u_yy, 2u_xy) to (s_xx, s_yy, s_xy) from the 4th-order tensor."""
+    idx = [(0, 0), (1, 1), (0, 1)]
+    return np.array([[C[a + b] for b in idx] for a in idx])
+
+
+def _cubic_tensor(l1, l2, l3):
+    C = np.zeros((2, 2, 2, 2))
+    C[0, 0, 0, 0] = C[1, 1, 1, 1] = l1
+    C[0, 0, 1, 1] = C[1, 1, 0, 0] = l2
+    C[0, 1, 0, 1] = C[0, 1, 1, 0] = C[1, 0, 0, 1] = C[1, 0, 1, 0] = l3
+    return C
+
+
+def _rotate(C, deg):
+    t = np.radians(deg)
+    R = np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+    return np.einsum("ia,jb,kc,ld,abcd->ijkl", R, R, R, R, C)
+
+
+def _young_along_x(C):
+    S = np.linalg.inv(_voigt_stiffness(C))
+    return 1.0 / S[0, 0]
+
+
+@pytest.mark.parametrize("l1,l2,l3", [(1.2e6, 0.3e6, 0.2e6), (2.0, 0.5, 1.25), (1.0, -0.2, 0.9)])
+def test_engineering_moduli_against_rotated_stiffness(l1, l2, l3):
+    C = _cubic_tensor(l1, l2, l3)
+    Cb = _rotate(C, 45.0)  # the bisector frame
+    e = cubic_engineering_moduli(l1, l2, l3)
+    assert e["E_p"] == pytest.approx(_young_along_x(C), rel=1e-12)
+    assert e["E_b"] == pytest.approx(_young_along_x(Cb), rel=1e-12)
+    assert e["G_p"] == pytest.approx(C[0, 1, 0, 1], rel=1e-12)
+    assert e["G_b"] == pytest.approx(Cb[0, 1, 0, 1], rel=1e-12)
+    assert e["E_av"] == pytest.approx(0.5 * (e["E_p"] + e["E_b"]))
+    assert e["G_av"] == pytest.approx(0.5 * (e["G_p"] + e["G_b"]))
+    assert e["bulk_modulus_cubic"] == pytest.approx(0.5 * (Cb[0, 0, 0, 0] + Cb[0, 0, 1, 1]), rel=1e-12)
+    # the paper's printed E_b = l1 + l2 agrees with the rotated stiffness only if l3 = (l1 + l2)/2
+    if not np.isclose(l3, 0.5 * (l1 + l2)):
+        assert e["E_b_paper"] != pytest.approx(_young_along_x(Cb), rel=1e-3)
+    assert e["E_av_paper"] == pytest.approx(0.5 * (e["E_p"] + e["E_b_paper"]))
+
+
+def test_paper_E_b_coincides_when_lambda3_equals_K():
+    l1, l2 = 1.5, 0.5
+    e = cubic_engineering_moduli(l1, l2, 0.5 * (l1 + l2))
+    assert e["E_b"] == pytest.approx(e["E_b_paper"])
+
+
+def test_isotropic_young_formulas():
+    # paper: E = 3G - G^2/K; equals the 2D 4KG/(K+G) only for K = G
+    assert youngs_modulus_isotropic(2.0, 1.0) == pytest.approx(2.5)
+    assert youngs_modulus_2d(2.0, 1.0) == pytest.approx(8 / 3)
+    assert youngs_modulus_isotropic(1.0, 1.0) == pytest.approx(youngs_modulus_2d(1.0, 1.0))
+    C = _cubic_tensor(K0 + G0, K0 - G0, G0)
+    for deg in (0.0, 17.0, 45.0):
+        assert youngs_modulus_2d(K0, G0) == pytest.approx(_young_along_x(_rotate(C, deg)), rel=1e-12)
+    assert np.isnan(youngs_modulus_isotropic(0.0, 1.0))
+
+
+def test_degenerate_data_refused_with_flags_never_inf():
+    rng = np.random.default_rng(4)
+    sig = _sym(rng, (5,), 100.0)
+    zero = np.zeros((5, 2, 2))
+    for fit in (fit_isotropic_moduli, fit_cubic_moduli):
+        *vals, flag = fit(sig, zero)  # all-zero strain
+        assert flag & FIT_DEGENERATE and all(np.isnan(v) for v in vals)
+    for fit in (fit_isotropic_compliances, fit_cubic_compliances):
+        *vals, flag = fit(zero, _sym(rng, (5,), 1e-4))  # all-zero stress
+        assert flag & FIT_DEGENERATE and all(np.isnan(v) for v in vals)
+    # compliances fitted to zero strain are 0: the moduli 1/0 must be NaN, not inf
+    s1, s2, s3, f = fit_cubic_compliances(sig, zero)
+    l1, l2, l3, f2 = cubic_moduli_from_compliances(s1, s2, s3)
+    assert f2 & FIT_DEGENERATE and np.isnan(l1) and np.isnan(l3)
+    K, G, f3 = fit_isotropic_compliances(sig, zero)
+    assert f3 & FIT_DEGENERATE and np.isnan(K) and np.isnan(G)
+    # no shear stress at all: s3 undetermined, the rest of the cubic fit is refused as a whole
+    noshear = sig.copy()
+    noshear[:, 0, 1] = noshear[:, 1, 0] = 0
+    *vals, f4 = fit_cubic_compliances(noshear, _sym(rng, (5,), 1e-4))
+    assert f4 & FIT_DEGENERATE and np.isnan(vals[2])
+    # NaN samples: too few valid points
+    bad = sig.copy()
+    bad[1:] = np.nan
+    *vals, f5 = fit_isotropic_moduli(bad, _sym(rng, (5,), 1e-4), min_points=3)
+    assert f5 & FIT_INSUFFICIENT_POINTS and all(np.isnan(v) for v in vals)
+
+
+def test_fit_all_on_a_grid_points_and_average():
+    rng = np.random.default_rng(6)
+    ny, nx = 6, 7
+    u = _sym(rng, (ny, nx), STRAIN)
+    sig = _stress(u, L1, L2, L3)
+    sig[0, 0] = np.nan  # a masked RVE
+    res = fit_all(sig, u, min_points=3)
+    assert res["lambda1"].shape == (len(FITS), len(POINTS), ny, nx)
+    # m = 5 on exact cubic data: every valid point recovers the moduli
+    m5 = res["lambda3"][:, 1]
+    valid = np.isfinite(m5)
+    assert valid.sum() > 0.8 * valid.size
+    np.testing.assert_allclose(m5[valid], L3, rtol=1e-9)
+    # m = 1 uses one sample: the masked point is NaN and flagged
+    assert np.isnan(res["bulk_modulus"][0, 0, 0, 0]) and res["isotropic_flag"][0, 0, 0, 0] & FIT_INSUFFICIENT_POINTS
+    avg = res["E_av"][2]
+    np.testing.assert_allclose(avg, 0.5 * (res["E_av"][0] + res["E_av"][1]), equal_nan=True)
+    assert not np.isinf(np.concatenate([v.ravel() for k, v in res.items() if v.dtype.kind == "f"])).any()
+
+
+def test_gather_points_neighbours():
+    f = np.arange(12.0).reshape(3, 4)[:, :, None, None] * np.ones((1, 1, 2, 2))
+    g = gather_points(f, 5)
+    assert g.shape == (3, 4, 5, 2, 2)
+    assert sorted(g[1, 1, :, 0, 0].tolist()) == sorted([5.0, 9.0, 1.0, 6.0, 4.0])
+    assert np.isnan(g[0, 0, :, 0, 0]).sum() == 2

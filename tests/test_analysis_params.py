@@ -1,0 +1,76 @@
+"""The analysis config: Python defaults and the workflow schema agree; the package never imports sim/."""
+
+import ast
+import copy
+import glob
+import os
+
+import jsonschema
+import pytest
+import yaml
+
+from analysis.errors import ParamError
+from analysis.params import DEFAULTS, resolve_params
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SCHEMA = os.path.join(REPO, "workflow", "schemas", "analysis.schema.yaml")
+
+
+def _schema():
+    with open(SCHEMA, encoding="utf-8") as fh:
+        return yaml.safe_load(fh)
+
+
+def _fill_defaults(schema, instance):
+    """What Snakemake's validate(set_default=True) does: fill defaults, recursively."""
+    for key, sub in schema.get("properties", {}).items():
+        if "default" in sub and key not in instance:
+            instance[key] = copy.deepcopy(sub["default"])
+        if sub.get("type") == "object" and isinstance(instance.get(key), dict):
+            _fill_defaults(sub, instance[key])
+    return instance
+
+
+def test_schema_defaults_equal_python_defaults():
+    assert _fill_defaults(_schema(), {}) == DEFAULTS
+
+
+def test_defaults_valid_against_schema_and_every_key_described():
+    schema = _schema()
+    jsonschema.validate(DEFAULTS, schema)
+    assert set(schema["properties"]) == set(DEFAULTS)
+    for sec, sub in schema["properties"].items():
+        assert set(sub["properties"]) == set(DEFAULTS[sec]), sec
+        for key, spec in sub["properties"].items():
+            assert spec.get("description"), f"{sec}.{key} lacks a description"
+
+
+@pytest.mark.parametrize("bad", [
+    {"rve": {"shape": "hexagon"}}, {"rve": {"size": 0}}, {"rve": {"min_solid_fraction": 1.5}},
+    {"moduli": {"uncertainty": "jackknife"}}, {"grid": {"spacing": -0.01}}, {"unknown": {}},
+    {"rve": {"unknown": 1}}, {"convergence": {"points": [[0.0]]}}, {"figures": {"heights": []}},
+])
+def test_schema_and_python_refuse_the_same_bad_settings(bad):
+    with pytest.raises(jsonschema.ValidationError):
+        jsonschema.validate(bad, _schema())
+    with pytest.raises(ParamError):
+        resolve_params(bad)
+
+
+def test_resolve_merges_partial_sections():
+    p = resolve_params({"rve": {"size": 0.1}, "checks": None})
+    assert p["rve"]["size"] == 0.1 and p["rve"]["shape"] == DEFAULTS["rve"]["shape"]
+    assert p["checks"] == DEFAULTS["checks"]
+
+
+def test_analysis_never_imports_sim():
+    for path in glob.glob(os.path.join(REPO, "analysis", "*.py")):
+        tree = ast.parse(open(path, encoding="utf-8").read())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                names = [node.module or ""]
+            else:
+                continue
+            assert not any(n == "sim" or n.startswith("sim.") for n in names), path

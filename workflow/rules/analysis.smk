@@ -1,0 +1,269 @@
+# Analysis rules: particle states -> per-pile RVE fields -> ensembles -> fits -> figures.
+#
+# Expects from workflow/rules/common.smk:
+#   PROTOCOLS      list of protocol names of the study
+#   seeds(p)       list of int seeds of protocol p
+#   ANALYSIS_CODE  list of the analysis/*.py files (an input: code edits rerun the analysis)
+#   PY             the python executable used in shell commands
+#   and the global wildcard_constraints of protocol and seed
+# and the state files results/piles/{protocol}/seed{seed}/{stage}.nc (CONTRACT.md section 1).
+#
+# Every rule passes config["analysis"] as sorted JSON in params, so a change of
+# an analysis setting reruns exactly the rules that read it. Figure captions
+# live in workflow/report/analysis/ and are not params: editing one reruns nothing.
+
+import json
+
+ANALYSIS_CFG = config.get("analysis", {}) or {}
+ANALYSIS_PARAMS = json.dumps(ANALYSIS_CFG, sort_keys=True)
+ANALYSIS_FIGURES = ("fig1_convergence", "fig2_vertical_strain", "fig3_fabric", "fig4_moduli",
+                    "fig5_invariants", "base_pressure")
+
+
+def _analysis_setting(section, key, default):
+    return (ANALYSIS_CFG.get(section) or {}).get(key, default)
+
+
+def _analysis_protocol(key):
+    """Protocol drawn in a single-protocol figure: the configured one, else the first of the study."""
+    p = _analysis_setting("figures", key, "wedge")
+    return p if p in PROTOCOLS else PROTOCOLS[0]
+
+
+def _analysis_convergence_seed(protocol):
+    s = _analysis_setting("convergence", "seed", None)
+    return seeds(protocol)[0] if s is None else s
+
+
+def _analysis_fields(wildcards):
+    return expand("results/fields/{protocol}/seed{seed}.nc", protocol=wildcards.protocol,
+                  seed=seeds(wildcards.protocol))
+
+
+def analysis_targets():
+    """Every final output of the analysis (for `rule all`)."""
+    targets = []
+    for p in PROTOCOLS:
+        targets += [f"results/ensemble/{p}/{name}" for name in
+                    ("fields.nc", "moduli.nc", "base_pressure.nc", "invariants.nc", "convergence.nc")]
+    targets += [f"results/figures/{stem}.{ext}" for stem in ANALYSIS_FIGURES for ext in ("png", "pdf")]
+    return targets
+
+
+rule analysis_fields:
+    input:
+        relaxed="results/piles/{protocol}/seed{seed}/relaxed.nc",
+        reduced="results/piles/{protocol}/seed{seed}/reduced.nc",
+        code=ANALYSIS_CODE,
+    output:
+        fields="results/fields/{protocol}/seed{seed}.nc",
+        checks="results/fields/{protocol}/seed{seed}.checks.json",
+    params:
+        cfg=ANALYSIS_PARAMS,
+    log:
+        "logs/analysis/fields/{protocol}/seed{seed}.log",
+    benchmark:
+        "benchmarks/analysis/fields/{protocol}/seed{seed}.tsv"
+    threads: 1
+    shell:
+        "{PY} -m analysis fields --relaxed {input.relaxed} --reduced {input.reduced} "
+        "--params {params.cfg:q} --out {output.fields} --checks {output.checks} > {log} 2>&1"
+
+
+rule analysis_ensemble:
+    input:
+        fields=_analysis_fields,
+        code=ANALYSIS_CODE,
+    output:
+        "results/ensemble/{protocol}/fields.nc",
+    params:
+        cfg=ANALYSIS_PARAMS,
+    log:
+        "logs/analysis/ensemble/{protocol}.log",
+    threads: 1
+    shell:
+        "{PY} -m analysis ensemble --fields {input.fields} --params {params.cfg:q} --out {output} > {log} 2>&1"
+
+
+rule analysis_moduli:
+    input:
+        ensemble="results/ensemble/{protocol}/fields.nc",
+        fields=_analysis_fields,
+        code=ANALYSIS_CODE,
+    output:
+        "results/ensemble/{protocol}/moduli.nc",
+    params:
+        cfg=ANALYSIS_PARAMS,
+    log:
+        "logs/analysis/moduli/{protocol}.log",
+    threads: 1
+    shell:
+        "{PY} -m analysis moduli --ensemble {input.ensemble} --fields {input.fields} "
+        "--params {params.cfg:q} --out {output} > {log} 2>&1"
+
+
+rule analysis_base_pressure:
+    input:
+        states=lambda wc: expand("results/piles/{protocol}/seed{seed}/{stage}.nc", protocol=wc.protocol,
+                                 seed=seeds(wc.protocol),
+                                 stage=_analysis_setting("base_pressure", "stage", "relaxed")),
+        code=ANALYSIS_CODE,
+    output:
+        "results/ensemble/{protocol}/base_pressure.nc",
+    params:
+        cfg=ANALYSIS_PARAMS,
+    log:
+        "logs/analysis/base_pressure/{protocol}.log",
+    threads: 1
+    shell:
+        "{PY} -m analysis base-pressure --states {input.states} --params {params.cfg:q} --out {output} > {log} 2>&1"
+
+
+rule analysis_invariants:
+    input:
+        ensemble="results/ensemble/{protocol}/fields.nc",
+        code=ANALYSIS_CODE,
+    output:
+        "results/ensemble/{protocol}/invariants.nc",
+    params:
+        cfg=ANALYSIS_PARAMS,
+    log:
+        "logs/analysis/invariants/{protocol}.log",
+    threads: 1
+    shell:
+        "{PY} -m analysis invariants --ensemble {input.ensemble} --params {params.cfg:q} --out {output} > {log} 2>&1"
+
+
+rule analysis_convergence:
+    input:
+        relaxed=lambda wc: f"results/piles/{wc.protocol}/seed{_analysis_convergence_seed(wc.protocol)}/relaxed.nc",
+        reduced=lambda wc: f"results/piles/{wc.protocol}/seed{_analysis_convergence_seed(wc.protocol)}/reduced.nc",
+        code=ANALYSIS_CODE,
+    output:
+        "results/ensemble/{protocol}/convergence.nc",
+    params:
+        cfg=ANALYSIS_PARAMS,
+    log:
+        "logs/analysis/convergence/{protocol}.log",
+    threads: 1
+    shell:
+        "{PY} -m analysis convergence --relaxed {input.relaxed} --reduced {input.reduced} "
+        "--params {params.cfg:q} --out {output} > {log} 2>&1"
+
+
+def _labelled(files, protocols):
+    return " ".join(f"{p}={f}" for p, f in zip(protocols, files))
+
+
+rule analysis_figure_convergence:
+    input:
+        data=lambda wc: f"results/ensemble/{_analysis_protocol('convergence_protocol')}/convergence.nc",
+        code=ANALYSIS_CODE,
+    output:
+        png=report("results/figures/fig1_convergence.png", caption="../report/analysis/fig1_convergence.rst",
+                   category="Analysis", subcategory="Fig. 1"),
+        pdf="results/figures/fig1_convergence.pdf",
+    params:
+        cfg=ANALYSIS_PARAMS,
+        inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("convergence_protocol")]),
+    log:
+        "logs/analysis/figures/fig1_convergence.log",
+    threads: 1
+    shell:
+        "{PY} -m analysis figure convergence --inputs {params.inputs} --params {params.cfg:q} "
+        "--out {output.png} {output.pdf} > {log} 2>&1"
+
+
+rule analysis_figure_vertical_strain:
+    input:
+        data=expand("results/ensemble/{protocol}/fields.nc", protocol=PROTOCOLS),
+        code=ANALYSIS_CODE,
+    output:
+        png=report("results/figures/fig2_vertical_strain.png", caption="../report/analysis/fig2_vertical_strain.rst",
+                   category="Analysis", subcategory="Fig. 2"),
+        pdf="results/figures/fig2_vertical_strain.pdf",
+    params:
+        cfg=ANALYSIS_PARAMS,
+        inputs=lambda wc, input: _labelled(input.data, PROTOCOLS),
+    log:
+        "logs/analysis/figures/fig2_vertical_strain.log",
+    threads: 1
+    shell:
+        "{PY} -m analysis figure vertical-strain --inputs {params.inputs} --params {params.cfg:q} "
+        "--out {output.png} {output.pdf} > {log} 2>&1"
+
+
+rule analysis_figure_fabric:
+    input:
+        data=lambda wc: f"results/ensemble/{_analysis_protocol('fabric_protocol')}/fields.nc",
+        code=ANALYSIS_CODE,
+    output:
+        png=report("results/figures/fig3_fabric.png", caption="../report/analysis/fig3_fabric.rst",
+                   category="Analysis", subcategory="Fig. 3"),
+        pdf="results/figures/fig3_fabric.pdf",
+    params:
+        cfg=ANALYSIS_PARAMS,
+        inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("fabric_protocol")]),
+    log:
+        "logs/analysis/figures/fig3_fabric.log",
+    threads: 1
+    shell:
+        "{PY} -m analysis figure fabric --inputs {params.inputs} --params {params.cfg:q} "
+        "--out {output.png} {output.pdf} > {log} 2>&1"
+
+
+rule analysis_figure_moduli:
+    input:
+        data=lambda wc: f"results/ensemble/{_analysis_protocol('moduli_protocol')}/moduli.nc",
+        code=ANALYSIS_CODE,
+    output:
+        png=report("results/figures/fig4_moduli.png", caption="../report/analysis/fig4_moduli.rst",
+                   category="Analysis", subcategory="Fig. 4"),
+        pdf="results/figures/fig4_moduli.pdf",
+    params:
+        cfg=ANALYSIS_PARAMS,
+        inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("moduli_protocol")]),
+    log:
+        "logs/analysis/figures/fig4_moduli.log",
+    threads: 1
+    shell:
+        "{PY} -m analysis figure moduli --inputs {params.inputs} --params {params.cfg:q} "
+        "--out {output.png} {output.pdf} > {log} 2>&1"
+
+
+rule analysis_figure_invariants:
+    input:
+        data=lambda wc: f"results/ensemble/{_analysis_protocol('invariants_protocol')}/invariants.nc",
+        code=ANALYSIS_CODE,
+    output:
+        png=report("results/figures/fig5_invariants.png", caption="../report/analysis/fig5_invariants.rst",
+                   category="Analysis", subcategory="Fig. 5"),
+        pdf="results/figures/fig5_invariants.pdf",
+    params:
+        cfg=ANALYSIS_PARAMS,
+        inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("invariants_protocol")]),
+    log:
+        "logs/analysis/figures/fig5_invariants.log",
+    threads: 1
+    shell:
+        "{PY} -m analysis figure invariants --inputs {params.inputs} --params {params.cfg:q} "
+        "--out {output.png} {output.pdf} > {log} 2>&1"
+
+
+rule analysis_figure_base_pressure:
+    input:
+        data=expand("results/ensemble/{protocol}/base_pressure.nc", protocol=PROTOCOLS),
+        code=ANALYSIS_CODE,
+    output:
+        png=report("results/figures/base_pressure.png", caption="../report/analysis/base_pressure.rst",
+                   category="Analysis", subcategory="Base pressure"),
+        pdf="results/figures/base_pressure.pdf",
+    params:
+        cfg=ANALYSIS_PARAMS,
+        inputs=lambda wc, input: _labelled(input.data, PROTOCOLS),
+    log:
+        "logs/analysis/figures/base_pressure.log",
+    threads: 1
+    shell:
+        "{PY} -m analysis figure base-pressure --inputs {params.inputs} --params {params.cfg:q} "
+        "--out {output.png} {output.pdf} > {log} 2>&1"
