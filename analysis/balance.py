@@ -1,6 +1,8 @@
 """Balance-law checks on a pile at rest.
 
-Gravity ``g = (0, -g)`` with ``g`` the state's ``gravity`` attribute. With
+Gravity ``g = (0, -g)`` with ``g`` the state's ``gravity`` attribute (or the
+vector ``(gravity_x, gravity_y)`` when the file carries both attributes; the
+formulas below are written for the vertical case, the code uses the vector). With
 ``F^p = sum_c f^c`` the contact force on particle ``p`` (support included):
 
 1. **Support reaction.** At rest ``F^p + m_p g = 0`` for every particle;
@@ -60,7 +62,7 @@ def love_sum_rule(state: State) -> tuple[np.ndarray, np.ndarray]:
     s = state.support
     r = np.column_stack([state.contact_x[s], state.contact_y[s]])
     f = np.column_stack([state.force_x[s], state.force_y[s]])
-    gvec = np.array([0.0, -state.gravity])
+    gvec = state.gravity_vector
     pos = np.column_stack([state.x, state.y])
     rhs = r.T @ f + np.outer(state.mass @ pos, gvec)
     return lhs, rhs
@@ -68,7 +70,8 @@ def love_sum_rule(state: State) -> tuple[np.ndarray, np.ndarray]:
 
 def balance_report(state: State, checks: dict[str, Any]) -> dict[str, Any]:
     """All checks for one state, as a JSON-ready dict with values, tolerances and pass/fail."""
-    g = state.gravity
+    gvec = state.gravity_vector
+    g = float(np.hypot(*gvec))
     M = float(state.mass.sum())
     weight = M * g
     s = state.support
@@ -83,19 +86,19 @@ def balance_report(state: State, checks: dict[str, Any]) -> dict[str, Any]:
     rx = float(state.force_x[s].sum())
     rep["support_reaction_y"] = ry
     rep["support_reaction_x"] = rx
-    rep["support_reaction_rel_error"] = (ry - weight) / weight
-    rep["support_horizontal_rel"] = rx / weight
+    rep["support_reaction_rel_error"] = (ry + M * gvec[1]) / weight
+    rep["support_horizontal_rel"] = (rx + M * gvec[0]) / weight
     lhs, rhs = love_sum_rule(state)
     y_cm = float(state.mass @ state.y / M)
     x_cm = float(state.mass @ state.x / M)
     rep["y_cm"], rep["x_cm"] = y_cm, x_cm
     rep["love_lhs"] = lhs.tolist()
     rep["love_rhs"] = rhs.tolist()
-    rep["love_expected_yy_minus_M_g_ycm"] = -weight * y_cm
+    rep["love_expected_yy_minus_M_g_ycm"] = M * gvec[1] * y_cm
     rep["love_rel_error_yy"] = float((lhs[1, 1] - rhs[1, 1]) / (weight * y_cm)) if y_cm > 0 else float("nan")
     scale = weight * max(y_cm, float(np.abs(state.x - x_cm).max()) if state.n_particles else 0.0, 1e-300)
     rep["love_rel_error_max"] = float(np.abs(lhs - rhs).max() / scale)
-    net = net_contact_force(state) + state.mass[:, None] * np.array([0.0, -g])
+    net = net_contact_force(state) + state.mass[:, None] * gvec
     ratio = np.hypot(net[:, 0], net[:, 1]) / (state.mass * g)
     rep["net_force_ratio_max"] = float(ratio.max())
     rep["net_force_ratio_p99"] = float(np.percentile(ratio, 99))
@@ -103,7 +106,7 @@ def balance_report(state: State, checks: dict[str, Any]) -> dict[str, Any]:
     fails = []
     tol = checks["support_reaction_rtol"]
     if not abs(rep["support_reaction_rel_error"]) <= tol:
-        fails.append(f"support reaction {ry:.6g} N vs weight M g = {weight:.6g} N: relative error "
+        fails.append(f"support reaction {ry:.6g} N vs weight -M g_y = {-M * gvec[1]:.6g} N: relative error "
                      f"{rep['support_reaction_rel_error']:.3g} exceeds analysis.checks.support_reaction_rtol = {tol}")
     tol = checks["love_rtol"]
     if not abs(rep["love_rel_error_yy"]) <= tol:

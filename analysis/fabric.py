@@ -20,11 +20,20 @@ from .stress import _scatter_tensor, contact_ends
 
 
 def particle_fabric(state: State) -> np.ndarray:
-    """Single-particle fabric ``F^p_ij = sum_c n_i^c n_j^c`` (Eqs 10–11), shape ``(n, 2, 2)``.
+    """Single-particle fabric ``F^p_ij = sum_c n_i^c n_j^c`` (Eqs 10–11).
 
     Its trace is the contact number ``C^p`` (Eq. 12). A contact point that
     coincides with the centre (zero branch vector) has no direction and is
     skipped.
+
+    Parameters
+    ----------
+    state : State
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n_particles, 2, 2)``, dimensionless.
     """
     part, branch, _ = contact_ends(state)
     norm = np.hypot(branch[:, 0], branch[:, 1])
@@ -34,7 +43,22 @@ def particle_fabric(state: State) -> np.ndarray:
 
 
 def rve_fabric(W: sp.csr_matrix, fabric: np.ndarray, area: np.ndarray) -> np.ndarray:
-    """Volume-weighted RVE fabric ``sum_p V^p F^p / sum_p V^p`` (Sect. 4.1)."""
+    """Volume-weighted RVE fabric ``sum_p V^p F^p / sum_p V^p`` (Sect. 4.1, Eqs 10–12).
+
+    Parameters
+    ----------
+    W : scipy.sparse matrix
+        ``(n_rve, n_particles)`` membership.
+    fabric : numpy.ndarray
+        ``(n_particles, 2, 2)`` from :func:`particle_fabric`.
+    area : numpy.ndarray
+        ``(n_particles,)`` particle areas ``V^p``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n_rve, 2, 2)``; NaN for an RVE without particles.
+    """
     with np.errstate(invalid="ignore", divide="ignore"):
         return rve_sum(W, area[:, None, None] * fabric) / rve_sum(W, area)[:, None, None]
 

@@ -38,7 +38,7 @@ class Raster:
         y1 = float(max(centres[:, 1].max() + half_extent + h, h))
         return cls(x0, 0.0, h, int(np.ceil((x1 - x0) / h)), int(np.ceil(y1 / h)))
 
-    def fill_polygons(self, vx: np.ndarray, vy: np.ndarray, chunk: int = 2000) -> None:
+    def fill_polygons(self, vx: np.ndarray, vy: np.ndarray, max_work: int = 4_000_000) -> None:
         """Mark pixels whose centres lie in any of the convex polygons (rows of ``vx, vy``)."""
         h = self.h
         n = vx.shape[0]
@@ -55,6 +55,7 @@ class Raster:
         wy = int(max((iy_hi - iy_lo).max() + 1, 1))
         ox, oy = np.meshgrid(np.arange(wx), np.arange(wy))
         ox, oy = ox.ravel(), oy.ravel()
+        chunk = max(1, max_work // ox.size)  # bounded memory whatever the pixel size
         for s in range(0, n, chunk):
             e = min(n, s + chunk)
             ix = ix_lo[s:e, None] + ox[None, :]

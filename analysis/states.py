@@ -64,6 +64,14 @@ class State:
         return float(self.attrs["gravity"])
 
     @property
+    def gravity_vector(self) -> np.ndarray:
+        """Gravity as a vector (m/s²): the attributes ``gravity_x``, ``gravity_y``
+        when the file has both (tilted-gravity probes), else ``(0, -gravity)``."""
+        if "gravity_x" in self.attrs and "gravity_y" in self.attrs:
+            return np.array([float(self.attrs["gravity_x"]), float(self.attrs["gravity_y"])])
+        return np.array([0.0, -self.gravity])
+
+    @property
     def support(self) -> np.ndarray:
         """Boolean mask of the contacts with the support (``contact_j == -1``)."""
         return self.contact_j < 0
@@ -144,6 +152,14 @@ def state_from_dataset(ds: xr.Dataset, path: str = "<dataset>") -> State:
     bad = ci == cj
     if bad.any():
         raise _fail(path, f"contact {int(np.flatnonzero(bad)[0])} joins a particle to itself")
+    for a in ("gravity_x", "gravity_y"):
+        if a in ds.attrs:
+            try:
+                ok = np.isfinite(float(ds.attrs[a]))
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise _fail(path, f"global attribute {a!r} = {ds.attrs[a]!r} is not a finite number")
     attrs = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in ds.attrs.items()}
     return State(path=path, attrs=attrs, **arrays)
 

@@ -60,27 +60,58 @@ def contact_ends(state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def particle_stress_moment(state: State) -> np.ndarray:
-    """``sum_c x_i^c f_j^c`` per particle, the numerator of Eq. 2 (N m), shape ``(n, 2, 2)``.
+    """Contact moment ``sum_c x_i^c f_j^c`` of every particle: the sum in paper Eq. 2.
 
-    Implements the sum of paper Eq. 2 with the contract's sign convention
-    (``f`` acting on the particle, compression negative); the support counts
-    as a contact of its particle.
+    Parameters
+    ----------
+    state : State
+        A particle state (CONTRACT.md section 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n_particles, 2, 2)``, N m, first index of the branch vector, second
+        of the force acting on the particle (compression negative); support
+        contacts count for their particle.
     """
     part, branch, force = contact_ends(state)
     return _scatter_tensor(part, branch, force, state.n_particles)
 
 
 def particle_stress(state: State) -> np.ndarray:
-    """Particle stress ``sigma^p_ij = (1/V^p) sum_c x_i^c f_j^c`` (paper Eq. 2), N/m."""
+    """Particle stress ``sigma^p_ij = (1/V^p) sum_c x_i^c f_j^c`` (paper Eq. 2).
+
+    Parameters
+    ----------
+    state : State
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n_particles, 2, 2)`` in N/m (2D), ``V^p`` = the particle's ``area``.
+    """
     return particle_stress_moment(state) / state.area[:, None, None]
 
 
 def rve_stress(W: sp.csr_matrix, moments: np.ndarray, volume: np.ndarray) -> np.ndarray:
-    """RVE stress ``(1/V) sum_{p in RVE} sum_c x_i^c f_j^c`` (Eq. 2 averaged, Sect. 3), N/m.
+    """RVE stress ``(1/V) sum_{p in RVE} sum_c x_i^c f_j^c`` (Eq. 2 averaged, Sect. 3).
 
     Equals ``sum_p (V^p/V) sigma^p``: the area average of the particle
-    stresses of Eq. 2 over the RVE, voids counting as zero stress. The full
-    (not symmetrised) tensor is returned.
+    stresses of Eq. 2 over the RVE, voids counting as zero stress.
+
+    Parameters
+    ----------
+    W : scipy.sparse matrix
+        ``(n_rve, n_particles)`` 0/1 membership (:func:`analysis.rve.membership`).
+    moments : numpy.ndarray
+        ``(n_particles, 2, 2)`` from :func:`particle_stress_moment`.
+    volume : numpy.ndarray
+        ``(n_rve,)`` RVE areas V (m²).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(n_rve, 2, 2)`` in N/m, the full (not symmetrised) tensor.
     """
     with np.errstate(invalid="ignore", divide="ignore"):
         return rve_sum(W, moments) / np.asarray(volume)[:, None, None]

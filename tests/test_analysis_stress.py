@@ -109,3 +109,13 @@ def test_reduced_gravity_state_is_checked_against_its_own_gravity():
     assert balance_report(as_state(r), DEFAULTS["checks"])["passed"]
     r["attrs"]["gravity"] = 9.81  # forces of 0.9 g but claimed gravity g
     assert not balance_report(as_state(r), DEFAULTS["checks"])["passed"]
+
+
+def test_gravity_vector_attributes_are_used_when_present():
+    s = step_pyramid(21, A, slope=0.8, gravity=9.81)
+    s["attrs"].update(gravity_x=0.0, gravity_y=-9.81)
+    assert balance_report(as_state(s), DEFAULTS["checks"])["passed"]
+    s["attrs"].update(gravity_x=2.0, gravity_y=-9.6)  # tilted gravity the forces do not balance
+    rep = balance_report(as_state(s), DEFAULTS["checks"])
+    assert not rep["passed"] and rep["support_horizontal_rel"] == pytest.approx(
+        2.0 * as_state(s).mass.sum() / (as_state(s).mass.sum() * np.hypot(2.0, 9.6)))

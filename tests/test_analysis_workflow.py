@@ -35,6 +35,8 @@ def _project(tmp_path, analysis_cfg=None):
             return [1, 2]
         ANALYSIS_CODE = sorted(glob.glob("{REPO}/analysis/*.py"))
         PY = "{sys.executable}"
+        def py_shell(command):
+            return PY + " " + command
         wildcard_constraints:
             protocol="wedge|layered",
             seed=r"\\d+",

@@ -4,7 +4,7 @@
 #   PROTOCOLS      list of protocol names of the study
 #   seeds(p)       list of int seeds of protocol p
 #   ANALYSIS_CODE  list of the analysis/*.py files (an input: code edits rerun the analysis)
-#   PY             the python executable used in shell commands
+#   PY, py_shell   the python executable and the helper that prefixes it to a shell command
 #   and the global wildcard_constraints of protocol and seed
 # and the state files results/piles/{protocol}/seed{seed}/{stage}.nc (CONTRACT.md section 1).
 #
@@ -16,6 +16,7 @@ import json
 
 ANALYSIS_CFG = config.get("analysis", {}) or {}
 ANALYSIS_PARAMS = json.dumps(ANALYSIS_CFG, sort_keys=True)
+ANALYSIS_MEM_MB = 2000
 ANALYSIS_FIGURES = ("fig1_convergence", "fig2_vertical_strain", "fig3_fabric", "fig4_moduli",
                     "fig5_invariants", "base_pressure")
 
@@ -65,9 +66,16 @@ rule analysis_fields:
     benchmark:
         "benchmarks/analysis/fields/{protocol}/seed{seed}.tsv"
     threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
     shell:
-        "{PY} -m analysis fields --relaxed {input.relaxed} --reduced {input.reduced} "
-        "--params {params.cfg:q} --out {output.fields} --checks {output.checks} > {log} 2>&1"
+        py_shell(
+            "-m analysis fields --relaxed {input.relaxed:q} --reduced {input.reduced:q} "
+            "--params {params.cfg:q} --out {output.fields:q} --checks {output.checks:q} > {log:q} 2>&1"
+        )
 
 
 rule analysis_ensemble:
@@ -81,8 +89,15 @@ rule analysis_ensemble:
     log:
         "logs/analysis/ensemble/{protocol}.log",
     threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
     shell:
-        "{PY} -m analysis ensemble --fields {input.fields} --params {params.cfg:q} --out {output} > {log} 2>&1"
+        py_shell(
+            "-m analysis ensemble --fields {input.fields} --params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
+        )
 
 
 rule analysis_moduli:
@@ -97,9 +112,16 @@ rule analysis_moduli:
     log:
         "logs/analysis/moduli/{protocol}.log",
     threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
     shell:
-        "{PY} -m analysis moduli --ensemble {input.ensemble} --fields {input.fields} "
-        "--params {params.cfg:q} --out {output} > {log} 2>&1"
+        py_shell(
+            "-m analysis moduli --ensemble {input.ensemble:q} --fields {input.fields} "
+            "--params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
+        )
 
 
 rule analysis_base_pressure:
@@ -115,8 +137,15 @@ rule analysis_base_pressure:
     log:
         "logs/analysis/base_pressure/{protocol}.log",
     threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
     shell:
-        "{PY} -m analysis base-pressure --states {input.states} --params {params.cfg:q} --out {output} > {log} 2>&1"
+        py_shell(
+            "-m analysis base-pressure --states {input.states} --params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
+        )
 
 
 rule analysis_invariants:
@@ -130,8 +159,15 @@ rule analysis_invariants:
     log:
         "logs/analysis/invariants/{protocol}.log",
     threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
     shell:
-        "{PY} -m analysis invariants --ensemble {input.ensemble} --params {params.cfg:q} --out {output} > {log} 2>&1"
+        py_shell(
+            "-m analysis invariants --ensemble {input.ensemble:q} --params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
+        )
 
 
 rule analysis_convergence:
@@ -146,9 +182,16 @@ rule analysis_convergence:
     log:
         "logs/analysis/convergence/{protocol}.log",
     threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
     shell:
-        "{PY} -m analysis convergence --relaxed {input.relaxed} --reduced {input.reduced} "
-        "--params {params.cfg:q} --out {output} > {log} 2>&1"
+        py_shell(
+            "-m analysis convergence --relaxed {input.relaxed:q} --reduced {input.reduced:q} "
+            "--params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
+        )
 
 
 def _labelled(files, protocols):
@@ -169,9 +212,16 @@ rule analysis_figure_convergence:
     log:
         "logs/analysis/figures/fig1_convergence.log",
     threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
     shell:
-        "{PY} -m analysis figure convergence --inputs {params.inputs} --params {params.cfg:q} "
-        "--out {output.png} {output.pdf} > {log} 2>&1"
+        py_shell(
+            "-m analysis figure convergence --inputs {params.inputs} --params {params.cfg:q} "
+            "--out {output.png} {output.pdf} > {log:q} 2>&1"
+        )
 
 
 rule analysis_figure_vertical_strain:
@@ -188,9 +238,16 @@ rule analysis_figure_vertical_strain:
     log:
         "logs/analysis/figures/fig2_vertical_strain.log",
     threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
     shell:
-        "{PY} -m analysis figure vertical-strain --inputs {params.inputs} --params {params.cfg:q} "
-        "--out {output.png} {output.pdf} > {log} 2>&1"
+        py_shell(
+            "-m analysis figure vertical-strain --inputs {params.inputs} --params {params.cfg:q} "
+            "--out {output.png} {output.pdf} > {log:q} 2>&1"
+        )
 
 
 rule analysis_figure_fabric:
@@ -207,9 +264,16 @@ rule analysis_figure_fabric:
     log:
         "logs/analysis/figures/fig3_fabric.log",
     threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
     shell:
-        "{PY} -m analysis figure fabric --inputs {params.inputs} --params {params.cfg:q} "
-        "--out {output.png} {output.pdf} > {log} 2>&1"
+        py_shell(
+            "-m analysis figure fabric --inputs {params.inputs} --params {params.cfg:q} "
+            "--out {output.png} {output.pdf} > {log:q} 2>&1"
+        )
 
 
 rule analysis_figure_moduli:
@@ -226,9 +290,16 @@ rule analysis_figure_moduli:
     log:
         "logs/analysis/figures/fig4_moduli.log",
     threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
     shell:
-        "{PY} -m analysis figure moduli --inputs {params.inputs} --params {params.cfg:q} "
-        "--out {output.png} {output.pdf} > {log} 2>&1"
+        py_shell(
+            "-m analysis figure moduli --inputs {params.inputs} --params {params.cfg:q} "
+            "--out {output.png} {output.pdf} > {log:q} 2>&1"
+        )
 
 
 rule analysis_figure_invariants:
@@ -245,9 +316,16 @@ rule analysis_figure_invariants:
     log:
         "logs/analysis/figures/fig5_invariants.log",
     threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
     shell:
-        "{PY} -m analysis figure invariants --inputs {params.inputs} --params {params.cfg:q} "
-        "--out {output.png} {output.pdf} > {log} 2>&1"
+        py_shell(
+            "-m analysis figure invariants --inputs {params.inputs} --params {params.cfg:q} "
+            "--out {output.png} {output.pdf} > {log:q} 2>&1"
+        )
 
 
 rule analysis_figure_base_pressure:
@@ -264,6 +342,13 @@ rule analysis_figure_base_pressure:
     log:
         "logs/analysis/figures/base_pressure.log",
     threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
     shell:
-        "{PY} -m analysis figure base-pressure --inputs {params.inputs} --params {params.cfg:q} "
-        "--out {output.png} {output.pdf} > {log} 2>&1"
+        py_shell(
+            "-m analysis figure base-pressure --inputs {params.inputs} --params {params.cfg:q} "
+            "--out {output.png} {output.pdf} > {log:q} 2>&1"
+        )
