@@ -36,6 +36,11 @@ def save(fig, outputs: list[str], dpi: int = 150) -> None:
     plt.close(fig)
 
 
+def _sci(ax, axis="both"):
+    """Plain scientific tick labels without an offset (strains are ~1e-4)."""
+    ax.ticklabel_format(axis=axis, style="sci", scilimits=(-3, 4), useOffset=False)
+
+
 def _rve_label(ds: xr.Dataset) -> str:
     size = ds.attrs.get("rve_size")
     shape = ds.attrs.get("rve_shape", "")
@@ -78,7 +83,7 @@ def _sem(ds, name, sel=None):
 
 def fig_convergence(conv: xr.Dataset, outputs: list[str], dpi: int = 150) -> None:
     """Fig. 1: stress (a) and strain-increment (b) components against the particle count of the RVE."""
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), layout="constrained")
     markers = "os^vD<>"
     for p in range(conv.sizes["point"]):
         sub = conv.isel(point=p)
@@ -97,6 +102,7 @@ def fig_convergence(conv: xr.Dataset, outputs: list[str], dpi: int = 150) -> Non
         ax.legend(fontsize=6, ncol=1)
     axes[0].set_ylabel("stress (N/m)")
     axes[1].set_ylabel("strain (1)")
+    _sci(axes[1], "y")
     fig.suptitle(f"RVE-size convergence, protocol {conv.attrs.get('protocol', '')}, 1 pile "
                  f"(seed {conv.attrs.get('seed', '')}), {conv.attrs.get('rve_shape', '')} RVEs; "
                  "shaded: 100–200 particles", fontsize=10)
@@ -106,7 +112,8 @@ def fig_convergence(conv: xr.Dataset, outputs: list[str], dpi: int = 150) -> Non
 def fig_vertical_strain(ensembles: dict[str, xr.Dataset], heights: list[float], outputs: list[str],
                         dpi: int = 150) -> None:
     """Fig. 2: vertical normal strain increment u_yy against x at several heights, one panel per protocol."""
-    fig, axes = plt.subplots(1, len(ensembles), figsize=(5.5 * len(ensembles), 4.2), squeeze=False, sharey=True)
+    fig, axes = plt.subplots(1, len(ensembles), figsize=(5.5 * len(ensembles), 4.2), squeeze=False, sharey=True,
+                             layout="constrained")
     for ax, (proto, ds) in zip(axes[0], ensembles.items()):
         x = ds["x"].values
         for k, h in _rows(ds, heights):
@@ -119,6 +126,7 @@ def fig_vertical_strain(ensembles: dict[str, xr.Dataset], heights: list[float], 
         ax.axhline(0, color="0.6", lw=0.5)
         ax.legend(fontsize=7)
     axes[0][0].set_ylabel("vertical normal strain increment u_yy (1)")
+    _sci(axes[0][0], "y")
     fig.suptitle("Vertical normal strain (relaxed → reduced gravity), mean ± standard error over piles",
                  fontsize=10)
     save(fig, outputs, dpi)
@@ -127,7 +135,7 @@ def fig_vertical_strain(ensembles: dict[str, xr.Dataset], heights: list[float], 
 def fig_fabric(ds: xr.Dataset, heights: list[float], outputs: list[str], dpi: int = 150, protocol: str = "") -> None:
     """Fig. 3: (a) fabric trace, (b) deviatoric fraction, (c) fabric orientation against x;
     (d) orientation of fabric, stress and strain increment in the two lowest layers."""
-    fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8), layout="constrained")
     x = ds["x"].values
     rows = _rows(ds, heights)
     panels = (("fabric_trace", "trace of fabric (1)", "a"),
@@ -158,7 +166,7 @@ def fig_fabric(ds: xr.Dataset, heights: list[float], outputs: list[str], dpi: in
 
 def fig_moduli(mod: xr.Dataset, heights: list[float], outputs: list[str], dpi: int = 150, protocol: str = "") -> None:
     """Fig. 4: left isotropic K, E, G (S′, m = 1); right cubic K, E_av, G_av (S̃, m = 5)."""
-    fig, axes = plt.subplots(3, 2, figsize=(11, 10), sharex=True)
+    fig, axes = plt.subplots(3, 2, figsize=(11, 10), sharex=True, layout="constrained")
     x = mod["x"].values
     rows = _rows(mod, heights)
     left = mod.sel(fit="modulus", points=1)
@@ -187,12 +195,13 @@ def fig_moduli(mod: xr.Dataset, heights: list[float], outputs: list[str], dpi: i
 
 def fig_invariants(inv: xr.Dataset, outputs: list[str], dpi: int = 150, protocol: str = "") -> None:
     """Fig. 5: −tr Δσ against −tr u (loading step) for all RVEs, and the bulk modulus against depth."""
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), layout="constrained")
     ts, tu, d = (inv[k].values.ravel() for k in ("trace_stress_increment", "trace_strain_increment", "depth"))
     ok = np.isfinite(ts) & np.isfinite(tu)
     sc = axes[0].scatter(tu[ok], ts[ok], c=d[ok], s=6, cmap="viridis")
     fig.colorbar(sc, ax=axes[0], label="depth below surface (m)")
     axes[0].set_xlabel("−tr u (loading reduced → full gravity) (1)")
+    _sci(axes[0])
     axes[0].set_ylabel("−tr Δσ (N/m)")
     axes[0].set_title("a", loc="left")
     db = inv["depth_bin"].values
@@ -209,7 +218,7 @@ def fig_invariants(inv: xr.Dataset, outputs: list[str], dpi: int = 150, protocol
 
 def fig_base_pressure(bps: dict[str, xr.Dataset], outputs: list[str], dpi: int = 150) -> None:
     """Normal and shear force per unit length on the support, mean ± standard error, all protocols."""
-    fig, axes = plt.subplots(2, 1, figsize=(7.5, 7), sharex=True)
+    fig, axes = plt.subplots(2, 1, figsize=(7.5, 7), sharex=True, layout="constrained")
     for proto, ds in bps.items():
         x = ds["x"].values
         lab = f"{proto} ({_npiles(ds)})"
