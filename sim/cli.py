@@ -69,22 +69,22 @@ def _parser():
                    help="comma-separated particle counts")
     p.add_argument("--steps", type=int, default=300)
 
-    p = sub.add_parser("draw", help="picture of a pile state (PNG)")
-    p.add_argument("rest", nargs=argparse.REMAINDER,
-                   help="arguments of sim.draw (--input, --out, ...)")
+    sub.add_parser("draw", help="picture of a pile state (PNG); "
+                   "see python -m sim draw --help", add_help=False)
     return ap
 
 
 def main(argv=None):
     """Run the command line; returns the exit status."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["draw"]:
+        from .draw import main as draw_main
+        return draw_main(argv[1:])
     args = _parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO, stream=sys.stderr,
                         format="%(asctime)s %(levelname)s %(message)s")
     log = logging.getLogger("sim")
     try:
-        if args.command == "draw":
-            from .draw import main as draw_main
-            return draw_main(args.rest)
         if args.command == "warmup":
             from .warmup import warmup
             warmup()

@@ -167,7 +167,7 @@ class PourParams:
     n_particles: int = 3500
     rate: float = 100.0
     release_height: float = 0.02
-    release_speed: float = 0.5
+    release_speed: float = 1.0
     jitter: float = 1.0e-3
     line_margin: float = 0.0
     top_band: float = 0.01
@@ -203,12 +203,20 @@ class RelaxParams:
         Both criteria must hold for this long, s.
     max_time : float
         Simulated time after which relaxation fails loudly, s.
+    drag : float
+        Background damping rate while relaxing, 1/s: every particle feels
+        ``−drag·m·v`` and ``−drag·I·ω``.  The contact law leaves a polygon
+        rocking on an edge undamped (the overlap area does not change while it
+        rocks, so neither damping term of the Appendix acts); the drag removes
+        that motion and vanishes at rest, so the static state it leads to
+        satisfies the same force balance.  0 turns it off.
     """
 
     kinetic_energy_fraction: float = 1.0e-6
     max_speed: float = 1.0e-3
     hold_time: float = 0.05
     max_time: float = 10.0
+    drag: float = 20.0
 
     def __post_init__(self):
         s = "relax"
@@ -217,6 +225,7 @@ class RelaxParams:
         _check_number(s, "max_speed", self.max_speed, lo=0, lo_open=True)
         _check_number(s, "hold_time", self.hold_time, lo=0)
         _check_number(s, "max_time", self.max_time, lo=0, lo_open=True)
+        _check_number(s, "drag", self.drag, lo=0, hi=1e4)
 
 
 @dataclass(frozen=True)

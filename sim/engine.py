@@ -131,6 +131,7 @@ class Simulation:
         self.check_every = max(50, int(round(1e-3 / self.dt)))
         self.energy_tolerance = 0.25
         self.parallel_threshold = 400
+        self.drag = 0.0
         self._reset_energy_reference()
 
     # ------------------------------------------------------------------ state
@@ -159,18 +160,26 @@ class Simulation:
         self.gravity = (float(gx), float(gy))
         self._reset_energy_reference()
 
-    def derivatives(self):
-        """Time derivatives ``d^k q/dt^k`` of the active particles, shape (n_values, 3, n)."""
-        return unscale_derivatives(self.r[:, :, :self.n], self.dt)
+    def scaled_derivatives(self):
+        """The integrator's values ``dt^k/k! d^k q/dt^k``, shape (n_values, 3, n)."""
+        return self.r[:, :, :self.n].copy()
 
-    def set_derivatives(self, derivs):
-        """Set the active particles' derivatives (inverse of :meth:`derivatives`)."""
-        n = derivs.shape[2]
+    def set_scaled_derivatives(self, r, dt):
+        """Set the integrator's values, saved with time step ``dt``.
+
+        With the same ``dt`` they are taken bit for bit, so a restart retraces
+        the run; otherwise they are rescaled to this simulation's step.
+        """
+        n = r.shape[2]
         if n > self.capacity:
             raise ValueError(f"{n} particles exceed the capacity {self.capacity}")
+        keep = min(r.shape[0], len(self.coeffs))
         self.r[:] = 0.0
-        self.r[:derivs.shape[0], :, :n] = scale_derivatives(derivs[:len(self.coeffs)],
-                                                            self.dt)
+        if dt == self.dt:
+            self.r[:keep, :, :n] = r[:keep]
+        else:
+            self.r[:keep, :, :n] = scale_derivatives(unscale_derivatives(r, dt),
+                                                     self.dt)[:keep]
         self.n = n
         self._stale = True
         self._reset_energy_reference()
@@ -308,8 +317,8 @@ class Simulation:
                         self.bspring, self.bout, self.shapes.mass, self.inv_mass,
                         self.inv_inertia, self.shapes.area, self.gravity[0],
                         self.gravity[1], self.model.youngs_modulus, self.model.damping,
-                        self.model.friction, self.rotate, self.eps, self.x_ref, self.y_ref,
-                        rebuild_sq, self.scratch)
+                        self.model.friction, self.rotate, self.drag, self.eps, self.x_ref,
+                        self.y_ref, rebuild_sq, self.scratch)
             done += k
             self.step += k
             self.time += k * self.dt

@@ -162,9 +162,11 @@ def pair_forces(pi, pj, spring, pout, r, dt, node_offset, wx, wy, box, inv_mass,
 def gather_and_correct(r, n, coeffs, dt, pi, pout, pair_offset, pair_index, body_p,
                        body_m, body_friction, bspring, bout, node_offset, wx, wy, box,
                        mass, inv_mass, inv_inertia, area, gravity_x, gravity_y,
-                       youngs_modulus, damping, rotate, eps, scratch):
+                       youngs_modulus, damping, rotate, drag, eps, scratch):
     """Total force and torque on each particle, then the corrector (Eq. 1).
 
+    ``drag`` (1/s) adds the background damping ``−drag·m·v`` and ``−drag·I·ω``
+    used only while relaxing (see :mod:`sim.protocols`); it is 0 otherwise.
     Bodies are half-planes ``{q : (q − p)·m < 0}`` (point ``body_p[b]``, unit
     outward normal ``body_m[b]``) of infinite mass, e.g. the support ``y < 0``.
     With ``rotate`` false the angular degree of freedom is not integrated.
@@ -234,9 +236,9 @@ def gather_and_correct(r, n, coeffs, dt, pi, pout, pair_offset, pair_index, body
             fx += bfx
             fy += bfy
             tq += row[12]
-        acc0 = fx * inv_mass[i]
-        acc1 = fy * inv_mass[i]
-        acc2 = tq * inv_inertia[i] if rotate else 0.0
+        acc0 = fx * inv_mass[i] - drag * vxi
+        acc1 = fy * inv_mass[i] - drag * vyi
+        acc2 = tq * inv_inertia[i] - drag * wi if rotate else 0.0
         for d in range(3):
             a = acc0 if d == 0 else (acc1 if d == 1 else acc2)
             delta = half_dt2 * a - r[2, d, i]
@@ -262,7 +264,7 @@ KERNELS_SERIAL = tuple(njit(cache=True)(f) for f in
 def advance(kernels, n_steps, n, r, coeffs, dt, node_offset, node_x, node_y, wx, wy, box,
             pi, pj, spring, pout, pair_offset, pair_index, body_p, body_m,
             body_friction, bspring, bout, mass, inv_mass, inv_inertia, area,
-            gravity_x, gravity_y, youngs_modulus, damping, friction, rotate, eps,
+            gravity_x, gravity_y, youngs_modulus, damping, friction, rotate, drag, eps,
             x_ref, y_ref, rebuild_sq, scratch):
     """Run up to ``n_steps`` steps; stop early when the pair list needs a rebuild.
 
@@ -282,7 +284,7 @@ def advance(kernels, n_steps, n, r, coeffs, dt, node_offset, node_x, node_y, wx,
         gather(r, n, coeffs, dt, pi, pout, pair_offset, pair_index, body_p,
                body_m, body_friction, bspring, bout, node_offset, wx, wy, box,
                mass, inv_mass, inv_inertia, area, gravity_x, gravity_y,
-               youngs_modulus, damping, rotate, eps, scratch)
+               youngs_modulus, damping, rotate, drag, eps, scratch)
         m = 0.0
         for i in range(n):
             dx = r[0, 0, i] - x_ref[i]

@@ -1,8 +1,9 @@
 """State files: save and load the particle state of CONTRACT.md §1.
 
 A state file holds exactly the contract's variables plus what a restart needs
-to continue the same trajectory: ``gear_derivatives`` (all time derivatives
-the integrator keeps) and ``contact_spring`` (the Cundall–Strack history of
+to continue the same trajectory: ``integrator_state`` (the scaled time
+derivatives the integrator keeps, stored as they are so a restart with the
+same dt is exact to the bit) and ``contact_spring`` (the Cundall–Strack history of
 each contact).  Files are written to a temporary name and renamed when
 complete, so a killed job never leaves a file that looks whole.
 """
@@ -119,11 +120,12 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
     for name, (units, long_name) in CONTACT_VARS.items():
         ds[name] = xr.DataArray(values[name], dims="contact",
                                 attrs={"units": units, "long_name": long_name})
-    ds["gear_derivatives"] = xr.DataArray(
-        sim.derivatives(), dims=("derivative", "dof", "particle"),
+    ds["integrator_state"] = xr.DataArray(
+        sim.scaled_derivatives(), dims=("derivative", "dof", "particle"),
         coords={"dof": ["x", "y", "theta"]},
-        attrs={"units": "m s-k (rad s-k for theta)", "long_name": "k-th time derivatives "
-               "of x, y, theta kept by the integrator (restart data)"})
+        attrs={"units": "m (rad for theta)", "long_name": "scaled time derivatives "
+               "dt^k/k! d^k q/dt^k of x, y, theta kept by the integrator, with dt the "
+               "global attribute dt (restart data)"})
     m = sim.model
     g = float(np.hypot(*sim.gravity))
     walls = sim.walls if sim.walls is not None else (np.nan, np.nan)
@@ -153,7 +155,7 @@ def save_state(sim: Simulation, path, config: dict | None = None, **attrs) -> No
 
 
 REQUIRED = list(PARTICLE_VARS) + ["node_count", "node_x", "node_y", "contact_i",
-                                  "contact_j", "gear_derivatives"] + list(CONTACT_VARS)
+                                  "contact_j", "integrator_state"] + list(CONTACT_VARS)
 
 
 def read_state(path) -> xr.Dataset:
@@ -244,7 +246,7 @@ def load_simulation(path, model: ModelParams | None = None, capacity_shapes=None
                                              float(ds.attrs["gravity_y"])),
                      support=bool(ds.attrs.get("support", 1)), walls=walls,
                      rotate=bool(ds.attrs.get("rotate", 1)))
-    sim.set_derivatives(ds["gear_derivatives"].values)
+    sim.set_scaled_derivatives(ds["integrator_state"].values, float(ds.attrs["dt"]))
     sim.time = float(ds.attrs["time"])
     sim.step = int(ds.attrs["step"])
     sim.set_springs(ds["contact_i"].values.astype(np.int64),

@@ -247,6 +247,9 @@ def at_rest(sim, relax):
 def relax(sim: Simulation, cfg: SimConfig, what="relax"):
     """Run until at rest (criterion held for ``hold_time``) or fail after ``max_time``.
 
+    The background drag ``relax.drag`` acts while this runs (and during a
+    gravity ramp), never while pouring.
+
     Raises
     ------
     RelaxationError
@@ -254,6 +257,15 @@ def relax(sim: Simulation, cfg: SimConfig, what="relax"):
     """
     r = cfg.relax
     t0 = sim.time
+    sim.drag = r.drag
+    try:
+        return _relax_loop(sim, cfg, what, t0)
+    finally:
+        sim.drag = 0.0
+
+
+def _relax_loop(sim, cfg, what, t0):
+    r = cfg.relax
     chunk = max(min(1e-3, r.hold_time / 5.0), sim.dt)
     rest_since = None
     progress = Progress(cfg.pour.progress_interval, r.max_time)
@@ -305,6 +317,7 @@ def probe_file(cfg: SimConfig, input_path, level, out, stage="reduced"):
     gx0, gy0 = sim.gravity
     t = _time.monotonic()
     try:
+        sim.drag = cfg.relax.drag
         if cfg.probe.mode == "ramp":
             for s in range(1, 51):
                 f = 1.0 - level * s / 50.0
