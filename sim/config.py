@@ -157,7 +157,10 @@ class PourParams:
         Layered sequence: extra length on each side of the measured top width, m.
     top_band : float
         Layered sequence: the top width is the horizontal extent of the settled
-        particles whose centres lie within this band below the pile's top, m.
+        particles whose tops lie within this band below the pile's top, m.
+    layered_slope_deg : float
+        Layered sequence: the line never extends beyond the flanks of a pile
+        of this slope, in degrees (below the angle of repose).
     checkpoint_interval : float
         Wall-clock seconds between checkpoints.
     progress_interval : float
@@ -171,6 +174,7 @@ class PourParams:
     jitter: float = 1.0e-3
     line_margin: float = 0.0
     top_band: float = 0.01
+    layered_slope_deg: float = 20.0
     checkpoint_interval: float = 120.0
     progress_interval: float = 10.0
 
@@ -183,6 +187,8 @@ class PourParams:
         _check_number(s, "jitter", self.jitter, lo=0)
         _check_number(s, "line_margin", self.line_margin, lo=0)
         _check_number(s, "top_band", self.top_band, lo=0, lo_open=True)
+        _check_number(s, "layered_slope_deg", self.layered_slope_deg, lo=0, hi=60,
+                      lo_open=True)
         _check_number(s, "checkpoint_interval", self.checkpoint_interval, lo=0,
                       lo_open=True)
         _check_number(s, "progress_interval", self.progress_interval, lo=0, lo_open=True)

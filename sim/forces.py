@@ -31,7 +31,7 @@ from numba import njit, prange
 
 from .contact_law import (characteristic_length, normal_force, reduced_mass,
                           tangential_force, tangential_mass)
-from .geometry import halfplane_overlap, polygon_overlap
+from .geometry import halfplane_overlap_range, polygon_overlap_range
 
 ROW = {"area": 0, "c1x": 1, "c1y": 2, "c2x": 3, "c2y": 4, "sx": 5, "sy": 6, "nx": 7,
        "ny": 8, "length": 9, "fx": 10, "fy": 11, "torque_i": 12, "torque_j": 13,
@@ -120,8 +120,8 @@ def pair_forces(pi, pj, spring, pout, r, dt, node_offset, wx, wy, box, inv_mass,
         yi = r[0, 1, i]
         xj = r[0, 0, j]
         yj = r[0, 1, j]
-        if not polygon_overlap(wx[a0:a1], wy[a0:a1], wx[b0:b1], wy[b0:b1],
-                               xi, yi, xj, yj, eps, row, scratch[numba.get_thread_id()]):
+        if not polygon_overlap_range(wx, wy, a0, a1, wx, wy, b0, b1, xi, yi, xj, yj, eps,
+                                     row, scratch[numba.get_thread_id()]):
             spring[p] = 0.0
             continue
         sx = row[5]
@@ -203,9 +203,9 @@ def gather_and_correct(r, n, coeffs, dt, pi, pout, pair_offset, pair_index, body
             deep = ((box[i, 0] if body_m[b, 0] > 0.0 else box[i, 1]) - body_p[b, 0]) * \
                 body_m[b, 0] + ((box[i, 2] if body_m[b, 1] > 0.0 else box[i, 3]) -
                                 body_p[b, 1]) * body_m[b, 1]
-            if deep >= 0.0 or not halfplane_overlap(wx[a0:a1], wy[a0:a1], body_p[b, 0], body_p[b, 1],
-                                     body_m[b, 0], body_m[b, 1], eps, row,
-                                     scratch[numba.get_thread_id()]):
+            if deep >= 0.0 or not halfplane_overlap_range(
+                    wx, wy, a0, a1, body_p[b, 0], body_p[b, 1], body_m[b, 0], body_m[b, 1],
+                    eps, row, scratch[numba.get_thread_id()]):
                 bspring[b, i] = 0.0
                 continue
             nx = row[7]

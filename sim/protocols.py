@@ -8,12 +8,15 @@
   horizontal line at the same height.  Its length follows the momentary width
   of the pile's top: the horizontal extent (centre ± circumradius) of the
   settled particles whose tops lie within ``top_band`` of the highest one,
-  plus ``line_margin`` on each side.  Before the pile has a top (no settled
-  particle yet) the line spans the base width ``2 sqrt(A / tan 20°)`` of a
-  pile of the same particles at 20° slope (A: their total area over a solid
-  fraction of 0.8), so the first layer covers the base of the final pile.
-  The line therefore shrinks only as fast as the top of the pile narrows and
-  the slope stays below the angle of repose.
+  plus ``line_margin`` on each side.  It is also kept within the flanks of a
+  triangular pile of slope ``layered_slope_deg`` (20° by default, below the
+  angle of repose) whose area is that of all the particles at a solid fraction
+  of 0.8: at top height h the line's half-length is at most
+  ``(H − h) / tan(slope)`` with H that pile's height.  Over the bare support
+  the line spans the full base of that pile, so the first layer covers the
+  base of the final pile and every later layer is narrower: the pile grows
+  layer by layer without avalanches and its slope stays below the angle of
+  repose.
 
 A particle counts as *settled* when its speed is below 0.1 m/s; the tip is the
 highest ``y + R`` of settled particles (0 on the bare support).  A release
@@ -95,27 +98,34 @@ def top_width(sim, band):
     return float(np.min(pos[near, 0] - rad[near])), float(np.max(pos[near, 0] + rad[near]))
 
 
-def initial_line(shapes):
-    """Half-length of the line source over the bare support (see module docstring)."""
+def target_pile(shapes, slope_deg):
+    """Half base width and height of a triangular pile of all the particles.
+
+    Its area is their total area over a solid fraction of 0.8; its flanks rise
+    at ``slope_deg``.
+    """
     area = float(np.sum(shapes.area)) / 0.8
-    return math.sqrt(area / math.tan(math.radians(20.0)))
+    slope = math.tan(math.radians(slope_deg))
+    half = math.sqrt(area / slope)
+    return half, half * slope
 
 
 def release_point(sim, cfg: SimConfig, protocol, seed, k):
     """Where particle k would be released now, as ``(x, y)``."""
     rng = np.random.default_rng([seed, 1, k])
     radius = float(sim.shapes.radius[k])
-    y = pile_top(sim) + cfg.pour.release_height + radius
+    top = pile_top(sim)
+    y = top + cfg.pour.release_height + radius
     if protocol == "wedge":
         return rng.uniform(-cfg.pour.jitter, cfg.pour.jitter), y
+    half, height = target_pile(sim.shapes, cfg.pour.layered_slope_deg)
+    bound = max(half * (1.0 - top / height), radius)
     extent = top_width(sim, cfg.pour.top_band)
-    if extent is None:
-        half = initial_line(sim.shapes)
-        lo, hi = -half, half
-    else:
-        lo, hi = extent
-    lo -= cfg.pour.line_margin
-    hi += cfg.pour.line_margin
+    lo, hi = (-bound, bound) if extent is None else extent
+    lo = max(lo - cfg.pour.line_margin, -bound)
+    hi = min(hi + cfg.pour.line_margin, bound)
+    if hi <= lo:
+        lo, hi = -bound, bound
     return rng.uniform(lo, hi), y
 
 
