@@ -96,6 +96,20 @@ def _place(r, i, node_offset, node_x, node_y, wx, wy, box):
     box[i, 3] = y1
 
 
+@njit(cache=True, inline="always")
+def _separated_along_centres(wx, wy, a0, a1, b0, b1, xi, yi, xj, yj):
+    """Separating-axis test on the line of centres (cheap rejection before clipping)."""
+    dx = xj - xi
+    dy = yj - yi
+    amax = -np.inf
+    for k in range(a0, a1):
+        amax = max(amax, (wx[k] - xi) * dx + (wy[k] - yi) * dy)
+    for k in range(b0, b1):
+        if (wx[k] - xi) * dx + (wy[k] - yi) * dy < amax:
+            return False
+    return True
+
+
 def pair_forces(pi, pj, spring, pout, r, dt, node_offset, wx, wy, box, inv_mass,
                 inv_inertia, area, youngs_modulus, damping, friction, eps, scratch):
     """Narrow phase and contact law for every candidate pair.
@@ -120,7 +134,8 @@ def pair_forces(pi, pj, spring, pout, r, dt, node_offset, wx, wy, box, inv_mass,
         yi = r[0, 1, i]
         xj = r[0, 0, j]
         yj = r[0, 1, j]
-        if not polygon_overlap_range(wx, wy, a0, a1, wx, wy, b0, b1, xi, yi, xj, yj, eps,
+        if _separated_along_centres(wx, wy, a0, a1, b0, b1, xi, yi, xj, yj) or \
+                not polygon_overlap_range(wx, wy, a0, a1, wx, wy, b0, b1, xi, yi, xj, yj, eps,
                                      row, scratch[numba.get_thread_id()]):
             spring[p] = 0.0
             continue
