@@ -212,17 +212,20 @@ class RelaxParams:
     drag : float
         Background damping rate while relaxing, 1/s: every particle feels
         ``−drag·m·v`` and ``−drag·I·ω``.  The contact law leaves a polygon
-        rocking on an edge undamped (the overlap area does not change while it
-        rocks, so neither damping term of the Appendix acts); the drag removes
-        that motion and vanishes at rest, so the static state it leads to
-        satisfies the same force balance.  0 turns it off.
+        rocking on an edge undamped, and since the elastic force acts at the
+        midpoint of the contact line, whose distance from the centre changes
+        as the polygon tilts, it is not conservative: an isolated polygon on
+        the support can keep rocking (a limit cycle we observed with speeds of
+        a few mm/s that 20/s of drag did not stop and 100/s did).  The drag
+        vanishes at rest, so the static state it leads to satisfies the same
+        force balance.  0 turns it off.
     """
 
     kinetic_energy_fraction: float = 1.0e-6
     max_speed: float = 1.0e-3
     hold_time: float = 0.05
     max_time: float = 10.0
-    drag: float = 20.0
+    drag: float = 100.0
 
     def __post_init__(self):
         s = "relax"

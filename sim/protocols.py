@@ -138,25 +138,34 @@ def _spot_clear(sim, x, y, radius):
 
 
 class Progress:
-    """Prints a progress line every ``interval`` wall-clock seconds."""
+    """Logs simulated time, particles, steps per second and ETA every ``interval`` s.
+
+    Times count from the first call (a resumed pour or a relaxation starts
+    at its own zero); the ETA assumes ``total`` seconds of simulated time.
+    """
 
     def __init__(self, interval, total_time):
         self.interval = interval
         self.total = total_time
         self.t0 = _time.monotonic()
         self.last = self.t0
+        self.start = None
 
     def __call__(self, sim, what, force=False):
+        if self.start is None:
+            self.start = (sim.time, sim.step)
         now = _time.monotonic()
         if not force and now - self.last < self.interval:
             return
         self.last = now
         wall = now - self.t0
-        rate = sim.step / wall if wall > 0 else 0.0
-        frac = min(sim.time / self.total, 1.0) if self.total > 0 else 1.0
+        t, steps = sim.time - self.start[0], sim.step - self.start[1]
+        rate = steps / wall if wall > 0 else 0.0
+        frac = min(t / self.total, 1.0) if self.total > 0 else 1.0
         eta = wall * (1 - frac) / frac if frac > 0 else float("nan")
-        log.info("%s: t = %.4f s of %.4f s, %d particles, %d steps, %.0f steps/s, "
-                 "ETA %.0f s", what, sim.time, self.total, sim.n, sim.step, rate, eta)
+        log.info("%s: %.4f s of %.4f s simulated (t = %.4f s), %d particles, %d steps, "
+                 "%.0f steps/s, ETA %.0f s", what, t, self.total, sim.time, sim.n, steps,
+                 rate, eta)
 
 
 def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
