@@ -46,6 +46,33 @@ def _cell_grid(x, y, n, cell):
     return nx, ny, cx, cy
 
 
+@njit(cache=True, inline="always")
+def _neighbours(i, x, y, radius, skin, cx, cy, nx, ny, start, order, pj, k0, write):
+    """Count (and with ``write`` store, in ascending order from ``pj[k0]``) the
+    partners ``j > i`` of particle i within reach, scanning its 3 × 3 cells."""
+    k = k0
+    for gy in range(max(cy[i] - 1, 0), min(cy[i] + 2, ny)):
+        for gx in range(max(cx[i] - 1, 0), min(cx[i] + 2, nx)):
+            c = gx + nx * gy
+            for q in range(start[c], start[c + 1]):
+                j = order[q]
+                if j <= i:
+                    continue
+                reach = radius[i] + radius[j] + skin
+                dx = x[j] - x[i]
+                dy = y[j] - y[i]
+                if dx * dx + dy * dy < reach * reach:
+                    if write:
+                        # insertion sort keeps each particle's partners ordered
+                        m = k
+                        while m > k0 and pj[m - 1] > j:
+                            pj[m] = pj[m - 1]
+                            m -= 1
+                        pj[m] = j
+                    k += 1
+    return k - k0
+
+
 @njit(cache=True, parallel=True)
 def candidate_pairs(x, y, radius, n, skin):
     """All pairs ``i < j`` of the first ``n`` particles closer than ``R_i + R_j + skin``.
@@ -86,45 +113,18 @@ def candidate_pairs(x, y, radius, n, skin):
         fill[c] += 1
 
     count = np.zeros(n + 1, np.int64)
+    unused = np.empty(0, np.int64)
     for i in prange(n):
-        k = 0
-        for gy in range(max(cy[i] - 1, 0), min(cy[i] + 2, ny)):
-            for gx in range(max(cx[i] - 1, 0), min(cx[i] + 2, nx)):
-                c = gx + nx * gy
-                for q in range(start[c], start[c + 1]):
-                    j = order[q]
-                    if j > i:
-                        reach = radius[i] + radius[j] + skin
-                        dx = x[j] - x[i]
-                        dy = y[j] - y[i]
-                        if dx * dx + dy * dy < reach * reach:
-                            k += 1
-        count[i + 1] = k
+        count[i + 1] = _neighbours(i, x, y, radius, skin, cx, cy, nx, ny, start, order,
+                                   unused, 0, False)
     for i in range(n):
         count[i + 1] += count[i]
     total = count[n]
     pi = np.empty(total, np.int64)
     pj = np.empty(total, np.int64)
     for i in prange(n):
-        k = count[i]
-        for gy in range(max(cy[i] - 1, 0), min(cy[i] + 2, ny)):
-            for gx in range(max(cx[i] - 1, 0), min(cx[i] + 2, nx)):
-                c = gx + nx * gy
-                for q in range(start[c], start[c + 1]):
-                    j = order[q]
-                    if j > i:
-                        reach = radius[i] + radius[j] + skin
-                        dx = x[j] - x[i]
-                        dy = y[j] - y[i]
-                        if dx * dx + dy * dy < reach * reach:
-                            # insertion sort keeps each particle's partners ordered
-                            m = k
-                            while m > count[i] and pj[m - 1] > j:
-                                pj[m] = pj[m - 1]
-                                m -= 1
-                            pj[m] = j
-                            pi[k] = i
-                            k += 1
+        _neighbours(i, x, y, radius, skin, cx, cy, nx, ny, start, order, pj, count[i], True)
+        pi[count[i]:count[i + 1]] = i
     return pi, pj
 
 

@@ -95,7 +95,7 @@ work array is allocated on each call (slower).  The capacity must satisfy
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 __all__ = [
     "OUT_SIZE",
@@ -107,8 +107,6 @@ __all__ = [
     "halfplane_overlap",
     "halfplane_overlap_range",
     "world_corners",
-    "transform_corners",
-    "bounding_boxes",
 ]
 
 #: Required length of the ``out`` array.
@@ -837,76 +835,3 @@ def world_corners(node_x, node_y, x, y, theta):
     c = np.cos(theta)
     s = np.sin(theta)
     return x + (c * node_x - s * node_y), y + (s * node_x + c * node_y)
-
-
-@njit(cache=True, parallel=True)
-def transform_corners(node_offset, node_x, node_y, x, y, theta, wx, wy):
-    """Transform all particles' body-frame corners to world coordinates, in place.
-
-    Parameters
-    ----------
-    node_offset : numpy.ndarray of int64, shape (N + 1,)
-        CSR offsets of the corners of each particle.
-    node_x, node_y : numpy.ndarray of float64, shape (node_offset[-1],)
-        Body-frame corners.
-    x, y, theta : numpy.ndarray of float64, shape (N,)
-        Positions of the centres of mass and orientations [rad].
-    wx, wy : numpy.ndarray of float64, shape (node_offset[-1],)
-        Output world corners (overwritten).
-
-    Returns
-    -------
-    None
-    """
-    n = x.shape[0]
-    for i in prange(n):
-        c = np.cos(theta[i])
-        s = np.sin(theta[i])
-        xi = x[i]
-        yi = y[i]
-        for k in range(node_offset[i], node_offset[i + 1]):
-            X = node_x[k]
-            Y = node_y[k]
-            wx[k] = xi + (c * X - s * Y)
-            wy[k] = yi + (s * X + c * Y)
-
-
-@njit(cache=True, parallel=True)
-def bounding_boxes(node_offset, wx, wy, xmin, xmax, ymin, ymax):
-    """Axis-aligned bounding box of every particle from its world corners.
-
-    Parameters
-    ----------
-    node_offset : numpy.ndarray of int64, shape (N + 1,)
-        CSR offsets of the corners.
-    wx, wy : numpy.ndarray of float64
-        World corners (from :func:`transform_corners`).
-    xmin, xmax, ymin, ymax : numpy.ndarray of float64, shape (N,)
-        Outputs (overwritten).
-
-    Returns
-    -------
-    None
-    """
-    n = node_offset.shape[0] - 1
-    for i in prange(n):
-        k0 = node_offset[i]
-        x0 = wx[k0]
-        x1 = x0
-        y0 = wy[k0]
-        y1 = y0
-        for k in range(k0 + 1, node_offset[i + 1]):
-            v = wx[k]
-            if v < x0:
-                x0 = v
-            elif v > x1:
-                x1 = v
-            v = wy[k]
-            if v < y0:
-                y0 = v
-            elif v > y1:
-                y1 = v
-        xmin[i] = x0
-        xmax[i] = x1
-        ymin[i] = y0
-        ymax[i] = y1

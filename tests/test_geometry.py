@@ -13,13 +13,11 @@ from shapely.geometry import LineString, MultiPoint, Point, Polygon, box
 
 from sim.geometry import (
     OUT_SIZE,
-    bounding_boxes,
     halfplane_overlap,
     halfplane_overlap_range,
     make_scratch,
     polygon_overlap,
     polygon_overlap_range,
-    transform_corners,
     world_corners,
 )
 from sim.shapes import make_shapes
@@ -508,15 +506,19 @@ def test_lattice_polygons_full_of_degeneracies():
 # ---------------------------------------------------------------------------
 # API details
 # ---------------------------------------------------------------------------
+def _all_world_corners(sh, x, y, th):
+    """World corners of every particle, concatenated like the body-frame arrays."""
+    parts = [world_corners(*sh.corners(i), x[i], y[i], th[i]) for i in range(sh.n)]
+    return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))
+
+
 def test_range_variant_and_default_scratch_agree(particle_shapes):
     sh = particle_shapes
     rng = np.random.default_rng(11)
     x = rng.uniform(0, 0.02, sh.n)
     y = rng.uniform(0, 0.02, sh.n)
     th = rng.uniform(0, 2 * np.pi, sh.n)
-    wx = np.empty_like(sh.node_x)
-    wy = np.empty_like(sh.node_y)
-    transform_corners(sh.node_offset, sh.node_x, sh.node_y, x, y, th, wx, wy)
+    wx, wy = _all_world_corners(sh, x, y, th)
     off = sh.node_offset
     eps = REL_EPS * 6.8e-3
     n_hit = 0
@@ -558,29 +560,6 @@ def test_bad_buffers_raise():
         halfplane_overlap(ax, ay, 0.0, 0.5, 0.0, 1.0, 1e-9, np.zeros(3), SCRATCH)
     with pytest.raises(ValueError):
         make_scratch(2)
-
-
-def test_transform_corners_and_bounding_boxes(particle_shapes):
-    sh = particle_shapes
-    rng = np.random.default_rng(12)
-    x = rng.uniform(-1, 1, sh.n)
-    y = rng.uniform(-1, 1, sh.n)
-    th = rng.uniform(-10, 10, sh.n)
-    wx = np.empty_like(sh.node_x)
-    wy = np.empty_like(sh.node_y)
-    transform_corners(sh.node_offset, sh.node_x, sh.node_y, x, y, th, wx, wy)
-    xmin, xmax, ymin, ymax = (np.empty(sh.n) for _ in range(4))
-    bounding_boxes(sh.node_offset, wx, wy, xmin, xmax, ymin, ymax)
-    for i in range(sh.n):
-        s = slice(sh.node_offset[i], sh.node_offset[i + 1])
-        px, py = world_corners(*sh.corners(i), x[i], y[i], th[i])
-        np.testing.assert_allclose(wx[s], px, rtol=0, atol=1e-15)
-        np.testing.assert_allclose(wy[s], py, rtol=0, atol=1e-15)
-        # rotation about the centre of mass preserves shape and the centroid
-        P = Polygon(np.column_stack([wx[s], wy[s]]))
-        assert P.area == pytest.approx(sh.area[i], rel=1e-12)
-        np.testing.assert_allclose(P.centroid.coords[0], [x[i], y[i]], atol=1e-14)
-        assert (xmin[i], ymin[i], xmax[i], ymax[i]) == pytest.approx(P.bounds, abs=0)
 
 
 def test_world_corners_rotation_convention():
@@ -694,9 +673,7 @@ def test_halfplane_range_variant(particle_shapes):
     x = np.zeros(sh.n)
     y = np.full(sh.n, 1e-3)
     th = np.linspace(0, 6, sh.n)
-    wx = np.empty_like(sh.node_x)
-    wy = np.empty_like(sh.node_y)
-    transform_corners(sh.node_offset, sh.node_x, sh.node_y, x, y, th, wx, wy)
+    wx, wy = _all_world_corners(sh, x, y, th)
     for i in range(0, sh.n, 7):
         a0, a1 = sh.node_offset[i], sh.node_offset[i + 1]
         o1 = np.full(OUT_SIZE, np.nan)
