@@ -23,6 +23,7 @@ include: "workflow/rules/pour.smk"
 include: "workflow/rules/relax.smk"
 include: "workflow/rules/probe.smk"
 include: "workflow/rules/figures_piles.smk"
+include: "workflow/rules/analysis_common.smk"
 include: "workflow/rules/analysis.smk"
 
 

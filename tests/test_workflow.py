@@ -145,7 +145,8 @@ FAKE_SIM_MAIN = '''
 import argparse, json, os, sys
 from pathlib import Path
 
-SECTIONS = {"model", "particles", "pour", "relax", "probe"}
+SECTIONS = {"pour": {"model", "particles", "pour"}, "relax": {"model", "pour", "relax"},
+            "probe": {"model", "pour", "relax", "probe"}}
 cmd, rest = sys.argv[1], sys.argv[2:]
 if cmd == "warmup":
     assert os.environ["NUMBA_CACHE_DIR"].endswith(".numba_cache")
@@ -156,7 +157,7 @@ for option in ("--params", "--protocol", "--seed", "--out", "--checkpoint",
     parser.add_argument(option)
 args = parser.parse_args(rest)
 if cmd in ("pour", "relax", "probe"):
-    assert set(json.loads(args.params)) == SECTIONS, args.params
+    assert set(json.loads(args.params)) == SECTIONS[cmd], args.params
     assert int(os.environ["NUMBA_NUM_THREADS"]) >= 1
 if cmd != "pour":
     assert Path(args.input).exists()
@@ -259,16 +260,22 @@ def test_editing_analysis_code_or_a_caption_leaves_the_piles(ran, folder):
         assert dry_run(root, targets) == {}
 
 
-def test_simulation_parameters_rerun_the_piles_but_threads_do_not(ran):
+@pytest.mark.parametrize("section,change,rerun", [
+    ("model", {"friction": 0.4}, ("pour", "relax", "probe")),
+    ("relax", {"max_time": 2.0}, ("relax", "probe")),
+    ("probe", {"mode": "ramp"}, ("probe",)),
+])
+def test_simulation_parameters_rerun_exactly_the_jobs_that_read_them(ran, section, change,
+                                                                       rerun):
     root, targets = ran
     assert dry_run(root, targets, "--config", "threads=2") == {}
-    config = with_overrides(root, "relax", {"relax": {"max_time": 2.0}})
+    config = with_overrides(root, section, {section: change})
     proc = snakemake(root, "-n", "--cores", "2", *config, *targets)
     assert proc.returncode == 0, proc.output
     counts = job_counts(proc.output)
     n = len(smoke_piles())
     assert {rule: counts.get(rule) for rule in ("pour", "relax", "probe")} == \
-        {"pour": n, "relax": n, "probe": n}
+        {rule: (n if rule in rerun else None) for rule in ("pour", "relax", "probe")}
     assert "compile_kernels" not in counts
 
 

@@ -116,16 +116,16 @@ def level_for_stage(stage):
     )
 
 
-def sim_params():
-    """The simulator's parameters as canonical JSON (sorted keys).
+def sim_params(*sections):
+    """The given simulator sections of the config as canonical JSON (sorted keys).
 
-    Passed as `params:` so that changing any of these sections re-runs the
-    simulations, while a change in `analysis` or `protocols` does not.
+    A simulation job receives only the sections it reads, so a changed setting
+    re-runs exactly the jobs that depend on it (pouring reads model, particles
+    and pour; relaxing model, pour and relax; probing also probe). Adding a
+    gravity level therefore re-runs only the probes, and a change in analysis
+    or protocols no simulation.
     """
-    return json.dumps(
-        {k: config[k] for k in ("model", "particles", "pour", "relax", "probe")},
-        sort_keys=True,
-    )
+    return json.dumps({k: config[k] for k in sections}, sort_keys=True)
 
 
 def pile_targets(stages=None):

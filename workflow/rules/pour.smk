@@ -32,7 +32,7 @@ rule pour:
     output:
         pile("{protocol}", "{seed}", "poured"),
     params:
-        sim=sim_params(),
+        sim=sim_params("model", "particles", "pour"),
         checkpoint=lambda wildcards: pour_checkpoint(wildcards.protocol, wildcards.seed),
     log:
         "logs/pour/{protocol}/seed{seed}.log",

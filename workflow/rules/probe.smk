@@ -13,7 +13,7 @@ rule probe:
     wildcard_constraints:
         stage=STAGE_PATTERN,
     params:
-        sim=sim_params(),
+        sim=sim_params("model", "pour", "relax", "probe"),
         level=lambda wildcards: level_for_stage(wildcards.stage),
     log:
         "logs/probe/{protocol}/seed{seed}_{stage}.log",

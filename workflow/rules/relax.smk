@@ -9,7 +9,7 @@ rule relax:
     output:
         pile("{protocol}", "{seed}", "relaxed"),
     params:
-        sim=sim_params(),
+        sim=sim_params("model", "pour", "relax"),
     log:
         "logs/relax/{protocol}/seed{seed}.log",
     benchmark:
