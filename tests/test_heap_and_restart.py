@@ -91,3 +91,21 @@ def test_state_file_has_contract_variables(tmp_path, heap):
     assert np.allclose(normals, 1.0)
     # mass follows the stored corners and density
     assert np.allclose(ds.mass, ds.area * ds.attrs["density"])
+
+
+def test_parallel_and_serial_kernels_agree_bit_for_bit():
+    """No write races: 2 threads and the serial kernels give the same trajectory."""
+    import numba
+    from sim.bench import dense_packing
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs 2 Numba threads to compare against the serial kernels")
+    runs = []
+    for threads in (2, 1):
+        numba.set_num_threads(threads)
+        sim = dense_packing(600, seed=2)
+        assert sim.n >= sim.parallel_threshold
+        sim.run(duration=0.002)
+        runs.append(sim.r[:, :, :sim.n].copy())
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    np.testing.assert_array_equal(runs[0], runs[1])
