@@ -40,6 +40,7 @@ def _project(tmp_path, analysis_cfg=None):
         wildcard_constraints:
             protocol="wedge|layered",
             seed=r"\\d+",
+        include: "{REPO}/workflow/rules/analysis_common.smk"
         include: "{REPO}/workflow/rules/analysis.smk"
         rule all:
             input: analysis_targets()
