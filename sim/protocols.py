@@ -208,7 +208,7 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
     log.info("pouring %d particles (%s, seed %d), dt = %.3g s (%s; limit %.3g s)",
              p.n_particles, protocol, seed, sim.dt, cfg.model.integrator,
              sim.bound.dt_limit)
-    total = p.n_particles / p.rate + settle_time
+    total = max(p.n_particles * interval - sim.time, 0.0) + settle_time
     progress = Progress(p.progress_interval, total)
     t_wall = _time.monotonic()
     last_ckpt = t_wall
