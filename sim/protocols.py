@@ -151,7 +151,7 @@ class Progress:
         self.last = self.t0
         self.start = None
 
-    def __call__(self, sim, what, force=False):
+    def __call__(self, sim, what, force=False, detail=""):
         if self.start is None:
             self.start = (sim.time, sim.step)
         now = _time.monotonic()
@@ -164,8 +164,8 @@ class Progress:
         frac = min(t / self.total, 1.0) if self.total > 0 else 1.0
         eta = wall * (1 - frac) / frac if frac > 0 else float("nan")
         log.info("%s: %.4f s of %.4f s simulated (t = %.4f s), %d particles, %d steps, "
-                 "%.0f steps/s, ETA %.0f s", what, t, self.total, sim.time, sim.n, steps,
-                 rate, eta)
+                 "%.0f steps/s, ETA %.0f s%s", what, t, self.total, sim.time, sim.n, steps,
+                 rate, eta, f", {detail}" if detail else "")
 
 
 def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
@@ -250,24 +250,23 @@ def _summary(sim, what, wall):
              angle, mean_coordination(c["i"], c["j"], sim.n))
 
 
-def at_rest(sim, relax):
-    """Whether the pile meets the rest criterion of ``relax`` now."""
+def _rest_measures(sim):
+    """Mean kinetic energy per particle over ``m g d``, and the largest speed."""
     n = sim.n
     if n == 0:
-        return True
+        return 0.0, 0.0
     g = max(float(np.hypot(*sim.gravity)), 1e-12)
     m = float(np.mean(sim.shapes.mass[:n]))
     d = 2.0 * float(np.mean(sim.shapes.radius[:n]))
-    ke = sim.kinetic_energy() / n
-    vmax = float(np.max(np.hypot(*sim.velocity.T)))
-    return ke < relax.kinetic_energy_fraction * m * g * d and vmax < relax.max_speed
+    return sim.kinetic_energy() / n / (m * g * d), float(np.max(np.hypot(*sim.velocity.T)))
 
 
 def relax(sim: Simulation, cfg: SimConfig, what="relax"):
     """Run until at rest (criterion held for ``hold_time``) or fail after ``max_time``.
 
     The background drag ``relax.drag`` acts while this runs (and during a
-    gravity ramp), never while pouring.
+    gravity ramp), never while pouring; once the kinetic-energy criterion
+    holds it becomes ``relax.rocking_drag``.
 
     Raises
     ------
@@ -290,12 +289,17 @@ def _relax_loop(sim, cfg, what, t0):
     progress = Progress(cfg.pour.progress_interval, r.max_time)
     while True:
         sim.run(duration=chunk)
-        if at_rest(sim, r):
+        ke, vmax = _rest_measures(sim)
+        if ke < r.kinetic_energy_fraction and sim.drag != r.rocking_drag:
+            log.info("%s: calm after %.4f s (KE per particle %.3g m g d, max speed %.3g m/s);"
+                     " drag %g -> %g 1/s", what, sim.time - t0, ke, vmax, sim.drag,
+                     r.rocking_drag)
+            sim.drag = r.rocking_drag
+        if ke < r.kinetic_energy_fraction and vmax < r.max_speed:
             rest_since = sim.time if rest_since is None else rest_since
             if sim.time - rest_since >= r.hold_time:
                 log.info("%s: at rest after %.4f s (KE per particle %.3g J/m, max speed "
-                         "%.3g m/s)", what, sim.time - t0, sim.kinetic_energy() / sim.n,
-                         float(np.max(np.hypot(*sim.velocity.T))))
+                         "%.3g m/s)", what, sim.time - t0, sim.kinetic_energy() / sim.n, vmax)
                 return sim
         else:
             rest_since = None
@@ -306,7 +310,7 @@ def _relax_loop(sim, cfg, what, t0):
                 f"{float(np.max(np.hypot(*sim.velocity.T))):.3g} m/s; criteria: "
                 f"kinetic_energy_fraction = {r.kinetic_energy_fraction}, max_speed = "
                 f"{r.max_speed} m/s); raise relax.max_time or the damping")
-        progress(sim, what)
+        progress(sim, what, detail=f"KE per particle {ke:.2g} m g d, max speed {vmax:.2g} m/s")
 
 
 def relax_file(cfg: SimConfig, input_path, out):

@@ -1,4 +1,4 @@
-"""Pouring protocols: resuming a killed pour, the layered line, relaxation failure."""
+"""Pouring protocols: resuming a killed pour, the layered line, relaxation and its drag."""
 
 import numpy as np
 import pytest
@@ -7,6 +7,8 @@ import xarray as xr
 from sim import protocols
 from sim.config import SimConfig
 from sim.engine import Simulation
+
+from scenes import scene
 
 SMALL = {"pour": {"n_particles": 24, "rate": 200.0, "checkpoint_interval": 1e-9,
                   "progress_interval": 1e9},
@@ -73,3 +75,43 @@ def test_relaxation_fails_loudly_when_time_runs_out():
     sim.place(0, 0.0, 0.05, 0.0)         # still falling: not at rest
     with pytest.raises(protocols.RelaxationError, match="relax.max_time = 0.002"):
         protocols.relax(sim, cfg)
+
+
+# A hexagon that rolled off the full-size wedge pile (seed 1) onto the bare
+# support, as it was when the pour ended: body-frame corners (m) and state
+# (x, y, theta, vx, vy, omega).  Alone on the support it rocks in a limit cycle.
+ROCKER_CORNERS = ([-0.002737158512365691, -0.0016874906937216804, 0.00039863014060406796,
+                   0.0026416827716659293, 0.0020429306346834084, -0.00035538817743884887],
+                  [0.0009855440524517848, -0.001907432581742812, -0.0025236347387351346,
+                   -0.000992895569492866, 0.0015492296519775753, 0.002555951444722304])
+ROCKER_STATE = (0.9811273061951751, 0.002331363554199414, -349.2974956759441,
+                0.004482984761211977, -0.0026352574019162067, -1.940812055988008)
+
+
+def _rocker(relax):
+    cfg = SimConfig.from_dict({"model": {"integrator": "verlet"}, "relax": relax})
+    sim = scene([tuple(np.array(c) for c in ROCKER_CORNERS)], [ROCKER_STATE],
+                gravity=(0.0, -9.81), support=True, **cfg.to_dict()["model"])
+    return sim, cfg
+
+
+def test_weak_drag_leaves_a_polygon_rocking_on_the_support():
+    """The contact law does not damp rocking, and its force point (the midpoint
+    of the contact line) makes it non-conservative: under 20/s of drag alone
+    the hexagon still moves at over 1 mm/s after 1 s."""
+    sim, cfg = _rocker({"drag": 20.0, "rocking_drag": 20.0, "max_time": 1.0})
+    with pytest.raises(protocols.RelaxationError, match="not at rest"):
+        protocols.relax(sim, cfg)
+    assert np.hypot(*sim.velocity[0]) > 1e-3
+
+
+def test_rocking_drag_brings_the_rocking_polygon_to_rest():
+    """With the default drags (20/s, then 100/s once calm) the same hexagon comes
+    to rest, where the support carries exactly its weight."""
+    sim, cfg = _rocker({"max_time": 1.0})
+    protocols.relax(sim, cfg)
+    assert np.hypot(*sim.velocity[0]) < cfg.relax.max_speed
+    c = sim.contacts()
+    weight = sim.shapes.mass[0] * 9.81
+    assert np.all(c["j"] == -1)
+    assert abs(np.sum(c["fy"]) - weight) < 1e-3 * weight
