@@ -2,8 +2,8 @@
 
 tests/slurm/cluster.sh installs SLURM and munge from Debian's packages and
 starts a one-node cluster on this machine (2 CPUs). The test runs a small
-study (config/smoke.yaml with one pile per protocol and a checkpoint every
-2 s) with the SLURM profile, kills a running pour with scancel once it has
+study (config/smoke.yaml with one pile of 100 particles per protocol and a
+checkpoint every 2 s) with the SLURM profile, kills a running pour with scancel once it has
 written its checkpoint, and checks that Snakemake resubmitted the pour with a
 longer time limit, that the pour resumed from its checkpoint, and that every
 netCDF result equals, variable for variable, that of a local run of the same
@@ -22,15 +22,16 @@ from pathlib import Path
 import pytest
 import xarray as xr
 
-from test_workflow import REPO, SNAKEMAKE, copy_workflow, with_overrides
+from test_workflow import REPO, SNAKEMAKE, copy_workflow, job_counts, snakemake, with_overrides
 
 CLUSTER = REPO / "tests" / "slurm" / "cluster.sh"
 SLURM_PROFILE = ["--profile", "workflow/profiles/slurm"]
-# One pile per protocol (the whole chain, half the smoke study's piles) and a
-# checkpoint every 2 s, so that a pour has one to resume from when it is killed.
+# The smoke study's chain with one pile per protocol of 100 particles (the
+# smoke study's analysis settings still apply), and a checkpoint every 2 s, so
+# that a pour has one to resume from when it is killed.
 STUDY = {
     "protocols": {"wedge": {"seeds": [1]}, "layered": {"seeds": [1]}},
-    "pour": {"checkpoint_interval": 2.0},
+    "pour": {"n_particles": 100, "checkpoint_interval": 2.0},
 }
 KILLED = ("wedge", 1)  # the pile whose pour is cancelled
 # Executor settings for the test cluster: it has no accounting database, so job
@@ -166,6 +167,8 @@ def test_slurm_run_survives_a_cancelled_pour_and_matches_a_local_run(cluster, lo
     pour_log = (root / f"logs/pour/{protocol}/seed{seed}.log").read_text()
     assert f"resuming {protocol} seed {seed} from checkpoint" in pour_log, pour_log
     assert not list((root / "results").rglob("*.checkpoint.nc"))
+    again = snakemake(root, "-n", *SLURM_PROFILE, *study(root))
+    assert again.returncode == 0 and job_counts(again.output) == {}, again.output
 
     # Only the simulations went to the cluster; pictures and analysis ran here.
     rules = {comment.split("_wildcards_")[0].removeprefix("rule_")
