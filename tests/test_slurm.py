@@ -3,21 +3,22 @@
 tests/slurm/cluster.sh installs SLURM and munge from Debian's packages and
 starts a one-node cluster on this machine (2 CPUs). The test runs a small
 study (config/smoke.yaml with one pile of 100 particles per protocol and a
-checkpoint every 2 s) with the SLURM profile, kills a running pour with scancel once it has
-written its checkpoint, and checks that Snakemake resubmitted the pour with a
-longer time limit, that the pour resumed from its checkpoint, and that every
-netCDF result equals, variable for variable, that of a local run of the same
-study. It needs root (slurmd runs the jobs as root; apt-get installs the
-packages); without root or apt-get it is skipped with the reason.
+checkpoint every 2 s) with the SLURM profile, kills a running pour with
+scancel once it has written its checkpoint, and checks that Snakemake
+resubmitted the pour with a longer time limit, that the pour resumed from its
+checkpoint, and that every netCDF result equals, variable for variable, that
+of a local run of the same study. It needs root (slurmd runs the jobs as
+root; apt-get installs the packages); without root or apt-get it is skipped
+with the reason.
 
 Wall times of the local and the SLURM run are printed (pytest -s shows them).
 """
 
 import os
 import shutil
+import signal
 import subprocess
 import time
-from pathlib import Path
 
 import pytest
 import xarray as xr
@@ -135,8 +136,8 @@ def run_and_cancel_one_pour(root, env):
         wall = time.monotonic() - start
         jobs.update(squeue(env))
     finally:
-        if proc.poll() is None:
-            proc.terminate()
+        if proc.poll() is None:  # Ctrl-C: Snakemake cancels its jobs
+            proc.send_signal(signal.SIGINT)
             proc.wait(timeout=120)
         log.close()
     proc.output = (root / "snakemake.log").read_text()

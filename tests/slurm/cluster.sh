@@ -6,7 +6,8 @@
 #   cluster.sh start DIR    write DIR/slurm.conf and a munge key, start munged,
 #                           slurmctld and slurmd with every file under DIR,
 #                           wait until sinfo shows the node idle
-#   cluster.sh stop DIR     stop the daemons that `start DIR` started
+#   cluster.sh stop DIR     cancel the cluster's jobs, stop the daemons that
+#                           `start DIR` started
 #
 # Clients (sinfo, sbatch, snakemake --executor slurm) find the cluster through
 # SLURM_CONF=DIR/slurm.conf. Inside a job, the executor's srun runs without
@@ -137,6 +138,15 @@ start() {
 
 stop() {
     local dir=$1 pidfile pid
+    # Every job of this cluster is the test's: cancel what still runs, so
+    # that no job step outlives slurmd.
+    if [[ -f $dir/slurmctld.pid ]]; then
+        SLURM_CONF=$dir/slurm.conf scancel --user="$(id -un)" 2>/dev/null || true
+        for _ in $(seq 20); do
+            [[ -z $(SLURM_CONF=$dir/slurm.conf squeue --noheader --states=RUNNING,COMPLETING 2>/dev/null) ]] && break
+            sleep 0.5
+        done
+    fi
     for daemon in "${DAEMONS[@]}"; do
         pidfile=$dir/$daemon.pid
         [[ -f $pidfile ]] || continue
