@@ -3,24 +3,27 @@
 #
 #   cluster.sh install      install munge and SLURM from Debian's packages
 #                           (slurmctld, slurmd, slurm-client, munge); needs root
-#   cluster.sh start DIR    write DIR/slurm.conf and a munge key, start munged,
-#                           slurmctld and slurmd with every file under DIR,
-#                           wait until sinfo shows the node idle
+#   cluster.sh start DIR    write DIR/slurm.conf, start munged (unless one
+#                           runs), slurmctld and slurmd with their files under
+#                           DIR, wait until sinfo shows the node idle
 #   cluster.sh stop DIR     cancel the cluster's jobs, stop the daemons that
 #                           `start DIR` started
 #
+# The node is this machine (`hostname -s`) with 2 CPUs, on the loopback
+# address and free ports; no systemd, no cgroups (proctrack/linuxproc,
+# task/none), no accounting database (job states come from slurmctld, and
+# MinJobAge keeps finished jobs visible to squeue for 5 minutes).
+#
 # Clients (sinfo, sbatch, snakemake --executor slurm) find the cluster through
-# SLURM_CONF=DIR/slurm.conf. Inside a job, the executor's srun runs without
-# SLURM_CONF (the slurm-jobstep plugin drops every inherited SLURM_ variable),
-# so slurmd runs "configless" as on many clusters: it fetches slurm.conf from
-# slurmctld and links /run/slurm/conf to its copy, where srun looks for it;
-# `stop` removes that link. Before it has the configuration, slurmd can only
-# reach munge at its default socket, so munge runs there: a munged already
-# running is used as it is, otherwise one is started with a new key. The node is this machine (`hostname -s`) with 2
-# CPUs, on the loopback address, and free ports, so that nothing outside DIR
-# is touched: no systemd, no cgroups (proctrack/linuxproc, task/none), no
-# accounting database (job states come from slurmctld; MinJobAge keeps
-# finished jobs visible to squeue for 5 minutes).
+# SLURM_CONF=DIR/slurm.conf. Inside a job the executor's srun runs without it
+# (the slurm-jobstep plugin drops every inherited SLURM_ variable), so slurmd
+# runs "configless", as on many clusters: it fetches slurm.conf from slurmctld
+# and links /run/slurm/conf to its copy, where srun looks; `stop` removes the
+# link. Until it has the configuration slurmd reaches munge only at its default
+# socket (/run/munge), so munged runs there: one already running is used as it
+# is, otherwise one is started with a new key under DIR. Outside DIR only these
+# two places in /run are used; an existing SLURM configuration on the machine
+# (/etc/slurm/slurm.conf, /run/slurm/conf) stops `start` with a message.
 set -euo pipefail
 
 PACKAGES=(slurmctld slurmd slurm-client munge)
@@ -103,11 +106,12 @@ start() {
     dir=$(cd "$dir" && pwd)
     mkdir -p "$dir"/{munge,state,spool,log}
     chmod 700 "$dir/munge"
-    local node mem_mb
+    local node mem_mb ctld_port
     node=$(hostname -s)
     # RealMemory a bit below what is free, so that slurmd does not drain the node.
     mem_mb=$(awk '/^MemAvailable:/ {print int($2 / 1024 * 0.8)}' /proc/meminfo)
-    write_conf "$dir" "$node" "$mem_mb" "$(free_port)" "$(free_port)"
+    ctld_port=$(free_port)
+    write_conf "$dir" "$node" "$mem_mb" "$ctld_port" "$(free_port)"
     export SLURM_CONF=$dir/slurm.conf
 
     if munge --no-input >/dev/null 2>&1; then
@@ -120,7 +124,7 @@ start() {
             --log-file="$dir/log/munged.log" --seed-file="$dir/munge/munged.seed"
     fi
     slurmctld -f "$SLURM_CONF"
-    slurmd --conf-server "127.0.0.1:$(awk -F= '/^SlurmctldPort=/ {print $2}' "$SLURM_CONF")" -N "$node"
+    slurmd --conf-server "127.0.0.1:$ctld_port" -N "$node"
 
     local state=""
     for _ in $(seq 60); do
