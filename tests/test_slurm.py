@@ -79,11 +79,14 @@ def study(root):
 
 
 def squeue(env):
-    """{job id: (state, comment, time limit)} of every job slurmctld knows."""
-    out = subprocess.run(["squeue", "--states=all", "--noheader", "--format=%i|%T|%k|%l"],
-                         env=env, capture_output=True, text=True, check=True).stdout
+    """{job id: (state, comment, time limit)} of every job slurmctld knows;
+    {} when squeue fails (a busy slurmctld: the caller asks again)."""
+    proc = subprocess.run(["squeue", "--states=all", "--noheader", "--format=%i|%T|%k|%l"],
+                          env=env, capture_output=True, text=True)
+    if proc.returncode != 0:
+        return {}
     return {int(i): (state, comment, limit)
-            for i, state, comment, limit in (line.split("|") for line in out.splitlines())}
+            for i, state, comment, limit in (line.split("|") for line in proc.stdout.splitlines())}
 
 
 def minutes(limit):
