@@ -12,6 +12,10 @@
 # Every rule passes config["analysis"] as sorted JSON in params, so a change of
 # an analysis setting reruns exactly the rules that read it. Figure captions
 # live in workflow/report/analysis/ and are not params: editing one reruns nothing.
+#
+# Every rule here takes seconds (0.5 s for the fields of a 3500-particle pile),
+# so under a cluster executor they run on the submitting machine (localrule)
+# instead of queueing a cluster job each.
 
 rule analysis_fields:
     input:
@@ -27,6 +31,7 @@ rule analysis_fields:
         "logs/analysis/fields/{protocol}/seed{seed}.log",
     benchmark:
         "benchmarks/analysis/fields/{protocol}/seed{seed}.tsv"
+    localrule: True
     threads: 1
     resources:
         mem_mb=ANALYSIS_MEM_MB,
@@ -50,6 +55,7 @@ rule analysis_ensemble:
         cfg=ANALYSIS_PARAMS,
     log:
         "logs/analysis/ensemble/{protocol}.log",
+    localrule: True
     threads: 1
     resources:
         mem_mb=ANALYSIS_MEM_MB,
@@ -73,6 +79,7 @@ rule analysis_moduli:
         cfg=ANALYSIS_PARAMS,
     log:
         "logs/analysis/moduli/{protocol}.log",
+    localrule: True
     threads: 1
     resources:
         mem_mb=ANALYSIS_MEM_MB,
@@ -98,6 +105,7 @@ rule analysis_base_pressure:
         cfg=ANALYSIS_PARAMS,
     log:
         "logs/analysis/base_pressure/{protocol}.log",
+    localrule: True
     threads: 1
     resources:
         mem_mb=ANALYSIS_MEM_MB,
@@ -120,6 +128,7 @@ rule analysis_invariants:
         cfg=ANALYSIS_PARAMS,
     log:
         "logs/analysis/invariants/{protocol}.log",
+    localrule: True
     threads: 1
     resources:
         mem_mb=ANALYSIS_MEM_MB,
@@ -143,6 +152,7 @@ rule analysis_convergence:
         cfg=ANALYSIS_PARAMS,
     log:
         "logs/analysis/convergence/{protocol}.log",
+    localrule: True
     threads: 1
     resources:
         mem_mb=ANALYSIS_MEM_MB,
@@ -169,6 +179,7 @@ rule analysis_figure_convergence:
         inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("convergence_protocol")]),
     log:
         "logs/analysis/figures/fig1_convergence.log",
+    localrule: True
     threads: 1
     resources:
         mem_mb=ANALYSIS_MEM_MB,
@@ -195,6 +206,7 @@ rule analysis_figure_vertical_strain:
         inputs=lambda wc, input: _labelled(input.data, PROTOCOLS),
     log:
         "logs/analysis/figures/fig2_vertical_strain.log",
+    localrule: True
     threads: 1
     resources:
         mem_mb=ANALYSIS_MEM_MB,
@@ -221,6 +233,7 @@ rule analysis_figure_fabric:
         inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("fabric_protocol")]),
     log:
         "logs/analysis/figures/fig3_fabric.log",
+    localrule: True
     threads: 1
     resources:
         mem_mb=ANALYSIS_MEM_MB,
@@ -247,6 +260,7 @@ rule analysis_figure_moduli:
         inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("moduli_protocol")]),
     log:
         "logs/analysis/figures/fig4_moduli.log",
+    localrule: True
     threads: 1
     resources:
         mem_mb=ANALYSIS_MEM_MB,
@@ -273,6 +287,7 @@ rule analysis_figure_invariants:
         inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("invariants_protocol")]),
     log:
         "logs/analysis/figures/fig5_invariants.log",
+    localrule: True
     threads: 1
     resources:
         mem_mb=ANALYSIS_MEM_MB,
@@ -299,6 +314,7 @@ rule analysis_figure_base_pressure:
         inputs=lambda wc, input: _labelled(input.data, PROTOCOLS),
     log:
         "logs/analysis/figures/base_pressure.log",
+    localrule: True
     threads: 1
     resources:
         mem_mb=ANALYSIS_MEM_MB,

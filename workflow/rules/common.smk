@@ -3,6 +3,7 @@
 # No rules in this file (snakemake --lint wants functions and rules apart).
 
 import json
+import math
 import re
 import shlex
 import sys
@@ -187,15 +188,97 @@ wildcard_constraints:
     seed=r"\d+",
 
 
-# Rough resource estimates for schedulers (runtime in minutes). A pour of
-# 3500 particles is hours on 2 cores; relaxations are shorter. They only
-# matter under a cluster executor or with --resources limits.
-SIM_MEM_MB = 2000
+# --- Resources for schedulers ----------------------------------------------
+# What a cluster executor requests per job (SLURM: --cpus-per-task = threads,
+# --mem = mem_mb, --time = runtime in minutes; README, "Running on a SLURM
+# cluster"); locally they only matter with --resources limits. The simulation
+# runtimes are estimated from the configuration:
+#
+#   minutes = START_MIN + RUNTIME_MARGIN * steps * particles * PARTICLE_STEP_S
+#             / speedup(threads) / 60,   steps = simulated time / dt,
+#
+# and multiplied by the attempt number, so a job that SLURM killed at its time
+# limit asks for twice the time when --retries resubmits it (a pour resumes
+# from its checkpoint, so it needs less; relaxations start again).
+
+# Measured on this project's 2-core machine: a 3500-particle point-source pour
+# (velocity Verlet, 200 particles/s) took 5610 s for 3.80 M steps with 1750
+# particles on average, 0.84 us per particle-step on one thread.
+PARTICLE_STEP_S = 0.9e-6
+# Safety factor on the step cost (a slower or busier node).
+RUNTIME_MARGIN = 1.5
+# Python start, loading the compiled kernels, reading and writing state files.
+START_MIN = 2
+# Automatic time step of the default particles (semi-axis 3.4 mm, density
+# 2500 kg/m2, Y = 1e7 N/m, dt_safety 0.5; README, time-step rule). It scales
+# like sqrt(mass / stiffness), i.e. like semi-axis * sqrt(density / Y).
+DT_REFERENCE_S = {"gear": 1.9e-6, "verlet": 6.9e-6}
+# A release waits while its spot is not clear, so pouring takes longer than
+# n_particles / rate: 26.3 s instead of 17.5 s for the pour above.
+POUR_TIME_FACTOR = 1.5
+# Simulated time a relaxation or gravity probe typically needs: a 3500-particle
+# pile relaxed in 0.83 s (at most relax.max_time, after which the simulator
+# gives up by itself).
+RELAX_TYPICAL_S = 2.0
+# Peak memory measured for 150 and for 3500 particles: 230-250 MB (Python,
+# Numba and netCDF dominate; the particle arrays take about 1.3 kB each).
+SIM_MEM_BASE_MB = 1000
+SIM_MEM_PER_PARTICLE_MB = 0.1
 
 
-def pour_runtime_min():
-    return max(10, round(0.2 * config["pour"]["n_particles"]))
+def estimated_dt():
+    """Time step (s) of the simulations: model.dt if set, else the automatic
+    step of the reference particles scaled to the configured ones."""
+    model, particles = config["model"], config["particles"]
+    if model["dt"] is not None:
+        return float(model["dt"])
+    scale = (particles["semi_axis_mean"] / 3.4e-3) * math.sqrt(
+        (model["density"] / 2500.0) / (model["youngs_modulus"] / 1e7)
+    )
+    return DT_REFERENCE_S[model["integrator"]] * scale * model["dt_safety"] / 0.5
 
 
-def relax_runtime_min():
-    return max(10, round(0.05 * config["pour"]["n_particles"]))
+def sim_runtime_min(simulated_s, particles, attempt):
+    """Wall-clock minutes to request for `simulated_s` seconds of simulated
+    time with `particles` particles on average, on SIM_THREADS threads (the
+    parallel kernels are assumed to scale with 80 % efficiency)."""
+    speedup = 1.0 + 0.8 * (SIM_THREADS - 1)
+    seconds = simulated_s / estimated_dt() * particles * PARTICLE_STEP_S / speedup
+    return attempt * math.ceil(START_MIN + RUNTIME_MARGIN * seconds / 60.0)
+
+
+def pour_runtime_min(wildcards, attempt):
+    """Runtime (min) of a pour: the release time, stretched by POUR_TIME_FACTOR,
+    plus the settling time, with half the particles on average."""
+    pour = config["pour"]
+    simulated = POUR_TIME_FACTOR * pour["n_particles"] / pour["rate"] + 0.1
+    return sim_runtime_min(simulated, pour["n_particles"] / 2, attempt)
+
+
+def relax_runtime_min(wildcards, attempt):
+    """Runtime (min) of relaxing the full pile for RELAX_TYPICAL_S (at most
+    relax.max_time)."""
+    simulated = min(RELAX_TYPICAL_S, config["relax"]["max_time"])
+    return sim_runtime_min(simulated, config["pour"]["n_particles"], attempt)
+
+
+def probe_runtime_min(wildcards, attempt):
+    """Runtime (min) of a gravity probe: the gravity ramp, if any, and a
+    relaxation."""
+    probe = config["probe"]
+    simulated = min(RELAX_TYPICAL_S, config["relax"]["max_time"])
+    if probe["mode"] == "ramp":
+        simulated += probe["ramp_time"]
+    return sim_runtime_min(simulated, config["pour"]["n_particles"], attempt)
+
+
+def per_attempt(value):
+    """Resource callable: `value` times the attempt number."""
+    return lambda wildcards, attempt: value * attempt
+
+
+def sim_mem_mb(wildcards, attempt):
+    """Memory (MB) of a simulation job, growing with the attempt (a job killed
+    for memory asks for more when resubmitted)."""
+    n = config["pour"]["n_particles"]
+    return attempt * math.ceil(SIM_MEM_BASE_MB + SIM_MEM_PER_PARTICLE_MB * n)

@@ -18,6 +18,9 @@ rule draw_pile:
         stage=PILE_STAGE_PATTERN,
     log:
         "logs/draw_pile/{protocol}_seed{seed}_{stage}.log",
+    # Seconds per picture: under a cluster executor it runs on the submitting
+    # machine instead of queueing a cluster job.
+    localrule: True
     threads: 1
     resources:
         mem_mb=1000,

@@ -15,8 +15,8 @@ rule compile_kernels:
         "benchmarks/compile_kernels.tsv"
     threads: SIM_THREADS
     resources:
-        mem_mb=SIM_MEM_MB,
-        runtime=15,
+        mem_mb=sim_mem_mb,
+        runtime=per_attempt(15),
     conda:
         "../envs/polypile.yaml"
     shell:
@@ -40,8 +40,8 @@ rule pour:
         "benchmarks/pour/{protocol}/seed{seed}.tsv"
     threads: SIM_THREADS
     resources:
-        mem_mb=SIM_MEM_MB,
-        runtime=pour_runtime_min(),
+        mem_mb=sim_mem_mb,
+        runtime=pour_runtime_min,
     conda:
         "../envs/polypile.yaml"
     shell:

@@ -21,8 +21,8 @@ rule probe:
         "benchmarks/probe/{protocol}/seed{seed}_{stage}.tsv"
     threads: SIM_THREADS
     resources:
-        mem_mb=SIM_MEM_MB,
-        runtime=relax_runtime_min(),
+        mem_mb=sim_mem_mb,
+        runtime=probe_runtime_min,
     conda:
         "../envs/polypile.yaml"
     shell:

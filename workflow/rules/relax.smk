@@ -16,8 +16,8 @@ rule relax:
         "benchmarks/relax/{protocol}/seed{seed}.tsv"
     threads: SIM_THREADS
     resources:
-        mem_mb=SIM_MEM_MB,
-        runtime=relax_runtime_min(),
+        mem_mb=sim_mem_mb,
+        runtime=relax_runtime_min,
     conda:
         "../envs/polypile.yaml"
     shell:
