@@ -48,7 +48,7 @@ from analysis.ensemble import nan_mean_sem
 from analysis.netcdf import var
 from analysis.params import resolve_params
 
-from .pile_precision import benchmark_time, write_netcdf
+from .pile_precision import benchmark_time, run_command, write_netcdf
 
 log = logging.getLogger("sim.numerics")
 
@@ -314,27 +314,19 @@ def _protocol_inputs(args) -> dict:
     return out
 
 
+def _data(args) -> None:
+    params = json.loads(args.params)
+    analysis_params = json.loads(args.analysis_params)
+    check_params(params)
+    resolve_params(analysis_params)
+    ds = ensemble_dataset(_protocol_inputs(args), params, analysis_params)
+    write_netcdf(ds, args.out, "Standard error of the headline results against compute time",
+                 {"numerics": {"ensemble": params}, "analysis": analysis_params})
+
+
 def main(argv=None) -> int:
     """Command line; returns the exit status."""
-    args = _parser().parse_args(argv)
-    logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(asctime)s %(levelname)s %(message)s")
-    try:
-        if args.command == "data":
-            params = json.loads(args.params)
-            analysis_params = json.loads(args.analysis_params)
-            check_params(params)
-            resolve_params(analysis_params)
-            ds = ensemble_dataset(_protocol_inputs(args), params, analysis_params)
-            write_netcdf(ds, args.out, "Standard error of the headline results against compute time",
-                         {"numerics": {"ensemble": params}, "analysis": analysis_params})
-            log.info("wrote %s", args.out)
-        else:
-            with xr.open_dataset(args.data) as ds:
-                figure(ds.load(), args.out)
-        return 0
-    except (ValueError, FileNotFoundError) as exc:
-        log.error("%s", exc)
-        return 2
+    return run_command(argv, _parser(), _data, figure)
 
 
 if __name__ == "__main__":

@@ -35,7 +35,7 @@ Command line (run by the rule ``numerics_piles_data``; ``figure`` by
 ``numerics_piles_figures``)::
 
     python -m sim.numerics.pile_precision data --params JSON --states ... \
-        --pour-benchmarks ... --relax-benchmarks ... --out piles.nc
+        --pour-benchmarks ... --relax-benchmarks ... --pour-cpu ... --relax-cpu ... --out piles.nc
     python -m sim.numerics.pile_precision figure --data piles.nc --out a.png a.pdf
 """
 
@@ -407,30 +407,55 @@ def _parser():
     return ap
 
 
-def main(argv=None) -> int:
-    """Command line; returns the exit status."""
-    args = _parser().parse_args(argv)
+def run_command(argv, parser: argparse.ArgumentParser, data, figure_fn) -> int:
+    """Run a numerics command line with subcommands ``data`` and ``figure``.
+
+    Parameters
+    ----------
+    argv : list of str or None
+    parser : argparse.ArgumentParser
+        With the subcommands ``data`` and ``figure`` (``--data``, ``--out``).
+    data : callable
+        ``data(args)`` computes and writes the dataset.
+    figure_fn : callable
+        ``figure_fn(ds, outputs)`` draws the dataset read from ``--data``.
+
+    Returns
+    -------
+    int
+        0, or 2 after logging a ValueError or FileNotFoundError (bad input).
+    """
+    args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(asctime)s %(levelname)s %(message)s")
     try:
         if args.command == "data":
-            params = json.loads(args.params)
-            check_params(params)
-            states = []
-            for k, path in enumerate(args.states):
-                log.info("reading %s (%d of %d)", path, k + 1, len(args.states))
-                states.append(load_state(path))
-            wall = [benchmark_time(a) + benchmark_time(b) for a, b in zip(args.pour_benchmarks, args.relax_benchmarks)]
-            cpu = [children_cpu_time(a) + children_cpu_time(b) for a, b in zip(args.pour_cpu, args.relax_cpu)]
-            ds = piles_dataset(states, wall, cpu, params)
-            write_netcdf(ds, args.out, "Error of pile observables against run time", {"numerics": {"piles": params}})
+            data(args)
             log.info("wrote %s", args.out)
         else:
             with xr.open_dataset(args.data) as ds:
-                figure(ds.load(), args.out)
+                figure_fn(ds.load(), args.out)
         return 0
     except (ValueError, FileNotFoundError) as exc:
         log.error("%s", exc)
         return 2
+
+
+def _data(args) -> None:
+    params = json.loads(args.params)
+    check_params(params)
+    states = []
+    for k, path in enumerate(args.states):
+        log.info("reading %s (%d of %d)", path, k + 1, len(args.states))
+        states.append(load_state(path))
+    wall = [benchmark_time(a) + benchmark_time(b) for a, b in zip(args.pour_benchmarks, args.relax_benchmarks)]
+    cpu = [children_cpu_time(a) + children_cpu_time(b) for a, b in zip(args.pour_cpu, args.relax_cpu)]
+    ds = piles_dataset(states, wall, cpu, params)
+    write_netcdf(ds, args.out, "Error of pile observables against run time", {"numerics": {"piles": params}})
+
+
+def main(argv=None) -> int:
+    """Command line; returns the exit status."""
+    return run_command(argv, _parser(), _data, figure)
 
 
 if __name__ == "__main__":
