@@ -22,7 +22,7 @@ from test_workflow import REPO, copy_workflow, job_counts, snakemake
 
 PILES = {"integrators": ["gear", "verlet"], "dt_factors": [1.0, 0.5], "seeds": [1, 2],
          "reference_integrator": "gear", "bin_width": 0.01, "half_width": 0.05,
-         "solid_fraction_window": 0.02, "solid_fraction_height": 0.01}
+         "solid_fraction_window": 0.02, "solid_fraction_height": 0.01, "solid_fraction_half_width": 0.02}
 ENSEMBLE = {"core": [0.0, 0.02], "points": 5, "fit": "average", "dip_half_width": 0.01,
             "relative_targets": [0.1, 0.05]}
 

@@ -15,8 +15,8 @@ Observables of one relaxed pile (:func:`pile_observables`):
 ``angle_of_repose`` (deg)
     :func:`sim.measure.angle_of_repose` (mean slope of both flanks).
 ``solid_fraction`` (1)
-    Polygon area inside a square window on the pouring axis
-    (:func:`analysis.solid_fraction.solid_fraction`).
+    Polygon area inside a strip of square windows along the base of the
+    core, centred on the pouring axis (:func:`solid_fraction_strip`).
 ``mean_coordination`` (1)
     Particle–particle contacts per particle, 2 N_c / N
     (:func:`sim.measure.mean_coordination`).
@@ -66,7 +66,7 @@ log = logging.getLogger("sim.numerics")
 
 SCALARS = {
     "angle_of_repose": ("angle of repose (mean slope of both flanks)", "degree"),
-    "solid_fraction": ("solid fraction in a square window on the pouring axis", "1"),
+    "solid_fraction": ("solid fraction in a strip of square windows at the base of the core", "1"),
     "mean_coordination": ("particle-particle contacts per particle", "1"),
 }
 PROFILE = ("base_pressure", "normal force per unit length on the support", "N m-1")
@@ -89,6 +89,19 @@ def profile_edges(half_width: float, bin_width: float) -> np.ndarray:
     return bin_width * np.arange(-n, n + 1)
 
 
+def solid_fraction_strip(state: State, side: float, height: float, half_width: float) -> float:
+    """Solid fraction of a strip along the base of the core.
+
+    Square windows of side ``side`` centred at ``(k side, height)`` for every
+    integer k with ``|k side| <= half_width``
+    (:func:`analysis.solid_fraction.solid_fraction`); their mean, which is
+    the solid fraction of the strip they tile.
+    """
+    k = int(np.floor(half_width / side + 1e-9))
+    centres = np.column_stack([side * np.arange(-k, k + 1), np.full(2 * k + 1, height)])
+    return float(np.mean(solid_fraction(state, centres, "square", side, SOLID_FRACTION_PIXEL)))
+
+
 def pile_observables(state: State, params: dict) -> dict:
     """The observables of one relaxed pile.
 
@@ -97,7 +110,8 @@ def pile_observables(state: State, params: dict) -> dict:
     state : analysis.states.State
     params : dict
         The ``numerics.piles`` settings (``bin_width``, ``half_width``,
-        ``solid_fraction_window``, ``solid_fraction_height``).
+        ``solid_fraction_window``, ``solid_fraction_height``,
+        ``solid_fraction_half_width``).
 
     Returns
     -------
@@ -105,11 +119,10 @@ def pile_observables(state: State, params: dict) -> dict:
         Scalars ``angle_of_repose``, ``solid_fraction``,
         ``mean_coordination`` and the profile ``base_pressure`` (array).
     """
-    centre = np.array([[0.0, params["solid_fraction_height"]]])
     return {
         "angle_of_repose": angle_of_repose(state.x, state.y, circumradius(state)),
-        "solid_fraction": float(solid_fraction(state, centre, "square", params["solid_fraction_window"],
-                                               SOLID_FRACTION_PIXEL)[0]),
+        "solid_fraction": solid_fraction_strip(state, params["solid_fraction_window"],
+                                               params["solid_fraction_height"], params["solid_fraction_half_width"]),
         "mean_coordination": mean_coordination(state.contact_i, state.contact_j, state.n_particles),
         "base_pressure": support_force_density(
             state, profile_edges(params["half_width"], params["bin_width"]))[0],
@@ -213,7 +226,7 @@ def check_params(params: dict) -> None:
     """Raise ValueError naming the setting if ``numerics.piles`` cannot be evaluated."""
     p = params
     for key in ("integrators", "dt_factors", "seeds", "reference_integrator", "bin_width", "half_width",
-                "solid_fraction_window", "solid_fraction_height"):
+                "solid_fraction_window", "solid_fraction_height", "solid_fraction_half_width"):
         if key not in p:
             raise ValueError(f"numerics.piles.{key} is missing")
     if p["reference_integrator"] not in p["integrators"]:
