@@ -377,9 +377,10 @@ def figure(ds: xr.Dataset, outputs: list[str]) -> None:
             t = ds["cpu_time_mean"].values[a]
             e = ds[f"{name}_error"].values[a]
             bar = ds[f"{name}_error_bar"].values[a]
-            keep = ~((a == ref_i) & (np.arange(t.size) == ref_f))
-            ax.errorbar(t[keep], e[keep], yerr=np.minimum(bar[keep], 0.999 * e[keep]), marker="o",
-                        capsize=3, label=str(integ))
+            keep = ~((a == ref_i) & (np.arange(t.size) == ref_f)) & (e > 0)
+            # on a log axis the lower bar stops short of zero
+            yerr = [np.minimum(bar[keep], 0.999 * e[keep]), bar[keep]]
+            ax.errorbar(t[keep], e[keep], yerr=yerr, marker="o", capsize=3, label=str(integ))
             for ti, ei, f in zip(t[keep], e[keep], ds.dt_factor.values[keep]):
                 ax.annotate(f"{f:g}", (ti, ei), textcoords="offset points", xytext=(4, 4), fontsize=7)
         ref_scatter = ds[f"{name}_error_bar"].values[ref_i, ref_f] / np.sqrt(2.0)
