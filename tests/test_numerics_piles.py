@@ -208,3 +208,28 @@ def test_numerics_piles_target_on_tiny_piles(tmp_path):
     again = snakemake(root, "-n", "--cores", "2", "--configfile", "config/numerics_piles_ci.yaml",
                       "--replace-workflow-config", "numerics_piles")
     assert again.returncode == 0 and job_counts(again.output) == {}, again.output
+
+
+def test_figures_draw_panels_without_finite_values(tmp_path):
+    """Tiny piles give NaN angles and moduli; the figures still come out (a note instead of log axes)."""
+    from sim.numerics import ensemble_cost, pile_precision
+
+    dims = ("integrator", "dt_factor")
+    ds = xr.Dataset(coords={"integrator": ["gear", "verlet"], "dt_factor": [1.0, 0.5], "seed": [1, 2]})
+    for name in pile_precision.OBSERVABLES:
+        ds[f"{name}_error"] = (dims, np.full((2, 2), np.nan), {"units": "1"})
+        ds[f"{name}_error_bar"] = (dims, np.full((2, 2), np.nan))
+    ds["angle_of_repose_error"][:] = [[0.5, 0.2], [0.4, 0.3]]
+    ds["angle_of_repose_error_bar"][:] = 0.1
+    ds["cpu_time_mean"] = (dims, np.array([[10.0, 20.0], [3.0, 6.0]]))
+    ds.attrs.update(reference_integrator="gear", reference_dt_factor=0.5, n_particles=12, protocol="wedge")
+    pile_precision.figure(ds, [str(tmp_path / "piles.png")])
+    ens = xr.Dataset(coords={"protocol": ["wedge"], "n": [1, 2]})
+    for name in ensemble_cost.HEADLINES:
+        ens[f"{name}_mean"] = (("protocol", "n"), np.full((1, 2), np.nan))
+        ens[f"{name}_se"] = (("protocol", "n"), np.full((1, 2), np.nan))
+    ens["cumulative_compute_time"] = (("protocol", "n"), np.array([[5.0, 10.0]]))
+    ens.attrs.update(core_x=0.0, core_y=0.01)
+    ensemble_cost.figure(ens, [str(tmp_path / "ensemble.png")])
+    for png in ("piles.png", "ensemble.png"):
+        assert (tmp_path / png).read_bytes()[:4] == b"\x89PNG"

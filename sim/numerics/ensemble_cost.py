@@ -48,7 +48,7 @@ from analysis.ensemble import nan_mean_sem
 from analysis.netcdf import var
 from analysis.params import resolve_params
 
-from .pile_precision import benchmark_time, run_command, write_netcdf
+from .pile_precision import benchmark_time, log_axes, run_command, write_netcdf
 
 log = logging.getLogger("sim.numerics")
 
@@ -254,8 +254,7 @@ def figure(ds: xr.Dataset, outputs: list[str]) -> None:
                 per_pile = t[m] / (m + 1)
                 ax.plot(nn * per_pile, rel[m] * np.sqrt((m + 1) / nn), ls="--", color=line.get_color(), lw=1,
                         label=f"{proto}: 1/sqrt(n)")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+        log_axes(ax)
         ax.set_xlabel("compute time of the ensemble (CPU, pour + relax + probe), s")
         ax.set_ylabel(f"relative standard error of {name.replace('_', ' ')}")
         ax.grid(True, which="both", alpha=0.3)

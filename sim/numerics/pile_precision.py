@@ -357,6 +357,18 @@ def write_netcdf(ds: xr.Dataset, path, title: str, config: dict) -> None:
     atomic_write(ds, path)
 
 
+def log_axes(ax) -> None:
+    """Log scales on both axes of a panel, or a note instead when no drawn point is positive and finite."""
+    pts = [np.column_stack([np.asarray(line.get_xdata(), float), np.asarray(line.get_ydata(), float)])
+           for line in ax.get_lines()]
+    pts = np.concatenate(pts) if pts else np.empty((0, 2))
+    if np.any(np.all(np.isfinite(pts) & (pts > 0), axis=1)):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+    else:
+        ax.text(0.5, 0.5, "no finite values", transform=ax.transAxes, ha="center")
+
+
 def figure(ds: xr.Dataset, outputs: list[str]) -> None:
     """Log-log error against wall time per pile, one curve per integrator, one panel per observable.
 
@@ -383,12 +395,12 @@ def figure(ds: xr.Dataset, outputs: list[str]) -> None:
             ax.errorbar(t[keep], e[keep], yerr=yerr, marker="o", capsize=3, label=str(integ))
             for ti, ei, f in zip(t[keep], e[keep], ds.dt_factor.values[keep]):
                 ax.annotate(f"{f:g}", (ti, ei), textcoords="offset points", xytext=(4, 4), fontsize=7)
+        log_axes(ax)
         ref_scatter = ds[f"{name}_error_bar"].values[ref_i, ref_f] / np.sqrt(2.0)
-        ax.axhline(ref_scatter, ls="--", color="0.4", lw=1, label="reference seed scatter")
+        if ref_scatter > 0:
+            ax.axhline(ref_scatter, ls="--", color="0.4", lw=1, label="reference seed scatter")
         ax.axvline(ds["cpu_time_mean"].values[ref_i, ref_f], ls=":", color="0.4", lw=1,
                    label=f"reference ({ds.attrs['reference_integrator']}, dt x {ds.attrs['reference_dt_factor']:g})")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
         ax.set_xlabel("run time per pile (CPU, pour + relax), s")
         unit = ds[f"{name}_error"].attrs["units"]
         ax.set_ylabel(f"error of {name.replace('_', ' ')}" + ("" if unit == "1" else f" ({unit})"))
