@@ -31,6 +31,11 @@ seed-mean profiles, with the noise floor ``sqrt(Σ_x (SE(x)² +
 SE_ref(x)²)) / ||P_ref||`` (the norm that seed scatter alone gives). An error
 is *resolved* when it exceeds twice its error bar.
 
+Run time of a pile: the CPU time (user + system, from bash ``times``) of its
+pour and relax jobs, which includes a fixed start-up cost per job (imports,
+loading the kernels); their wall time (Snakemake benchmark files) is kept
+too but grows when other processes share the cores.
+
 Command line (run by the rule ``numerics_piles_data``; ``figure`` by
 ``numerics_piles_figures``)::
 
