@@ -67,22 +67,24 @@ def piles_section(ds: xr.Dataset, model: dict) -> list[str]:
         f"| integrator | dt factor | dt (s) | CPU time per pile (s) | wall time per pile (s) | {head} |",
         "|---" * (5 + len(OBSERVABLES)) + "|",
     ]
+    ref = (list(ds.integrator.values).index(ds.attrs["reference_integrator"]), int(np.argmin(ds.dt_factor.values)))
     for a, integ in enumerate(ds.integrator.values):
         for b, f in enumerate(ds.dt_factor.values):
             cells = []
             for name in OBSERVABLES:
                 e, bar = ds[f"{name}_error"].values[a, b], ds[f"{name}_error_bar"].values[a, b]
-                cells.append(_pm(e, bar, e > RESOLVED * bar))
+                cells.append("reference" if (a, b) == ref else _pm(e, bar, e > RESOLVED * bar))
             lines.append(f"| {integ} | {f:g} | {np.nanmean(ds['dt'].values[a, b]):.3g} | "
                          f"{ds['cpu_time_mean'].values[a, b]:.1f} | {np.mean(ds['wall_time'].values[a, b]):.1f} | "
                          + " | ".join(cells) + " |")
     lines += ["", "Seed means at the reference: " + ", ".join(
         f"{n.replace('_', ' ')} {ds[f'{n}_mean'].values[list(ds.integrator.values).index(ds.attrs['reference_integrator']), -1]:.4g}"
         for n in OBSERVABLES if f"{n}_mean" in ds) + ".", ""]
-    orders = [f"{integ}: " + ", ".join(f"{n.replace('_', ' ')} {ds[f'{n}_order'].values[a]:.2g}"
-                                        for n in OBSERVABLES if np.isfinite(ds[f"{n}_order"].values[a]))
+    orders = [f"{integ}: " + (", ".join(f"{n.replace('_', ' ')} {ds[f'{n}_order'].values[a]:.2g}"
+                                         for n in OBSERVABLES if np.isfinite(ds[f"{n}_order"].values[a]))
+                              or "none resolved")
               for a, integ in enumerate(ds.integrator.values)]
-    lines += ["Order p of error ∝ dt^p from the resolved points (none listed: fewer than two resolved): "
+    lines += ["Order p of error ∝ dt^p from the resolved points (listed where at least two are resolved): "
               + "; ".join(orders) + ".", ""]
     verdict = []
     auto = {}
@@ -110,7 +112,7 @@ def piles_section(ds: xr.Dataset, model: dict) -> list[str]:
 def ensemble_section(ds: xr.Dataset) -> list[str]:
     """Lines of the standard-error-against-compute-time part."""
     lines = ["## Standard error of the headline results against compute time", "",
-             f"Bulk and shear modulus: isotropic fit ({ds.attrs['fit']}, {ds.attrs['points']} points) of each "
+             f"Bulk and shear modulus: isotropic fit ({ds.attrs['fit']}, points = {ds.attrs['points']}) of each "
              f"pile at the RVE nearest ({ds.attrs['core_x']:g}, {ds.attrs['core_y']:g}) m; dip depth = "
              f"1 − mean base pressure within |x| < {ds.attrs['dip_half_width']:g} m / its maximum. "
              "Mean ± standard error of the first n piles; compute time = CPU time of their pour, relax "
