@@ -22,7 +22,7 @@ def schema():
     return yaml.safe_load(Path(SCHEMA).read_text())
 
 
-@pytest.mark.parametrize("name", ["config.yaml", "smoke.yaml"])
+@pytest.mark.parametrize("name", ["config.yaml", "smoke.yaml", "numerics_piles.yaml", "numerics_piles_ci.yaml"])
 def test_shipped_configs_validate(name):
     config = load(name)
     validate(config, SCHEMA)

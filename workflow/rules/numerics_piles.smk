@@ -1,0 +1,204 @@
+# Numerics of whole piles (issue #5): the error of pile observables against
+# run time, and the standard error of the headline results against compute
+# time as the number of seeds grows. Target: numerics_piles.
+#
+# Small piles: one job per (integrator, dt factor, seed) pours and one relaxes,
+# each with a benchmark file (wall time) and the output of bash `times` (CPU
+# time, which does not grow when other processes share the cores); the step is
+# dt_factor times the automatic step of the integrator (model.dt_safety scaled
+# by the factor; with model.dt given, dt scaled by the factor).
+# Ensemble: reads the configured study's piles (protocols section), their
+# fields and base pressure, and the benchmark files of their simulations.
+#
+# Expects from common.smk: config (validated, defaults filled), PROTOCOLS,
+# seeds(), pile(), probe_stages(), sim_shell(), py_shell(), SIM_KERNEL_CODE,
+# ANALYSIS_CODE, COMPILED_FLAG, SIM_THREADS, SIM_MEM_MB; from analysis_common.smk:
+# ANALYSIS_PARAMS. Helpers: numerics_piles_common.smk.
+
+include: "numerics_piles_common.smk"
+
+
+wildcard_constraints:
+    integrator="gear|verlet",
+    factor=r"[0-9.e+-]+",
+
+
+rule numerics_pile_pour:
+    input:
+        code=SIM_KERNEL_CODE,
+        compiled=COMPILED_FLAG,
+    output:
+        state=numerics_pile("{integrator}", "{factor}", "{seed}", "poured"),
+        cpu=numerics_pile_cpu("{integrator}", "{factor}", "{seed}", "pour"),
+    params:
+        sim=lambda wildcards: numerics_pile_params(wildcards, ("particles",)),
+        protocol=NUMERICS_PILES["protocol"],
+        checkpoint=lambda wildcards: numerics_pile(wildcards.integrator, wildcards.factor, wildcards.seed,
+                                                   "pour.checkpoint"),
+    log:
+        "logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_pour.log",
+    benchmark:
+        numerics_pile_benchmark("{integrator}", "{factor}", "{seed}", "pour")
+    threads: SIM_THREADS
+    resources:
+        mem_mb=SIM_MEM_MB,
+        runtime=30,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        sim_shell(
+            "pour --params {params.sim:q}"
+            " --protocol {params.protocol} --seed {wildcards.seed}"
+            " --out {output.state:q} --checkpoint {params.checkpoint:q} > {log:q} 2>&1"
+        )
+        + "; times > {output.cpu:q}"
+
+
+rule numerics_pile_relax:
+    input:
+        state=numerics_pile("{integrator}", "{factor}", "{seed}", "poured"),
+        code=SIM_KERNEL_CODE,
+        compiled=COMPILED_FLAG,
+    output:
+        state=numerics_pile("{integrator}", "{factor}", "{seed}", "relaxed"),
+        cpu=numerics_pile_cpu("{integrator}", "{factor}", "{seed}", "relax"),
+    params:
+        sim=lambda wildcards: numerics_pile_params(wildcards, ("relax",)),
+    log:
+        "logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_relax.log",
+    benchmark:
+        numerics_pile_benchmark("{integrator}", "{factor}", "{seed}", "relax")
+    threads: SIM_THREADS
+    resources:
+        mem_mb=SIM_MEM_MB,
+        runtime=30,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        sim_shell(
+            "relax --params {params.sim:q}"
+            " --input {input.state:q} --out {output.state:q} > {log:q} 2>&1"
+        )
+        + "; times > {output.cpu:q}"
+
+
+rule numerics_piles_data:
+    # Observables of every small pile and their errors against the reference.
+    input:
+        states=_numerics_pile_inputs("states"),
+        pour=_numerics_pile_inputs("pour"),
+        relax=_numerics_pile_inputs("relax"),
+        pour_cpu=_numerics_pile_inputs("pour_cpu"),
+        relax_cpu=_numerics_pile_inputs("relax_cpu"),
+        code=NUMERICS_CODE + ANALYSIS_CODE,
+    output:
+        f"{NUMERICS_DIR}/piles.nc",
+    params:
+        cfg=json.dumps(NUMERICS_PILES, sort_keys=True),
+    log:
+        "logs/numerics/piles_data.log",
+    threads: 1
+    resources:
+        mem_mb=SIM_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        py_shell(
+            "-m sim.numerics.pile_precision data --params {params.cfg:q} --states {input.states:q}"
+            " --pour-benchmarks {input.pour:q} --relax-benchmarks {input.relax:q}"
+            " --pour-cpu {input.pour_cpu:q} --relax-cpu {input.relax_cpu:q} --out {output:q} > {log:q} 2>&1"
+        )
+
+
+rule numerics_ensemble:
+    # Headline results per pile of the study, their standard error against n and compute time.
+    input:
+        fields=_numerics_ensemble_inputs("fields"),
+        base_pressure=_numerics_ensemble_inputs("base_pressure"),
+        pour=_numerics_ensemble_inputs("pour"),
+        relax=_numerics_ensemble_inputs("relax"),
+        probe=_numerics_ensemble_inputs("probe"),
+        code=NUMERICS_CODE + ANALYSIS_CODE,
+    output:
+        f"{NUMERICS_DIR}/ensemble.nc",
+    params:
+        cfg=json.dumps(NUMERICS_ENSEMBLE, sort_keys=True),
+        analysis=ANALYSIS_PARAMS,
+        protocols=_numerics_ensemble_args,
+    log:
+        "logs/numerics/ensemble.log",
+    threads: 1
+    resources:
+        mem_mb=SIM_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        py_shell(
+            "-m sim.numerics.ensemble_cost data --params {params.cfg:q} --analysis-params {params.analysis:q}"
+            " {params.protocols} --out {output:q} > {log:q} 2>&1"
+        )
+
+
+rule numerics_piles_figures:
+    input:
+        piles=f"{NUMERICS_DIR}/piles.nc",
+        ensemble=f"{NUMERICS_DIR}/ensemble.nc",
+        code=NUMERICS_CODE,
+    output:
+        piles=report(f"{NUMERICS_DIR}/pile_error.png", caption="../report/numerics/pile_error.rst",
+                     category="Numerics", subcategory="Piles"),
+        piles_pdf=f"{NUMERICS_DIR}/pile_error.pdf",
+        ensemble=report(f"{NUMERICS_DIR}/ensemble_error.png", caption="../report/numerics/ensemble_error.rst",
+                        category="Numerics", subcategory="Ensemble"),
+        ensemble_pdf=f"{NUMERICS_DIR}/ensemble_error.pdf",
+    log:
+        "logs/numerics/piles_figures.log",
+    threads: 1
+    resources:
+        mem_mb=SIM_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        "("
+        + py_shell("-m sim.numerics.pile_precision figure --data {input.piles:q} "
+                   "--out {output.piles:q} {output.piles_pdf:q}")
+        + " && "
+        + py_shell("-m sim.numerics.ensemble_cost figure --data {input.ensemble:q} "
+                   "--out {output.ensemble:q} {output.ensemble_pdf:q}")
+        + ") > {log:q} 2>&1"
+
+
+rule numerics_piles_table:
+    # The markdown tables for the report.
+    input:
+        piles=f"{NUMERICS_DIR}/piles.nc",
+        ensemble=f"{NUMERICS_DIR}/ensemble.nc",
+        code=NUMERICS_CODE,
+    output:
+        report(f"{NUMERICS_DIR}/piles.md", caption="../report/numerics/piles_table.rst",
+               category="Numerics", subcategory="Tables"),
+    params:
+        model=json.dumps(config["model"], sort_keys=True),
+    log:
+        "logs/numerics/piles_table.log",
+    threads: 1
+    resources:
+        mem_mb=SIM_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        py_shell(
+            "-m sim.numerics.piles_report --piles {input.piles:q} --ensemble {input.ensemble:q}"
+            " --model {params.model:q} --out {output:q} > {log:q} 2>&1"
+        )
+
+
+rule numerics_piles:
+    # Error of pile observables against run time and of the ensemble against compute time.
+    input:
+        numerics_piles_targets(),
+    localrule: True
