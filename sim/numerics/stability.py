@@ -297,7 +297,7 @@ class StabilitySettings:
     stiffness: tuple = (1e5, 1e6, 1e7, 1e8, 1e9, 1e10)
     cases: tuple = CASE_NAMES
     steps: int = 4000
-    search_steps: int = 2000
+    search_steps: int = 5000
     search_resolution: float = 0.02
     energy_tolerance: float = 0.05
 
