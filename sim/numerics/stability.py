@@ -343,16 +343,16 @@ class StabilitySettings:
 @dataclass
 class RunResult:
     """Outcome of one run: ``status`` is ``stable``, ``unstable`` or ``refused``;
-    ``kinetic_early``, ``kinetic_late``: largest kinetic energy sampled in the
-    first and in the last quarter of the run, J/m."""
+    ``energy_growth``: the largest energy in the last quarter of the run less
+    that in the first quarter, over the largest kinetic energy in the first
+    quarter (see :data:`ENERGY_GROWTH`)."""
 
     status: str
     message: str = ""
     dt: float = math.nan
     energy_gain: float = math.nan
     max_overlap: float = math.nan
-    kinetic_early: float = math.nan
-    kinetic_late: float = math.nan
+    energy_growth: float = math.nan
 
 
 def energy(sim):
@@ -388,17 +388,20 @@ def run_stable(sim, steps, tolerance, chunk=10):
              float(np.sum(sim.shapes.mass[:n] * np.hypot(*sim.gravity) * sim.shapes.radius[:n])))
     gain = 0.0
     worst = max_overlap(sim)
-    kinetic = [0.0, 0.0]
+    early = [-math.inf, 0.0]   # first quarter: largest energy, largest kinetic energy
+    late = -math.inf           # last quarter: largest energy
     done = 1
     chunk = max(chunk, steps // 1000)
     try:
         while done < steps:
             done += sim.run(steps=min(chunk, steps - done))
-            gain = max(gain, (energy(sim) - e0) / scale)
+            e = energy(sim)
+            gain = max(gain, (e - e0) / scale)
             worst = max(worst, max_overlap(sim))
-            if done <= steps // 4 or done > steps - steps // 4:
-                quarter = int(done > steps // 4)
-                kinetic[quarter] = max(kinetic[quarter], sim.kinetic_energy())
+            if done <= steps // 4:
+                early = [max(early[0], e), max(early[1], sim.kinetic_energy())]
+            elif done > steps - steps // 4:
+                late = max(late, e)
             if not math.isfinite(gain) or gain > tolerance:
                 break
     except BlowUpError as exc:
@@ -409,7 +412,8 @@ def run_stable(sim, steps, tolerance, chunk=10):
     if worst > sim.model.max_overlap_fraction:
         return RunResult("unstable", f"overlap {worst:.3g} of a particle's area", sim.dt,
                          gain, worst)
-    return RunResult("stable", "", sim.dt, gain, worst, *kinetic)
+    return RunResult("stable", "", sim.dt, gain, worst,
+                     (late - early[0]) / max(early[1], 1e-300))
 
 
 def run_case(builder, integrator, steps, tolerance):
@@ -427,31 +431,36 @@ def run_case(builder, integrator, steps, tolerance):
     return run_stable(sim, steps, tolerance)
 
 
-#: A run of the step search is unstable if its largest kinetic energy in the
-#: last quarter exceeds that of the first quarter by this factor (a weakly
-#: growing mode, e.g. Gear just above its undamped limit, whose growth of a
-#: fraction of a per mille per step no energy tolerance would see soon).
-KINETIC_GROWTH = 1.1
+#: A trial of the step search on an undamped closed oscillator is unstable
+#: if its energy grew from the first to the last quarter of the run by more
+#: than this fraction of its kinetic energy: a weakly growing mode (Gear just
+#: above its undamped limit grows by a fraction of a per mille per step) that
+#: no tolerance on the total energy, dominated by the static compression,
+#: would see soon.  (The elastic energy of the oscillator's edge contacts is
+#: exact, so no allowance for its estimate is needed.)
+ENERGY_GROWTH = 0.1
 
 
-def largest_stable_dt(scene, steps, tolerance, resolution):
+def largest_stable_dt(scene, steps, tolerance, resolution, oscillator=False):
     """Largest stable step of a scene, bracketed by bisection in log dt.
 
-    A trial is stable if :func:`run_stable` says so and the kinetic energy
-    does not grow (:data:`KINETIC_GROWTH`).  Starts from the automatic step
-    (which must be stable) and doubles until a trial is unstable, then
-    bisects until ``hi / lo < 1 + resolution``.
+    A trial is stable if :func:`run_stable` says so and, for an undamped
+    closed ``oscillator``, its energy does not grow (:data:`ENERGY_GROWTH`);
+    a packing falls and settles, its elastic energy estimate is not exact
+    (corners), and its instabilities (damped modes) grow fast.  Starts from the automatic step (which must be stable) and doubles
+    until a trial is unstable, then bisects until ``hi / lo < 1 + resolution``.
 
     Returns
     -------
     float
-        The largest step found stable, s.
+        The largest step found stable, s (NaN if the automatic step is not).
     """
     lo = scene.simulation().dt
 
     def stable(dt):
         res = run_stable(scene.simulation(dt), steps, tolerance)
-        return res.status == "stable" and res.kinetic_late <= KINETIC_GROWTH * res.kinetic_early
+        return res.status == "stable" and not (oscillator and
+                                                res.energy_growth > ENERGY_GROWTH)
 
     if not stable(lo):
         return math.nan
@@ -503,7 +512,8 @@ def run_suite(settings: StabilitySettings) -> xr.Dataset:
                     theory[s, k, y] = linear_spring_limit(ym, integrator)
                 found[s, k, y] = largest_stable_dt(scene, settings.search_steps,
                                                    settings.energy_tolerance,
-                                                   settings.search_resolution)
+                                                   settings.search_resolution,
+                                                   oscillator=scene_name == "linear_spring")
                 log.info("stability: largest stable dt, %s %s Y = %.0e: %.4g s = %.3g x the "
                          "rule's limit (%.0f s)", scene_name, integrator, ym, found[s, k, y],
                          found[s, k, y] / rule[s, k, y], time.monotonic() - t0)
