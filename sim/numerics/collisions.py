@@ -23,7 +23,6 @@ measured errors are the integrators'.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass
 
 import numpy as np

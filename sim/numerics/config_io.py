@@ -4,6 +4,8 @@ that looks whole)."""
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
 import json
 import os
 import sys
@@ -14,6 +16,7 @@ import yaml
 
 from .. import __version__
 from ..config import ConfigError
+from ..io import atomic_write
 
 
 def load_section(params, section):
@@ -50,6 +53,48 @@ def load_section(params, section):
     return sub
 
 
+def run_command(section, description, argv, settings_class, compute, title, draw, tabulate):
+    """``python -m sim numerics <section>``: settings, computation and its three files.
+
+    Parses ``--params`` (the ``numerics.<section>`` mapping) and the output
+    paths ``--nc``, ``--figure``, ``--table``; builds the settings, runs
+    ``compute(settings)`` (an :class:`xarray.Dataset`), writes it with
+    :func:`describe`'s attributes, ``draw(ds, path)`` and
+    ``tabulate(ds, settings)`` (Markdown text), each atomically.
+
+    Returns
+    -------
+    xarray.Dataset
+    """
+    ap = argparse.ArgumentParser(prog=f"python -m sim numerics {section}",
+                                 description=description)
+    ap.add_argument("--params", required=True,
+                    help=f"@FILE (YAML/JSON) or JSON text with a numerics.{section} section")
+    ap.add_argument("--nc", required=True, help="netCDF output")
+    ap.add_argument("--figure", required=True, help="PNG output")
+    ap.add_argument("--table", required=True, help="Markdown output")
+    args = ap.parse_args(argv)
+    raw = load_section(args.params, section)
+    settings = settings_class.from_dict(raw)
+    ds = describe(compute(settings), title, {"numerics": {section: raw}})
+    atomic_write(ds, args.nc)
+    draw(ds, args.figure)
+    atomic_text(tabulate(ds, settings), args.table)
+    return ds
+
+
+def settings_from_dict(cls, section, data):
+    """A settings dataclass from its mapping; missing keys take defaults,
+    unknown keys are refused with the allowed ones listed."""
+    data = dict(data or {})
+    allowed = {f.name for f in dataclasses.fields(cls)}
+    unknown = sorted(set(data) - allowed)
+    if unknown:
+        raise ConfigError(f"numerics.{section}: unknown setting(s) {unknown}; "
+                          f"allowed: {sorted(allowed)}")
+    return cls(**data)
+
+
 def _temporary(path):
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -76,7 +121,7 @@ def atomic_figure(fig, path, **kwargs):
         tmp.unlink(missing_ok=True)
 
 
-def describe(ds: xr.Dataset, title: str, config: dict) -> xr.Dataset:
+def describe(ds, title, config):
     """Add the global attributes (CF ``Conventions``, ``title``, ``source``,
     ``history``, ``config``) to a dataset of this package."""
     ds.attrs.update({

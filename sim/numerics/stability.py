@@ -32,11 +32,10 @@ bisection in ``log dt``:
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import xarray as xr
@@ -44,9 +43,8 @@ import xarray as xr
 from ..config import ConfigError, ModelParams, _check_number
 from ..engine import ELASTIC_UNDERESTIMATE, BlowUpError, Simulation
 from ..integrators import INTEGRATORS, stability_limit
-from ..io import atomic_write
 from ..shapes import make_shapes
-from .config_io import atomic_text, describe, load_section
+from .config_io import run_command, settings_from_dict
 from .polygons import centred, ellipse_polygon, rectangle, regular_polygon, shapes_of
 
 log = logging.getLogger("sim.numerics")
@@ -324,13 +322,7 @@ class StabilitySettings:
     @classmethod
     def from_dict(cls, data):
         """Build from the ``stability`` mapping (missing keys take defaults)."""
-        data = dict(data or {})
-        allowed = set(cls.__dataclass_fields__)
-        unknown = sorted(set(data) - allowed)
-        if unknown:
-            raise ConfigError(f"numerics.stability: unknown setting(s) {unknown}; "
-                              f"allowed: {sorted(allowed)}")
-        return cls(**data)
+        return settings_from_dict(cls, "stability", data)
 
     def suite(self):
         """``[(name, description, builder)]`` of the suite: stiffness cases first."""
@@ -568,24 +560,17 @@ def table(ds: xr.Dataset) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main(argv=None):
-    """``python -m sim numerics stability``: suite and step search, then data, figure, table."""
-    ap = argparse.ArgumentParser(prog="python -m sim numerics stability",
-                                 description=__doc__.split("\n\n")[0])
-    ap.add_argument("--params", required=True,
-                    help="@FILE (YAML/JSON) or JSON text with a numerics.stability section")
-    ap.add_argument("--nc", required=True, help="netCDF output")
-    ap.add_argument("--figure", required=True, help="PNG output")
-    ap.add_argument("--table", required=True, help="Markdown output")
-    args = ap.parse_args(argv)
-    raw = load_section(args.params, "stability")
-    settings = StabilitySettings.from_dict(raw)
-    ds = describe(run_suite(settings), "Stability on stiff and extreme cases",
-                  {"numerics": {"stability": raw}})
-    atomic_write(ds, args.nc)
+def _draw(ds, path):
     from .figures import stable_dt_figure  # matplotlib only when drawing
-    stable_dt_figure(ds, args.figure)
-    atomic_text(table(ds), args.table)
+    stable_dt_figure(ds, path)
+
+
+def main(argv=None):
+    """``python -m sim numerics stability``: suite and step search, then data, figure,
+    table; exit status 1 if a case was unstable with the automatic step."""
+    ds = run_command("stability", __doc__.split("\n\n")[0], argv, StabilitySettings,
+                     run_suite, "Stability on stiff and extreme cases", _draw,
+                     lambda ds, settings: table(ds))
     unstable = [f"{c} ({i})" for c in ds.case.values for i in ds.integrator.values
                 if ds.status.sel(case=c, integrator=i).item() == "unstable"]
     if unstable:

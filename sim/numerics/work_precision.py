@@ -17,7 +17,6 @@ writes the netCDF data, the figure and a Markdown table.
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
 import time
@@ -27,10 +26,9 @@ import numpy as np
 import xarray as xr
 
 from ..config import ConfigError, _check_number
-from ..io import atomic_write
 from ..integrators import INTEGRATORS
 from .collisions import CONTACTS, CollisionCase, measure, reference, scene
-from .config_io import atomic_text, describe, load_section
+from .config_io import run_command, settings_from_dict
 
 log = logging.getLogger("sim.numerics")
 
@@ -118,13 +116,7 @@ class CollisionSettings:
     @classmethod
     def from_dict(cls, data):
         """Build from the ``collisions`` mapping (missing keys take defaults)."""
-        data = dict(data or {})
-        allowed = {f for f in cls.__dataclass_fields__}
-        unknown = sorted(set(data) - allowed)
-        if unknown:
-            raise ConfigError(f"numerics.collisions: unknown setting(s) {unknown}; "
-                              f"allowed: {sorted(allowed)}")
-        return cls(**data)
+        return settings_from_dict(cls, "collisions", data)
 
     def collision_cases(self):
         """The :class:`CollisionCase` of every configured collision."""
@@ -153,9 +145,12 @@ DEFAULT_CASES = [
 
 
 def wall_time(case, integrator, dt, steps, repeats):
-    """Median wall time (s) of ``Simulation.run(steps=steps)`` from the collision's start."""
+    """Median wall time (s) of ``Simulation.run(steps=steps)`` from the collision's
+    start, over ``repeats`` runs after an untimed one (the first run of a new
+    simulation object pays one-off costs)."""
     sim = scene(case, integrator, dt)
     start = sim.snapshot()
+    sim.run(steps=steps)
     times = []
     for _ in range(repeats):
         sim.restore(start)
@@ -288,22 +283,14 @@ def table(ds: xr.Dataset, target: float) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _draw(ds, path):
+    from .figures import collision_figure  # matplotlib only when drawing
+    collision_figure(ds, path)
+
+
 def main(argv=None):
     """``python -m sim numerics collisions``: sweep, then write data, figure and table."""
-    ap = argparse.ArgumentParser(prog="python -m sim numerics collisions",
-                                 description=__doc__.split("\n\n")[0])
-    ap.add_argument("--params", required=True,
-                    help="@FILE (YAML/JSON) or JSON text with a numerics.collisions section")
-    ap.add_argument("--nc", required=True, help="netCDF output")
-    ap.add_argument("--figure", required=True, help="PNG output")
-    ap.add_argument("--table", required=True, help="Markdown output")
-    args = ap.parse_args(argv)
-    raw = load_section(args.params, "collisions")
-    settings = CollisionSettings.from_dict(raw)
-    ds = describe(sweep(settings), "Binary collisions: error against wall time",
-                  {"numerics": {"collisions": raw}})
-    atomic_write(ds, args.nc)
-    from .figures import collision_figure  # matplotlib only when drawing
-    collision_figure(ds, args.figure)
-    atomic_text(table(ds, settings.target_error), args.table)
+    run_command("collisions", __doc__.split("\n\n")[0], argv, CollisionSettings, sweep,
+                "Binary collisions: error against wall time", _draw,
+                lambda ds, settings: table(ds, settings.target_error))
     return 0
