@@ -136,3 +136,22 @@ def test_workflow_target_dry_run(tmp_path):
     assert '"stiffness": [100000.0, 10000000000.0]' in out
     assert "results/numerics/stable_dt.png" in out
     assert set(CASE_NAMES) >= {"jammed_box", "impact_10_m_s"}
+
+
+@pytest.mark.parametrize("integrator", ["gear", "verlet"])
+def test_rule_resolves_over_critical_damping(integrator):
+    """An edge contact with γ = 10 (ζ⊥ = 10): the step the rule gave when it
+    capped ζ⊥ at 1 blows up; the uncapped rule's automatic step is stable."""
+    from dataclasses import replace
+
+    from sim.integrators import stability_limit
+    from sim.numerics.stability import run_stable
+
+    scene = linear_spring(1e7, integrator)
+    scene.model = replace(scene.model, damping=10.0)
+    bound = scene.simulation().bound
+    assert bound.zeta_normal == pytest.approx(10.0)
+    capped = 0.5 * min(stability_limit(integrator, 1.0) / bound.omega_normal,
+                       stability_limit(integrator, 0.5) / bound.omega_tangential)
+    assert run_stable(scene.simulation(capped), 2000, 0.05).status == "unstable"
+    assert run_stable(scene.simulation(), 2000, 0.05).status == "stable"

@@ -4,7 +4,7 @@
 1e5 to 1e10 N/m, size ratio 1:20, aspect ratio 1:5, 3 and 32 corners, nearly
 degenerate shapes (an edge of 0.2 % of the diameter, a 178° corner), impacts
 at 10 m/s, a deep initial overlap, a jammed box, μ = 0 and 2, γ = 0, critical
-and over-critical damping.  The jammed box is made by placing the particles on
+and over-critical damping (a packing, and a single contact at ζ = 10).  The jammed box is made by placing the particles on
 a lattice narrower than their diameters between fixed walls (the engine has
 no moving walls), so they start compressed.  Each case either runs with the
 automatic time step, closed and undriven, for ``steps`` steps and must stay
@@ -223,6 +223,13 @@ def _deep_overlap(fraction):
                  ModelParams(damping=0.0, friction=0.0), gravity=(0.0, 0.0), support=False)
 
 
+def _overdamped_spring(damping):
+    """:func:`linear_spring` with normal damping γ (its contacts' ζ = γ sqrt(L/l) / 2)."""
+    scene = linear_spring()
+    scene.model = replace(scene.model, damping=damping)
+    return scene
+
+
 def _critical_damping():
     """γ making the rule's stiffest normal mode critically damped, ζ⊥ = (γ/2) sqrt(L/l) = 1."""
     sim = packing().simulation()
@@ -260,6 +267,8 @@ def _case_builders():
         "damping_critical": ("packing, stiffest normal mode critically damped",
                              lambda: packing(damping=_critical_damping())),
         "damping_overcritical": ("packing with gamma = 10", lambda: packing(damping=10.0)),
+        "spring_overcritical": ("the linear spring (a square between walls) with gamma = 10, "
+                                "zeta = 10", lambda: _overdamped_spring(10.0)),
         "dt_above_limit": ("packing with model.dt twice Verlet's (the larger) limit",
                            lambda: packing(dt=2 * packing(integrator="verlet").simulation()
                                            .bound.dt_limit)),
