@@ -25,6 +25,7 @@ include: "workflow/rules/probe.smk"
 include: "workflow/rules/figures_piles.smk"
 include: "workflow/rules/analysis_common.smk"
 include: "workflow/rules/analysis.smk"
+include: "workflow/rules/numerics.smk"
 include: "workflow/rules/numerics_piles.smk"
 
 

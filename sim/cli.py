@@ -1,4 +1,4 @@
-"""Command line: ``python -m sim {pour,relax,probe,warmup,bench,draw} ...``.
+"""Command line: ``python -m sim {pour,relax,probe,warmup,bench,draw,numerics} ...``.
 
 Run parameters come as ``--params`` (JSON text, or ``@file`` with JSON or YAML)
 holding any of the sections ``model``, ``particles``, ``pour``, ``relax``,
@@ -71,7 +71,30 @@ def _parser():
 
     sub.add_parser("draw", help="picture of a pile state (PNG); "
                    "see python -m sim draw --help", add_help=False)
+    sub.add_parser("numerics", help="numerical checks: " + " | ".join(NUMERICS) +
+                   "; see python -m sim numerics WHAT --help", add_help=False)
     return ap
+
+
+# python -m sim numerics WHAT ...: module of sim.numerics whose main(argv) runs WHAT
+NUMERICS = {"collisions": "work_precision", "stability": "stability"}
+
+
+def _numerics(argv):
+    """Run ``python -m sim numerics WHAT [options]``; returns the exit status."""
+    import importlib
+    if not argv or argv[0] not in NUMERICS:
+        print(f"usage: python -m sim numerics {{{','.join(NUMERICS)}}} [--help]",
+              file=sys.stderr)
+        return 2
+    logging.basicConfig(level=logging.INFO, stream=sys.stderr,
+                        format="%(asctime)s %(levelname)s %(message)s")
+    module = importlib.import_module(f".numerics.{NUMERICS[argv[0]]}", __package__)
+    try:
+        return module.main(argv[1:])
+    except (ConfigError, ValueError) as exc:
+        logging.getLogger("sim").error("%s", exc)
+        return 2
 
 
 def main(argv=None):
@@ -80,6 +103,8 @@ def main(argv=None):
     if argv[:1] == ["draw"]:
         from .draw import main as draw_main
         return draw_main(argv[1:])
+    if argv[:1] == ["numerics"]:
+        return _numerics(argv[1:])
     args = _parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO, stream=sys.stderr,
                         format="%(asctime)s %(levelname)s %(message)s")

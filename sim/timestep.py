@@ -92,7 +92,8 @@ def stability_bound(youngs_modulus, damping, integrator, mass, inertia, radius,
     omega_t = np.sqrt(k_tangential * inv_mass)
     zeta_n = 0.5 * damping * np.sqrt(ratio)
     zeta_t = 0.5
-    dt_n = stability_limit(integrator, round(float(min(zeta_n, 1.0)), 3)) / omega_n
+    # no cap at critical damping: h*(ζ) keeps falling beyond ζ = 1 (about 1/ζ)
+    dt_n = stability_limit(integrator, round(float(zeta_n), 3)) / omega_n
     dt_t = stability_limit(integrator, zeta_t) / omega_t
     mode = "normal" if dt_n <= dt_t else "tangential"
     return TimeStepBound(float(min(dt_n, dt_t)), float(omega_n), float(omega_t),

@@ -1,15 +1,17 @@
 """Binary collisions against conservation laws and an independent ODE solution.
 
-The references are computed here from the force law of the paper's Appendix
-with scipy's solve_ivp at rtol 1e-12, independently of the simulator's
-geometry, contact bookkeeping and integrators.
+The references (sim.numerics.reference) integrate the force law of the paper's
+Appendix with scipy's solve_ivp at rtol 1e-12, independently of the
+simulator's geometry, contact bookkeeping and integrators.
 """
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
-
 from scenes import diamond, rectangle, scene
+
+from sim.numerics.collisions import CollisionCase, measure, reference
+from sim.numerics.collisions import scene as collision_scene
+from sim.numerics.reference import CornerOnFlat, collision_reference
 
 W = 2.0e-3          # half side of the squares, m
 DELTA = 0.2 * W     # vertical offset of the second square (avoids collinear edges)
@@ -53,33 +55,6 @@ def _edge_scene(integrator, v, damping=0.0, friction=0.0, rotate=True):
                  integrator=integrator, rotate=rotate, dt_safety=0.1)
 
 
-def _edge_reference(m_perp, v_rel, damping):
-    """Restitution and duration of the edge-on-edge contact from the force law.
-
-    Overlap depth d: A = h d with h = 2W - DELTA, force point at
-    (W - d/2, DELTA/2) from either centre, so l = r/2 with
-    r = sqrt((W - d/2)² + DELTA²/4); dA/dt = h d'.
-    """
-    h = 2 * W - DELTA
-
-    def rhs(t, s):
-        d, dd = s
-        r = np.hypot(W - d / 2, DELTA / 2)
-        l = r / 2
-        f_el = Y * h * d / l
-        damp = damping * np.sqrt(Y * m_perp) * h * dd / l
-        if dd < 0 and damp < -f_el:
-            damp = -f_el
-        return [dd, -(f_el + damp) / m_perp]
-
-    out = lambda t, s: s[0]
-    out.terminal, out.direction = True, -1
-    sol = solve_ivp(rhs, (0, 1.0), [0.0, v_rel], rtol=1e-12, atol=1e-20, events=out,
-                    max_step=1e-6)
-    t_end = sol.t_events[0][0]
-    return -sol.y_events[0][0][1] / v_rel, t_end
-
-
 @pytest.mark.parametrize("integrator", ["gear", "verlet"])
 def test_undamped_edge_collision_conserves_momentum_and_energy(integrator):
     v = 0.05
@@ -102,37 +77,17 @@ def test_undamped_edge_collision_conserves_momentum_and_energy(integrator):
 @pytest.mark.parametrize("integrator", ["gear", "verlet"])
 @pytest.mark.parametrize("damping", [0.05, 0.3])
 def test_damped_edge_collision_restitution_matches_ode(integrator, damping):
-    v = 0.05
-    # the force point sits DELTA/2 off the centre line, so the normal force
-    # also spins the squares; the one-dimensional reference has no rotation
-    sim = _edge_scene(integrator, v, damping=damping, rotate=False)
-    duration = _collide(sim)
-    v_rel_after = sim.velocity[1, 0] - sim.velocity[0, 0]
-    e_sim = v_rel_after / (2 * v)
-    e_ref, t_ref = _edge_reference(sim.shapes.mass[0] / 2, 2 * v, damping)
-    assert e_ref < 0.999  # the damping does dissipate
+    """A square falling flat onto a plate, head-on, without rotation
+    (sim.numerics.collisions), against its solve_ivp reference."""
+    case = CollisionCase("edge", "edge", damping, 0.0, tangential_speed=0.0)
+    ref = reference(case)
+    dt = 0.1 * collision_scene(case, integrator).bound.dt_limit
+    out, _ = measure(case, integrator, dt)
+    assert ref.normal_restitution < 0.999  # the damping does dissipate
     # the damping force jumps at first contact; the integrators' error from that
-    # jump is first order in dt, 0.006 for Gear at gamma = 0.3 and dt = limit / 10
-    assert abs(e_sim - e_ref) < 1e-2
-    assert abs(duration - t_ref) < 0.01 * t_ref + 2 * sim.dt
-
-
-def _corner_reference(m, R, v, damping):
-    """Corner of a square (90°) hitting the support: A = d², L = 2d, l = R - d."""
-    def rhs(t, s):
-        d, dd = s
-        l = R - d
-        f_el = Y * d * d / l
-        damp = damping * np.sqrt(Y * m) * 2 * d * dd / l
-        if dd < 0 and damp < -f_el:
-            damp = -f_el
-        return [dd, -(f_el + damp) / m]
-
-    out = lambda t, s: s[0]
-    out.terminal, out.direction = True, -1
-    sol = solve_ivp(rhs, (0, 1.0), [1e-30, v], rtol=1e-12, atol=1e-22, events=out,
-                    max_step=1e-6)
-    return -sol.y_events[0][0][1] / v, sol.t_events[0][0]
+    # jump is first order in dt, below 1e-3 for either at dt = limit / 10
+    assert abs(out.normal_restitution - ref.normal_restitution) < 1e-2
+    assert abs(out.duration - ref.duration) < 0.01 * ref.duration
 
 
 @pytest.mark.parametrize("integrator", ["gear", "verlet"])
@@ -146,7 +101,11 @@ def test_corner_on_support_matches_ode(integrator, damping):
                 integrator=integrator, dt_safety=0.1)
     duration = _collide(sim)
     e_sim = sim.velocity[0, 1] / v
-    e_ref, t_ref = _corner_reference(sim.shapes.mass[0], R, v, damping)
+    # corner of a square (90 degrees) on the support: A = d², L = 2d, l = R - d
+    ref = collision_reference(CornerOnFlat(np.pi / 4, R, None), sim.shapes.mass[0],
+                              sim.shapes.inertia[0], np.inf, np.inf, Y, damping, 0.0, v,
+                              0.0, 0.0)
+    e_ref, t_ref = ref.normal_restitution, ref.duration
     if damping == 0.0:
         assert abs(e_sim - 1.0) < 2e-3
     assert abs(e_sim - e_ref) < 5e-3

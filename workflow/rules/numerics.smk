@@ -1,0 +1,86 @@
+# Numerical checks of the simulator (README "Numerics: accuracy against run
+# time and stability"); not part of `all`: run `snakemake numerics`.
+#   numerics_collisions: error against wall time of binary collisions
+#   numerics_stability: stiff and extreme cases, largest stable time step
+# Each rule receives only its own section of config["numerics"] (sorted JSON),
+# so changing one re-runs only that rule. Inputs: the kernels and the
+# sim/numerics/ sources (SIM_CODE globs sim/*.py only).
+
+NUMERICS_CODE = SIM_KERNEL_CODE + sorted(
+    str(p) for p in (REPO / "sim" / "numerics").glob("*.py")
+)
+
+
+rule numerics_collisions:
+    input:
+        code=NUMERICS_CODE,
+        compiled=COMPILED_FLAG,
+    output:
+        nc="results/numerics/collisions.nc",
+        figure=report(
+            "results/numerics/collisions.png",
+            caption="../report/numerics_collisions.rst",
+            category="Numerics",
+        ),
+        table="results/numerics/collisions.md",
+    params:
+        numerics=json.dumps(
+            {"numerics": {"collisions": config["numerics"]["collisions"]}}, sort_keys=True
+        ),
+    log:
+        "logs/numerics/collisions.log",
+    benchmark:
+        "benchmarks/numerics/collisions.tsv"
+    # one thread: the wall times are those of a serial run
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        sim_shell(
+            "numerics collisions --params {params.numerics:q} --nc {output.nc:q}"
+            " --figure {output.figure:q} --table {output.table:q} > {log:q} 2>&1"
+        )
+
+
+rule numerics_stability:
+    input:
+        code=NUMERICS_CODE,
+        compiled=COMPILED_FLAG,
+    output:
+        nc="results/numerics/stability.nc",
+        figure=report(
+            "results/numerics/stable_dt.png",
+            caption="../report/numerics_stability.rst",
+            category="Numerics",
+        ),
+        table="results/numerics/stability.md",
+    params:
+        numerics=json.dumps(
+            {"numerics": {"stability": config["numerics"]["stability"]}}, sort_keys=True
+        ),
+    log:
+        "logs/numerics/stability.log",
+    benchmark:
+        "benchmarks/numerics/stability.tsv"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        sim_shell(
+            "numerics stability --params {params.numerics:q} --nc {output.nc:q}"
+            " --figure {output.figure:q} --table {output.table:q} > {log:q} 2>&1"
+        )
+
+
+rule numerics:
+    # Both numerical checks: data, figures and tables under results/numerics/.
+    input:
+        rules.numerics_collisions.output,
+        rules.numerics_stability.output,
+    localrule: True
