@@ -2,7 +2,7 @@
 
 Run parameters come as ``--params`` (JSON text, or ``@file`` with JSON or YAML)
 holding any of the sections ``model``, ``particles``, ``pour``, ``relax``,
-``probe`` (see :mod:`sim.config`; missing settings take their defaults).  A
+``probe``, ``physics`` (see :mod:`sim.config`; missing settings take their defaults).  A
 setting with a wrong type or value is refused before anything runs, with a
 message naming the setting, the value and what is allowed.
 """
@@ -30,7 +30,7 @@ def _params(text):
         else:
             data = json.loads(raw)
         keep = {k: v for k, v in data.items()
-                if k in ("model", "particles", "pour", "relax", "probe")}
+                if k in ("model", "particles", "pour", "relax", "probe", "physics")}
         return SimConfig.from_dict(keep)
     return SimConfig.from_json(text)
 
