@@ -68,6 +68,10 @@ def _parser():
     p.add_argument("--sizes", default="1000,3000,10000,30000",
                    help="comma-separated particle counts")
     p.add_argument("--steps", type=int, default=300)
+    p.add_argument("--scenes", metavar="STATE",
+                   help="instead: time the pile of this state file under each scene "
+                        "variant (friction 0, damping 0, no rotation, no support)")
+    p.add_argument("--repeats", type=int, default=5, help="with --scenes: timed repeats")
 
     sub.add_parser("draw", help="picture of a pile state (PNG); "
                    "see python -m sim draw --help", add_help=False)
@@ -90,8 +94,11 @@ def main(argv=None):
             warmup()
             return 0
         if args.command == "bench":
-            from .bench import main as bench_main
-            bench_main(tuple(int(s) for s in args.sizes.split(",")), args.steps)
+            from .bench import main as bench_main, main_scenes
+            if args.scenes:
+                main_scenes(args.scenes, args.steps, args.repeats)
+            else:
+                bench_main(tuple(int(s) for s in args.sizes.split(",")), args.steps)
             return 0
         cfg = _params(args.params)
         from . import protocols
