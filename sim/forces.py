@@ -57,14 +57,14 @@ def predict_and_place(r, n, node_offset, node_x, node_y, wx, wy, box, rotate, cs
         when ``rotate``).
     node_offset, node_x, node_y : numpy.ndarray
         Body-frame corners (CSR).
-    rotate : bool
-        Whether orientations are integrated.
-    cs : numpy.ndarray, shape (capacity, 2)
-        ``cos θ, sin θ`` of each particle, used instead of θ when not ``rotate``.
     wx, wy : numpy.ndarray
         Output world corners.
     box : numpy.ndarray, shape (capacity, 4)
         Output bounding boxes (xmin, xmax, ymin, ymax).
+    rotate : bool
+        Whether orientations are integrated.
+    cs : numpy.ndarray, shape (capacity, 2)
+        ``cos θ, sin θ`` of each particle, used instead of θ when not ``rotate``.
     """
     nv = r.shape[0]
     n_blocks = (n + BLOCK - 1) // BLOCK

@@ -139,3 +139,15 @@ def test_physics_reaches_the_simulation_and_no_probe_is_allowed(tmp_path):
     with pytest.raises(ConfigError, match="physics.support = false"):
         pour(no_support, "wedge", 1, tmp_path / "never.nc")
     assert not (tmp_path / "never.nc").exists()
+
+
+def test_scene_bench_times_every_variant_from_the_same_state(tmp_path):
+    from sim.bench import SCENE_VARIANTS, scene_costs
+    from sim.io import save_state
+
+    sim = _heap(ModelParams())
+    _run_colliding(sim, duration=0.05, chunks=5)
+    save_state(sim, tmp_path / "heap.nc", protocol="test", seed=4)
+    costs = scene_costs(tmp_path / "heap.nc", steps=5, repeats=1)
+    assert costs["n"] == N and costs["contacts"] == len(sim.contacts()["i"]) > 0
+    assert all(costs[name] > 0 for name in SCENE_VARIANTS)
