@@ -69,7 +69,7 @@ def cmd_fields(args, params) -> None:
     from .states import check_same_particles, load_state
 
     t0 = time.perf_counter()
-    quantities = check_quantities(args.quantities, args.reduced)
+    quantities = check_quantities(args.quantities, args.reduced is not None)
     states = {"relaxed": load_state(args.relaxed)}
     if args.reduced:
         states["reduced"] = load_state(args.reduced)

@@ -71,9 +71,10 @@ META: dict[str, tuple[str, str]] = {
 }
 
 
-def check_quantities(quantities, reduced: State | None) -> tuple[str, ...]:
+def check_quantities(quantities, has_reduced: bool) -> tuple[str, ...]:
     """The optional quantities to compute, validated: a subset of :data:`QUANTITIES`;
-    ``None`` means all that the inputs allow (the strain only with a reduced state).
+    ``None`` means all that the inputs allow (the strain only with a reduced state,
+    ``has_reduced``).
 
     Raises
     ------
@@ -81,12 +82,12 @@ def check_quantities(quantities, reduced: State | None) -> tuple[str, ...]:
         For an unknown name, or the strain without a reduced state.
     """
     if quantities is None:
-        return tuple(q for q in QUANTITIES if q != "strain" or reduced is not None)
+        return tuple(q for q in QUANTITIES if q != "strain" or has_reduced)
     unknown = sorted(set(quantities) - set(QUANTITIES))
     if unknown:
         raise ParamError(f"quantities {unknown}: unknown; allowed: {list(QUANTITIES)} (the stress is always "
                          "computed)")
-    if "strain" in quantities and reduced is None:
+    if "strain" in quantities and not has_reduced:
         raise ParamError("quantities: strain needs the reduced state (the strain is the relaxed -> reduced "
                          "displacement); give --reduced or leave strain out")
     return tuple(q for q in QUANTITIES if q in quantities)
@@ -104,7 +105,7 @@ def rve_quantities(relaxed: State, reduced: State | None, centres: np.ndarray, s
     ``reduced`` is given, and the optional ``quantities`` (see
     :func:`check_quantities`). Returns flat arrays (tensors as ``(n, 2, 2)``).
     """
-    quantities = check_quantities(quantities, reduced)
+    quantities = check_quantities(quantities, reduced is not None)
     if reduced is not None:
         check_same_particles(relaxed, reduced)
     rp = params["rve"]
@@ -239,7 +240,7 @@ def compute_fields(relaxed: State, reduced: State | None, params: dict[str, Any]
         "gravity_relaxed": relaxed.gravity,
         "relaxed_file": relaxed.path,
         "n_particles_total": relaxed.n_particles,
-        "quantities": " ".join(("stress",) + check_quantities(quantities, reduced)),
+        "quantities": " ".join(("stress",) + check_quantities(quantities, reduced is not None)),
     })
     if reduced is not None:
         ds.attrs.update({"gravity_reduced": reduced.gravity, "reduced_file": reduced.path})
