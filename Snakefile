@@ -19,6 +19,7 @@ report: "workflow/report/workflow.rst"
 
 
 include: "workflow/rules/common.smk"
+include: "workflow/rules/scene.smk"
 include: "workflow/rules/pour.smk"
 include: "workflow/rules/relax.smk"
 include: "workflow/rules/probe.smk"
@@ -30,11 +31,10 @@ include: "workflow/rules/numerics_piles.smk"
 
 
 rule all:
-    # Every pile stage, the picture of every relaxed pile, and the analysis.
+    # What the scene asks for (config `outputs`; by default everything: every
+    # pile stage, the picture of every relaxed pile, and the analysis).
     input:
-        pile_targets(),
-        pile_figure_targets("relaxed"),
-        analysis_targets(),
+        scene_targets(),
     default_target: True
     localrule: True
 

@@ -17,6 +17,7 @@ from typing import Any
 
 from . import __version__
 from .errors import AnalysisError, InputError, ParamError
+from .fields import QUANTITIES
 from .params import parse_params
 
 
@@ -63,16 +64,17 @@ def cmd_params(args, params) -> None:
 
 def cmd_fields(args, params) -> None:
     from .balance import balance_report, enforce
-    from .fields import compute_fields
+    from .fields import check_quantities, compute_fields
     from .netcdf import write_dataset, write_json
     from .states import check_same_particles, load_state
 
     t0 = time.perf_counter()
-    relaxed = load_state(args.relaxed)
-    reduced = load_state(args.reduced)
-    check_same_particles(relaxed, reduced)
-    reports = {"relaxed": balance_report(relaxed, params["checks"]),
-               "reduced": balance_report(reduced, params["checks"])}
+    quantities = check_quantities(args.quantities, args.reduced is not None)
+    states = {"relaxed": load_state(args.relaxed)}
+    if args.reduced:
+        states["reduced"] = load_state(args.reduced)
+        check_same_particles(states["relaxed"], states["reduced"])
+    reports = {stage: balance_report(state, params["checks"]) for stage, state in states.items()}
     passed = all(r["passed"] for r in reports.values())
     if args.checks:
         write_json({"passed": passed, "tolerances": params["checks"], "stages": reports,
@@ -83,7 +85,8 @@ def cmd_fields(args, params) -> None:
              f"max net force / weight {r.get('net_force_ratio_max', float('nan')):.3g}")
     if params["checks"]["enforce"]:
         enforce(list(reports.values()))
-    ds = compute_fields(relaxed, reduced, params)
+    relaxed = states["relaxed"]
+    ds = compute_fields(relaxed, states.get("reduced"), params, quantities)
     ds.attrs["balance_checks_passed"] = int(passed)
     for stage, r in reports.items():
         for k in ("support_reaction_rel_error", "love_rel_error_yy", "net_force_ratio_max"):
@@ -102,8 +105,7 @@ def cmd_ensemble(args, params) -> None:
     dss = []
     for p in args.fields:
         ds = _read(p)
-        _require(ds, p, ("stress", "stress_increment", "strain_increment", "displacement_gradient", "fabric",
-                         "n_particles", "solid_fraction"))
+        _require(ds, p, ("stress", "n_particles", "solid_fraction"))
         dss.append(ds)
     out = ensemble_fields(dss, list(args.fields))
     write_dataset(out, args.out, title=f"ensemble fields, protocol {out.attrs.get('protocol', '')}, "
@@ -215,7 +217,10 @@ def build_parser() -> argparse.ArgumentParser:
     add("params", "validate --params and print the effective parameters as JSON", cmd_params)
     sp = add("fields", "per-pile RVE fields (CONTRACT.md section 2) and balance-law checks", cmd_fields)
     sp.add_argument("--relaxed", required=True, help="state file at full gravity")
-    sp.add_argument("--reduced", required=True, help="state file at reduced gravity")
+    sp.add_argument("--reduced", help="state file at reduced gravity (without it: no stress increment, no strain)")
+    sp.add_argument("--quantities", nargs="*", choices=QUANTITIES,
+                    help="optional quantities computed besides the stress (default: fabric, and strain when "
+                         "--reduced is given; none listed: the stress only)")
     sp.add_argument("--out", required=True, help="fields netCDF to write")
     sp.add_argument("--checks", help="JSON file for the balance-law checks")
     sp = add("ensemble", "average per-pile fields over seeds (fields.nc with _sem)", cmd_ensemble)

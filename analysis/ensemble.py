@@ -83,7 +83,7 @@ def ensemble_fields(datasets: list[xr.Dataset], names: list[str] | None = None) 
                                  cell_methods="seed: standard_deviation (comment: divided by sqrt(count), ddof=1)")
         out[f"{name}_count"] = var(ref[name].dims, count.astype(np.int32), f"seeds with a finite {name}", "1")
     derived_fields(out)
-    for name in DERIVED:
+    for name in (d for d in DERIVED if d in out):
         stack = np.stack([ds[name].values for ds in datasets])
         if name in ANGLES:
             stack = fold_axis_angle(stack - out[name].values[None]) + out[name].values[None]

@@ -6,6 +6,11 @@ centres (used for the grid and for the convergence study);
 ``xarray.Dataset`` with dimensions ``y, x, i, j``; :func:`derived_fields`
 adds the invariants and orientations computed from the tensors (and is
 reused on ensemble means).
+
+A scene may ask for less (README, "Scenes"): the stress always, the fabric
+and the strain only when asked; without a reduced state there is no stress
+increment and no strain. Every variable computed is the same, value for
+value, whatever else is computed alongside.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ import numpy as np
 import xarray as xr
 
 from . import rve as _rve
+from .errors import ParamError
 from .fabric import deviatoric_fraction, fabric_trace, particle_fabric, rve_fabric
 from .netcdf import tensor_coords, var
 from .orientation import axis_angle_difference, axis_angle_from_vertical
@@ -25,6 +31,7 @@ from .strain import STRAIN_FLAGS, best_fit_strain
 from .stress import antisymmetric_component, particle_stress_moment, rve_stress, symmetric_part
 from .surface import surface_height
 
+QUANTITIES = ("fabric", "strain")  # optional besides the stress
 TENSOR_FIELDS = ("stress", "stress_reduced", "stress_increment", "displacement_gradient", "strain_increment", "fabric")
 # variables recomputed from (ensemble-mean) tensors rather than averaged
 DERIVED = ("fabric_trace", "fabric_deviatoric_fraction", "fabric_orientation", "stress_orientation",
@@ -64,16 +71,43 @@ META: dict[str, tuple[str, str]] = {
 }
 
 
-def rve_quantities(relaxed: State, reduced: State, centres: np.ndarray, shape: str, size: float,
-                   params: dict[str, Any], apply_mask: bool = True) -> dict[str, np.ndarray]:
-    """All RVE quantities for RVEs of one ``shape``/``size`` at ``centres`` ``(n, 2)``.
+def check_quantities(quantities, has_reduced: bool) -> tuple[str, ...]:
+    """The optional quantities to compute, validated: a subset of :data:`QUANTITIES`;
+    ``None`` means all that the inputs allow (the strain only with a reduced state,
+    ``has_reduced``).
+
+    Raises
+    ------
+    ParamError
+        For an unknown name, or the strain without a reduced state.
+    """
+    if quantities is None:
+        return tuple(q for q in QUANTITIES if q != "strain" or has_reduced)
+    unknown = sorted(set(quantities) - set(QUANTITIES))
+    if unknown:
+        raise ParamError(f"quantities {unknown}: unknown; allowed: {list(QUANTITIES)} (the stress is always "
+                         "computed)")
+    if "strain" in quantities and not has_reduced:
+        raise ParamError("quantities: strain needs the reduced state (the strain is the relaxed -> reduced "
+                         "displacement); give --reduced or leave strain out")
+    return tuple(q for q in QUANTITIES if q in quantities)
+
+
+def rve_quantities(relaxed: State, reduced: State | None, centres: np.ndarray, shape: str, size: float,
+                   params: dict[str, Any], apply_mask: bool = True,
+                   quantities=None) -> dict[str, np.ndarray]:
+    """RVE quantities for RVEs of one ``shape``/``size`` at ``centres`` ``(n, 2)``.
 
     Membership is decided on the relaxed positions (see :mod:`analysis.rve`).
     With ``apply_mask`` the RVEs failing ``min_particles`` or
     ``min_solid_fraction`` hold NaN in every stress, strain and fabric
-    quantity. Returns flat arrays (tensors as ``(n, 2, 2)``).
+    quantity. The stress is always computed, the stress increment when
+    ``reduced`` is given, and the optional ``quantities`` (see
+    :func:`check_quantities`). Returns flat arrays (tensors as ``(n, 2, 2)``).
     """
-    check_same_particles(relaxed, reduced)
+    quantities = check_quantities(quantities, reduced is not None)
+    if reduced is not None:
+        check_same_particles(relaxed, reduced)
     rp = params["rve"]
     W = _rve.membership(centres, relaxed.x, relaxed.y, shape, size)
     V = _rve.rve_area(centres[:, 1], shape, size)
@@ -87,53 +121,61 @@ def rve_quantities(relaxed: State, reduced: State, centres: np.ndarray, shape: s
         mask = np.where(n_p < 1, _rve.MASK_TOO_FEW_PARTICLES, 0).astype(np.int32)
     bad = mask != 0
     s_full = rve_stress(W, particle_stress_moment(relaxed), V)
-    s_red = rve_stress(W, particle_stress_moment(reduced), V)
-    fab = rve_fabric(W, particle_fabric(relaxed), relaxed.area)
-    strain = best_fit_strain(W, relaxed, reduced, params["strain"]["min_contacts"],
-                             params["strain"]["max_condition"], masked=bad)
     out = {
         "stress": symmetric_part(s_full),
-        "stress_reduced": symmetric_part(s_red),
         "stress_antisymmetric": antisymmetric_component(s_full),
-        "displacement_gradient": strain["displacement_gradient"],
-        "strain_residual": strain["residual"],
-        "strain_condition": strain["condition"],
-        "n_contacts_strain": strain["n_contacts"],
-        "strain_flag": strain["flag"],
-        "fabric": fab,
         "n_particles": n_p,
         "solid_fraction": sf,
         "particle_area_fraction": paf,
         "rve_area": V,
         "mask_reason": mask,
     }
-    out["stress_increment"] = out["stress_reduced"] - out["stress"]
-    out["strain_increment"] = symmetric_part(out["displacement_gradient"])
+    if reduced is not None:
+        out["stress_reduced"] = symmetric_part(rve_stress(W, particle_stress_moment(reduced), V))
+        out["stress_increment"] = out["stress_reduced"] - out["stress"]
+    if "fabric" in quantities:
+        out["fabric"] = rve_fabric(W, particle_fabric(relaxed), relaxed.area)
+    if "strain" in quantities:
+        strain = best_fit_strain(W, relaxed, reduced, params["strain"]["min_contacts"],
+                                 params["strain"]["max_condition"], masked=bad)
+        out.update({
+            "displacement_gradient": strain["displacement_gradient"],
+            "strain_residual": strain["residual"],
+            "strain_condition": strain["condition"],
+            "n_contacts_strain": strain["n_contacts"],
+            "strain_flag": strain["flag"],
+        })
+        out["strain_increment"] = symmetric_part(out["displacement_gradient"])
     for k in ("stress", "stress_reduced", "stress_increment", "stress_antisymmetric", "fabric"):
-        out[k] = np.asarray(out[k], dtype=float)
-        out[k][bad] = np.nan
+        if k in out:
+            out[k] = np.asarray(out[k], dtype=float)
+            out[k][bad] = np.nan
     return out
 
 
 def derived_fields(ds: xr.Dataset) -> xr.Dataset:
-    """Add fabric invariants and the principal-axis orientations (Sect. 4.2, Fig. 3) to ``ds``."""
-    dims = ds["fabric"].dims[:-2]
-    F = ds["fabric"].values
-    fab_or = axis_angle_from_vertical(F, "largest")
-    st_or = axis_angle_from_vertical(ds["stress"].values, "smallest")
-    new = {
-        "fabric_trace": fabric_trace(F),
-        "fabric_deviatoric_fraction": deviatoric_fraction(F),
-        "fabric_orientation": fab_or,
-        "stress_orientation": st_or,
-        "stress_increment_orientation": axis_angle_from_vertical(ds["stress_increment"].values, "largest"),
-        "strain_orientation": axis_angle_from_vertical(ds["strain_increment"].values, "largest"),
-        "stress_fabric_angle": axis_angle_difference(st_or, fab_or),
-    }
-    for k, v in new.items():
-        ln, u = META[k]
-        ds[k] = var(dims, np.asarray(v, dtype=float), ln, u)
-    ds["fabric_orientation"].attrs["comment"] = ANGLE_COMMENT
+    """Add fabric invariants and the principal-axis orientations (Sect. 4.2, Fig. 3) to ``ds``.
+
+    Each is added when the tensors it is computed from are in ``ds``.
+    """
+    dims = ds["stress"].dims[:-2]
+    new = {"stress_orientation": axis_angle_from_vertical(ds["stress"].values, "smallest")}
+    if "fabric" in ds:
+        F = ds["fabric"].values
+        new["fabric_trace"] = fabric_trace(F)
+        new["fabric_deviatoric_fraction"] = deviatoric_fraction(F)
+        new["fabric_orientation"] = axis_angle_from_vertical(F, "largest")
+        new["stress_fabric_angle"] = axis_angle_difference(new["stress_orientation"], new["fabric_orientation"])
+    if "stress_increment" in ds:
+        new["stress_increment_orientation"] = axis_angle_from_vertical(ds["stress_increment"].values, "largest")
+    if "strain_increment" in ds:
+        new["strain_orientation"] = axis_angle_from_vertical(ds["strain_increment"].values, "largest")
+    for k in DERIVED:
+        if k in new:
+            ln, u = META[k]
+            ds[k] = var(dims, np.asarray(new[k], dtype=float), ln, u)
+    if "fabric_orientation" in ds:
+        ds["fabric_orientation"].attrs["comment"] = ANGLE_COMMENT
     return ds
 
 
@@ -146,11 +188,15 @@ ANGLE_COMMENT = ("angles from the vertical (+y), positive counter-clockwise (upp
                  "into (-90, 90]; NaN where the principal values coincide")
 
 
-def compute_fields(relaxed: State, reduced: State, params: dict[str, Any]) -> xr.Dataset:
-    """The per-pile fields of CONTRACT.md section 2 on the configured grid."""
+def compute_fields(relaxed: State, reduced: State | None, params: dict[str, Any], quantities=None) -> xr.Dataset:
+    """The per-pile fields of CONTRACT.md section 2 on the configured grid.
+
+    ``reduced`` (None: no stress increment, no strain) and ``quantities``
+    as in :func:`rve_quantities`.
+    """
     grid = _rve.Grid.from_params(params["grid"])
     rp = params["rve"]
-    q = rve_quantities(relaxed, reduced, grid.centres(), rp["shape"], rp["size"], params)
+    q = rve_quantities(relaxed, reduced, grid.centres(), rp["shape"], rp["size"], params, quantities=quantities)
     ny, nx = grid.shape
     coords = {
         "y": var("y", grid.y, "height of the RVE centre above the support", "m", axis="Y"),
@@ -167,7 +213,8 @@ def compute_fields(relaxed: State, reduced: State, params: dict[str, Any]) -> xr
             data[k] = var(("y", "x"), v.reshape(ny, nx), ln, u)
     ds = xr.Dataset(data, coords=coords)
     ds["mask_reason"].attrs.update({k: v for k, v in _rve.MASK_FLAGS.items()})
-    ds["strain_flag"].attrs.update({k: v for k, v in STRAIN_FLAGS.items()})
+    if "strain_flag" in ds:
+        ds["strain_flag"].attrs.update({k: v for k, v in STRAIN_FLAGS.items()})
     h = surface_height(relaxed, grid.x, params["surface"]["window"])
     ds["surface_height"] = var("x", h, *META["surface_height"])
     ds["depth"] = var(("y", "x"), h[None, :] - grid.y[:, None], *META["depth"])
@@ -175,7 +222,8 @@ def compute_fields(relaxed: State, reduced: State, params: dict[str, Any]) -> xr
     ds["stress"].attrs["comment"] = ("(1/V) sum over member particles of sum_c x_i f_j (Eq. 2 with 1/V^p -> 1/V) "
                                      "= sum_p (V^p/V) sigma^p; symmetric part (the antisymmetric remainder is "
                                      "stress_antisymmetric)")
-    ds["displacement_gradient"].attrs["comment"] = "index order of Eq. 4: dDelta u_j = eps_ij l_i"
+    if "displacement_gradient" in ds:
+        ds["displacement_gradient"].attrs["comment"] = "index order of Eq. 4: dDelta u_j = eps_ij l_i"
     ds.attrs.update({
         "rve_shape": rp["shape"],
         "rve_size": rp["size"],
@@ -190,9 +238,10 @@ def compute_fields(relaxed: State, reduced: State, params: dict[str, Any]) -> xr
         "protocol": str(relaxed.attrs.get("protocol", "")),
         "seed": str(relaxed.attrs.get("seed", "")),
         "gravity_relaxed": relaxed.gravity,
-        "gravity_reduced": reduced.gravity,
         "relaxed_file": relaxed.path,
-        "reduced_file": reduced.path,
         "n_particles_total": relaxed.n_particles,
+        "quantities": " ".join(("stress",) + check_quantities(quantities, reduced is not None)),
     })
+    if reduced is not None:
+        ds.attrs.update({"gravity_reduced": reduced.gravity, "reduced_file": reduced.path})
     return ds

@@ -8,10 +8,17 @@ of simulated time), then times a fixed number of steps on 1 and on 2 threads
 without the drag.  It prints a table (with the contacts per particle, so the
 figures can be judged) and ends with one JSON line of the figures.  Timings
 are medians of repeats.
+
+``python -m sim bench --scenes STATE`` times the steps of a saved pile under
+each scene variant of :data:`SCENE_VARIANTS` (the work each skips, against the
+study's full law), the variants taking turns, timed in CPU time of the process
+(run it with ``NUMBA_NUM_THREADS=1``), so that other jobs on a busy machine
+disturb them little and alike.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import resource
 import time
@@ -97,6 +104,69 @@ def measure(n, steps=300, settle=0.05, repeats=3, threads=(1, 2), seed=0):
         out[f"ns_per_contact_{t}t"] = med / steps / max(n_contacts, 1) * 1e9
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     return out
+
+
+# name: (model settings changed, Simulation options changed)
+SCENE_VARIANTS = {
+    "study": ({}, {}),
+    "friction 0, full law": ({"friction": 0.0, "support_friction": 0.0}, {"full_law": True}),
+    "friction 0": ({"friction": 0.0, "support_friction": 0.0}, {}),
+    "damping 0, full law": ({"damping": 0.0}, {"full_law": True}),
+    "damping 0": ({"damping": 0.0}, {}),
+    "no rotation": ({}, {"rotate": False}),
+    "no support": ({}, {"support": False}),
+}
+
+
+def scene_costs(path, steps=200, repeats=5):
+    """CPU ns per particle-step of the pile of a state file under each scene variant.
+
+    Every variant starts from the file's state (its time step, integrator and
+    tangential springs) with the settings of :data:`SCENE_VARIANTS`; the
+    variants run ``steps`` steps in turn, ``repeats`` times.
+
+    Returns
+    -------
+    dict
+        ``n``, ``contacts`` and, per variant, the median ns per particle-step.
+    """
+    from .io import load_simulation
+
+    base, ds = load_simulation(path)
+    c = {"i": ds["contact_i"].values.astype(np.int64),
+         "j": ds["contact_j"].values.astype(np.int64), "spring": ds["contact_spring"].values}
+    sims = {}
+    for name, (law, options) in SCENE_VARIANTS.items():
+        sim = Simulation(base.shapes, dataclasses.replace(base.model, **law), base.gravity,
+                         support=options.get("support", True), walls=base.walls,
+                         rotate=options.get("rotate", base.rotate))
+        sim.full_law = options.get("full_law", False)
+        sim.set_scaled_derivatives(base.scaled_derivatives(), base.dt)
+        sim.set_springs(c["i"], c["j"], c["spring"])
+        sim.run(steps=10)  # compiles and builds the pair list outside the timing
+        sims[name] = sim
+    times = {name: [] for name in sims}
+    for _ in range(repeats):
+        for name, sim in sims.items():
+            t0 = time.process_time()
+            sim.run(steps=steps)
+            times[name].append(time.process_time() - t0)
+    out = {"n": base.n, "contacts": len(c["i"]), "threads": numba.get_num_threads()}
+    for name, t in times.items():
+        out[name] = float(np.median(t)) / steps / base.n * 1e9
+    return out
+
+
+def main_scenes(path, steps=200, repeats=5):
+    """Print :func:`scene_costs` as a table and a final JSON line."""
+    r = scene_costs(path, steps, repeats)
+    print(f"{r['n']} particles, {r['contacts'] / r['n']:.2f} contacts per particle, "
+          f"{r['threads']} thread(s), CPU time, median of {repeats}")
+    print(f"{'scene':>22} {'ns/p-step':>10} {'vs study':>9}")
+    for name in SCENE_VARIANTS:
+        print(f"{name:>22} {r[name]:>10.1f} {r[name] / r['study']:>9.3f}")
+    print(json.dumps({"scene_costs": r}))
+    return r
 
 
 def main(sizes=(1000, 3000, 10000, 30000), steps=300):

@@ -2,7 +2,7 @@
 
 Run parameters come as ``--params`` (JSON text, or ``@file`` with JSON or YAML)
 holding any of the sections ``model``, ``particles``, ``pour``, ``relax``,
-``probe`` (see :mod:`sim.config`; missing settings take their defaults).  A
+``probe``, ``physics`` (see :mod:`sim.config`; missing settings take their defaults).  A
 setting with a wrong type or value is refused before anything runs, with a
 message naming the setting, the value and what is allowed.
 """
@@ -30,7 +30,7 @@ def _params(text):
         else:
             data = json.loads(raw)
         keep = {k: v for k, v in data.items()
-                if k in ("model", "particles", "pour", "relax", "probe")}
+                if k in ("model", "particles", "pour", "relax", "probe", "physics")}
         return SimConfig.from_dict(keep)
     return SimConfig.from_json(text)
 
@@ -68,6 +68,10 @@ def _parser():
     p.add_argument("--sizes", default="1000,3000,10000,30000",
                    help="comma-separated particle counts")
     p.add_argument("--steps", type=int, default=300)
+    p.add_argument("--scenes", metavar="STATE",
+                   help="instead: time the pile of this state file under each scene "
+                        "variant (friction 0, damping 0, no rotation, no support)")
+    p.add_argument("--repeats", type=int, default=5, help="with --scenes: timed repeats")
 
     sub.add_parser("draw", help="picture of a pile state (PNG); "
                    "see python -m sim draw --help", add_help=False)
@@ -115,8 +119,11 @@ def main(argv=None):
             warmup()
             return 0
         if args.command == "bench":
-            from .bench import main as bench_main
-            bench_main(tuple(int(s) for s in args.sizes.split(",")), args.steps)
+            from .bench import main as bench_main, main_scenes
+            if args.scenes:
+                main_scenes(args.scenes, args.steps, args.repeats)
+            else:
+                bench_main(tuple(int(s) for s in args.sizes.split(",")), args.steps)
             return 0
         cfg = _params(args.params)
         from . import protocols

@@ -255,7 +255,7 @@ class ProbeParams:
     ----------
     levels : tuple of float
         Relative gravity reductions Δ, each in (0, 1); the first one's stage is
-        called ``reduced``.
+        called ``reduced``.  Empty: the scene has no gravity probe.
     mode : str
         ``"step"`` lowers gravity at once, ``"ramp"`` linearly over ``ramp_time``.
     ramp_time : float
@@ -267,9 +267,9 @@ class ProbeParams:
     ramp_time: float = 0.1
 
     def __post_init__(self):
-        if not isinstance(self.levels, (list, tuple)) or len(self.levels) == 0:
-            raise ConfigError(f"probe.levels = {self.levels!r}: must be a non-empty list "
-                              "of numbers in (0, 1)")
+        if not isinstance(self.levels, (list, tuple)):
+            raise ConfigError(f"probe.levels = {self.levels!r}: must be a list of numbers "
+                              "in (0, 1) (empty: no gravity probe)")
         for lev in self.levels:
             _check_number("probe", "levels[]", lev, lo=0, hi=1, lo_open=True, hi_open=True)
         if len(set(self.levels)) != len(self.levels):
@@ -281,6 +281,43 @@ class ProbeParams:
 
 
 @dataclass(frozen=True)
+class PhysicsParams:
+    """Which bodies and degrees of freedom a scene has.
+
+    Attributes
+    ----------
+    support : bool
+        The frictional support ``y < 0`` exists (the pile protocols need it).
+    walls : tuple of float or None
+        ``(x_left, x_right)``: frictional side walls ``x < x_left`` and
+        ``x > x_right`` (m), or None for none.
+    rotation : bool
+        Orientations are integrated; False fixes each particle's orientation
+        at the one it was released with.
+    """
+
+    support: bool = True
+    walls: tuple | None = None
+    rotation: bool = True
+
+    def __post_init__(self):
+        for name in ("support", "rotation"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"physics.{name} = {getattr(self, name)!r}: must be true "
+                                  "or false")
+        if self.walls is not None:
+            if not isinstance(self.walls, (list, tuple)) or len(self.walls) != 2:
+                raise ConfigError(f"physics.walls = {self.walls!r}: must be null or "
+                                  "[x_left, x_right] in m")
+            for w in self.walls:
+                _check_number("physics", "walls[]", w)
+            if not self.walls[0] < self.walls[1]:
+                raise ConfigError(f"physics.walls = {list(self.walls)!r}: x_left must be "
+                                  "< x_right")
+            object.__setattr__(self, "walls", tuple(float(w) for w in self.walls))
+
+
+@dataclass(frozen=True)
 class SimConfig:
     """All simulator sections of a run configuration."""
 
@@ -289,6 +326,7 @@ class SimConfig:
     pour: PourParams = field(default_factory=PourParams)
     relax: RelaxParams = field(default_factory=RelaxParams)
     probe: ProbeParams = field(default_factory=ProbeParams)
+    physics: PhysicsParams = field(default_factory=PhysicsParams)
 
     @classmethod
     def from_dict(cls, data: dict | None) -> "SimConfig":
@@ -331,4 +369,6 @@ class SimConfig:
         """Plain nested dict of all settings (JSON-serialisable)."""
         out = dataclasses.asdict(self)
         out["probe"]["levels"] = list(out["probe"]["levels"])
+        if out["physics"]["walls"] is not None:
+            out["physics"]["walls"] = list(out["physics"]["walls"])
         return out

@@ -46,6 +46,12 @@ def tangential_mass(inv_mi, inv_mj, ri, rj, inv_ii, inv_ij):
 
 
 @njit(cache=True, inline="always")
+def elastic_force(area, l, youngs_modulus):
+    """Elastic normal force ``F⊥ = Y A / l`` (Appendix, (i))."""
+    return youngs_modulus * area / l
+
+
+@njit(cache=True, inline="always")
 def normal_force(area, area_rate, l, m_perp, youngs_modulus, damping):
     """Elastic plus damping normal force ``F⊥ + D⊥`` (Appendix, (i) and (ii)).
 
@@ -60,7 +66,7 @@ def normal_force(area, area_rate, l, m_perp, youngs_modulus, damping):
     (float, float)
         Elastic part ``F⊥`` and total ``F⊥ + D⊥`` (>= 0).
     """
-    f_el = youngs_modulus * area / l
+    f_el = elastic_force(area, l, youngs_modulus)
     d = damping * math.sqrt(youngs_modulus * m_perp) * area_rate / l
     if area_rate < 0.0 and d < -f_el:
         d = -f_el

@@ -13,6 +13,13 @@ nothing is reallocated while a pile grows):
 Fixed bodies are half-planes: the support ``y < 0`` and, optionally, side walls
 ``x < x_left`` and ``x > x_right``.  In state files a contact with a body has
 ``contact_j = -1`` (support), ``-2`` (left wall) or ``-3`` (right wall).
+
+The step does only the work the run needs (see :mod:`sim.forces`): no damping
+force when ``model.damping`` is 0, no tangential force or spring history
+between particles when ``model.friction`` is 0 (nor with the bodies when
+``model.support_friction`` is 0), no body contacts without bodies, and no
+orientation update when rotation is fixed.  ``Simulation.full_law = True``
+computes every term anyway (tests compare both).
 """
 
 from __future__ import annotations
@@ -81,7 +88,8 @@ class Simulation:
     walls : tuple of float or None
         ``(x_left, x_right)`` positions of frictional side walls, or None.
     rotate : bool
-        Integrate rotations (False fixes every particle's orientation).
+        Integrate rotations (False fixes every particle's orientation: its
+        angular velocity is zero and θ never changes).
     skin : float or None
         Verlet skin of the pair list, m (default: 0.3 × mean circumradius).
     """
@@ -131,6 +139,8 @@ class Simulation:
         max_corners = int(np.max(shapes.node_count)) if self.capacity else 3
         self.scratch = np.stack([make_scratch(max_corners)
                                  for _ in range(numba.config.NUMBA_NUM_THREADS)])
+        self.cs = np.zeros((self.capacity if not self.rotate else 0, 2))
+        self.full_law = False
         self.pi = np.empty(0, np.int64)
         self.pj = np.empty(0, np.int64)
         self.spring = np.empty(0)
@@ -260,12 +270,27 @@ class Simulation:
         self._energy_ref_movable = 0.0
 
     # ------------------------------------------------------------------ running
+    def _law_flags(self):
+        """``(damped, tangential, body_tangential)``: the terms of the contact law
+        that can be nonzero (all of them with ``full_law``)."""
+        m = self.model
+        return (self.full_law or m.damping > 0.0, self.full_law or m.friction > 0.0,
+                self.full_law or m.support_friction > 0.0)
+
     def _rebuild(self):
         n = self.n
         x = np.ascontiguousarray(self.r[0, 0, :n])
         y = np.ascontiguousarray(self.r[0, 1, :n])
         pi, pj = candidate_pairs(x, y, self.shapes.radius, n, self.skin)
-        self.spring = carry_history(self.pi, self.pj, self.spring, pi, pj)
+        if self._law_flags()[1]:
+            self.spring = carry_history(self.pi, self.pj, self.spring, pi, pj)
+        else:
+            self.spring = np.zeros(len(pi))
+        if not self.rotate:
+            # orientations are fixed: no angular velocity, corners placed with cached cos, sin
+            self.r[1:, 2, :n] = 0.0
+            self.cs[:n, 0] = np.cos(self.r[0, 2, :n])
+            self.cs[:n, 1] = np.sin(self.r[0, 2, :n])
         self.pi, self.pj = pi, pj
         self.pair_offset, self.pair_index = particle_pair_index(pi, pj, n)
         self.pout = np.zeros((len(pi), ROW_SIZE))
@@ -317,6 +342,7 @@ class Simulation:
             chunk = min(steps - done, self.check_every - self.step % self.check_every)
             kernels = (KERNELS_PARALLEL if self.n >= self.parallel_threshold and
                        numba.get_num_threads() > 1 else KERNELS_SERIAL)
+            damped, tangential, body_tangential = self._law_flags()
             k = advance(kernels, chunk, self.n, self.r, self.coeffs, self.dt, self.shapes.node_offset,
                         self.shapes.node_x, self.shapes.node_y, self.wx, self.wy, self.box,
                         self.pi, self.pj, self.spring, self.pout, self.pair_offset,
@@ -325,7 +351,8 @@ class Simulation:
                         self.inv_inertia, self.shapes.area, self.gravity[0],
                         self.gravity[1], self.model.youngs_modulus, self.model.damping,
                         self.model.friction, self.rotate, self.drag, self.eps, self.x_ref,
-                        self.y_ref, rebuild_sq, self.scratch)
+                        self.y_ref, rebuild_sq, self.scratch, self.cs, damped, tangential,
+                        body_tangential)
             done += k
             self.step += k
             self.time += k * self.dt

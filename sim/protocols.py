@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import SimConfig
+from .config import ConfigError, SimConfig
 from .engine import BlowUpError, Simulation
 from .io import load_simulation, save_state
 from .measure import angle_of_repose, mean_coordination
@@ -193,6 +193,9 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
         raise ValueError(f"protocol = {protocol!r}: must be 'wedge' or 'layered'")
     if not isinstance(seed, int) or seed < 0:
         raise ValueError(f"seed = {seed!r}: must be a non-negative integer")
+    if not cfg.physics.support:
+        raise ConfigError("physics.support = false: a pile is poured onto the support; "
+                          "without it the particles fall for ever (allowed: true)")
     p = cfg.pour
     shapes = pile_shapes(cfg, seed)
     checkpoint = Path(checkpoint) if checkpoint else None
@@ -204,7 +207,9 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
         log.info("resuming %s seed %d from checkpoint %s: t = %.4f s, %d particles",
                  protocol, seed, checkpoint, sim.time, sim.n)
     else:
-        sim = Simulation(shapes, cfg.model, gravity=(0.0, -GRAVITY))
+        phys = cfg.physics
+        sim = Simulation(shapes, cfg.model, gravity=(0.0, -GRAVITY), support=phys.support,
+                         walls=phys.walls, rotate=phys.rotation)
     log.info("pouring %d particles (%s, seed %d), dt = %.3g s (%s; limit %.3g s)",
              p.n_particles, protocol, seed, sim.dt, cfg.model.integrator,
              sim.bound.dt_limit)

@@ -108,3 +108,23 @@ def test_params_command_prints_effective_defaults(capsys):
     assert main(["params", "--params", '{"rve": {"size": 0.1}}']) == 0
     eff = json.loads(capsys.readouterr().out)
     assert eff["rve"]["size"] == 0.1 and eff["rve"]["shape"] == "square"
+
+
+def test_stress_only_fields_and_their_ensemble(tmp_path, states, capsys):
+    """Without --reduced and with no optional quantity: the stress fields and
+    their balance check only, and an ensemble of such files."""
+    relaxed, _, _, _ = states
+    out, chk = tmp_path / "f.nc", tmp_path / "f.checks.json"
+    assert main(["fields", "--relaxed", relaxed, "--quantities", "--out", str(out), "--checks", str(chk),
+                 "--params", SMALL]) == 0
+    assert set(json.loads(chk.read_text())["stages"]) == {"relaxed"}
+    with xr.open_dataset(out) as ds:
+        assert "stress" in ds and "stress_orientation" in ds
+        assert not {"stress_increment", "fabric", "strain_increment", "displacement_gradient"} & set(ds.variables)
+    ens = tmp_path / "ens.nc"
+    assert main(["ensemble", "--fields", str(out), str(out), "--out", str(ens), "--params", SMALL]) == 0
+    with xr.open_dataset(ens) as ds:
+        assert "stress_sem" in ds and "fabric" not in ds
+    assert main(["fields", "--relaxed", relaxed, "--quantities", "strain", "--out", str(out),
+                 "--params", SMALL]) == 1
+    assert "strain needs the reduced state" in capsys.readouterr().err

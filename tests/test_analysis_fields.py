@@ -146,3 +146,33 @@ def test_speed_3500_particles():
     elapsed = time.perf_counter() - t
     assert isinstance(ds, xr.Dataset)
     assert elapsed < 10.0, f"fields of {s['x'].size} particles took {elapsed:.1f} s"
+
+
+@pytest.mark.parametrize("reduced, quantities", [
+    (False, []), (False, ["fabric"]), (True, []), (True, ["fabric"]), (True, ["strain"]),
+])
+def test_fewer_quantities_give_the_same_values(pile, reduced, quantities):
+    """A scene asking for less (no reduced state, no fabric, no strain) gets exactly
+    the values of the full computation for the variables it has, and nothing of
+    what it did not ask for."""
+    relaxed, red, params, _ = pile
+    full = compute_fields(relaxed, red, params)
+    part = compute_fields(relaxed, red if reduced else None, params, quantities)
+    assert set(part.data_vars) < set(full.data_vars)
+    for name in part.data_vars:
+        np.testing.assert_array_equal(part[name].values, full[name].values, err_msg=name)
+    assert ("stress_increment" in part) == reduced
+    assert ("fabric" in part) == ("fabric" in quantities)
+    assert ("fabric_orientation" in part) == ("fabric" in quantities)
+    assert ("strain_increment" in part) == ("strain" in quantities)
+    assert part.attrs["quantities"] == " ".join(["stress"] + quantities)
+
+
+def test_strain_without_a_reduced_state_is_refused(pile):
+    from analysis.errors import ParamError
+
+    relaxed, _, params, _ = pile
+    with pytest.raises(ParamError, match="strain needs the reduced state"):
+        compute_fields(relaxed, None, params, ["strain"])
+    with pytest.raises(ParamError, match=r"\['stress'\]: unknown; allowed: \['fabric', 'strain'\]"):
+        compute_fields(relaxed, None, params, ["stress"])

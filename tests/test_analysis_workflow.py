@@ -1,7 +1,7 @@
 """workflow/rules/analysis.smk and its schema, driven by a stand-in Snakefile.
 
 The stand-in defines what common.smk provides (PROTOCOLS, seeds, ANALYSIS_CODE,
-PY), validates the analysis section against the schema, includes the rules
+PY) and scene.smk for the full study (every output, a gravity probe), validates the analysis section against the schema, includes the rules
 and asks for analysis_targets(). The dry run is fast; the full run is marked slow.
 """
 
@@ -37,6 +37,12 @@ def _project(tmp_path, analysis_cfg=None):
         PY = "{sys.executable}"
         def py_shell(command):
             return PY + " " + command
+        def wants(output):
+            return True
+        def has_probes():
+            return True
+        def field_quantities():
+            return ["fabric", "strain"]
         wildcard_constraints:
             protocol="wedge|layered",
             seed=r"\\d+",

@@ -9,12 +9,14 @@ import contextlib
 import json
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -137,6 +139,66 @@ def test_bad_config_stops_before_any_job(workdir, name, override, message):
     assert message in proc.output, proc.output
 
 
+# --- scenes: only what the configuration's outputs ask for is built -----------
+
+def scene_args(name):
+    """Snakemake arguments of a scene of config/scenes laid over the smoke study."""
+    return ["--configfile", "config/smoke.yaml", f"config/scenes/{name}.yaml",
+            "--replace-workflow-config"]
+
+
+def test_stress_only_scene_runs_no_probe_no_fit_no_figure(workdir):
+    proc = snakemake(workdir, "-n", "-p", "--cores", "2", *scene_args("stress_only"))
+    assert proc.returncode == 0, proc.output
+    n = len(smoke_piles())
+    assert job_counts(proc.output) == {
+        "compile_kernels": 1, "pour": n, "relax": n, "analysis_fields": n,
+        "analysis_ensemble": 2, "analysis_base_pressure": 2, "all": 1}
+    assert "--reduced" not in proc.output and "reduced.nc" not in proc.output
+    assert "--quantities  --params" in proc.output   # the stress only
+
+
+def test_a_scene_without_figures_draws_nothing(workdir):
+    outputs = ["states", "fields", "strain", "fabric", "fits"]
+    config = with_overrides(workdir, "no_figures", {"outputs": outputs})
+    proc = snakemake(workdir, "-n", "-p", "--cores", "2", *config)
+    assert proc.returncode == 0, proc.output
+    counts = job_counts(proc.output)
+    assert not [rule for rule in counts if "figure" in rule or rule == "draw_pile"], counts
+    n = len(smoke_piles())
+    assert counts["probe"] == n and counts["analysis_moduli"] == 2
+    assert "--quantities fabric strain " in proc.output
+
+
+@pytest.mark.parametrize("name", ["frictionless", "no_rotation"])
+def test_physics_scenes_reach_the_pour(workdir, name):
+    proc = snakemake(workdir, "-n", "-p", "--cores", "2", *scene_args(name))
+    assert proc.returncode == 0, proc.output
+    scene = yaml.safe_load((REPO / "config" / "scenes" / f"{name}.yaml").read_text())
+    pour = next(line for line in proc.output.splitlines() if " pour --params " in line)
+    params = json.loads(shlex.split(pour.split(" pour --params ", 1)[1])[0])
+    for section, values in scene.items():
+        if section in params:
+            assert params[section] == {**params[section], **values}, section
+
+
+@pytest.mark.parametrize("name, override, message", [
+    ("fits_without_strain", {"outputs": ["states", "fields", "fits"]}, "fits needs strain"),
+    ("strain_without_probe", {"outputs": ["fields", "strain"], "probe": {"levels": []}},
+     "strain is the response to a gravity probe but probe.levels is []"),
+    ("unknown_output", {"outputs": ["fields", "stresses"]}, "'stresses' is not one of"),
+    ("no_support", {"physics": {"support": False}}, "physics.support = false"),
+    ("base_pressure_stage", {"outputs": ["fields"], "probe": {"levels": []},
+                             "analysis": {"base_pressure": {"stage": "reduced"}}},
+     "analysis.base_pressure.stage = 'reduced' is not a stage of this scene"),
+])
+def test_bad_scene_stops_before_any_job(workdir, name, override, message):
+    config = with_overrides(workdir, f"bad_{name}", override)
+    proc = snakemake(workdir, "-n", "--cores", "2", *config)
+    assert proc.returncode != 0
+    assert message in proc.output, proc.output
+
+
 # --- (c) what re-runs after an edit -------------------------------------------
 
 # A stand-in for `python -m sim`: checks the command line the rules build
@@ -145,7 +207,7 @@ FAKE_SIM_MAIN = '''
 import argparse, json, os, sys
 from pathlib import Path
 
-SECTIONS = {"pour": {"model", "particles", "pour"}, "relax": {"model", "pour", "relax"},
+SECTIONS = {"pour": {"model", "particles", "pour", "physics"}, "relax": {"model", "pour", "relax"},
             "probe": {"model", "pour", "relax", "probe"}}
 cmd, rest = sys.argv[1], sys.argv[2:]
 if cmd == "warmup":
@@ -234,6 +296,13 @@ def test_nothing_to_do_after_a_run(ran):
     assert dry_run(*ran) == {}
 
 
+def test_asking_for_fewer_outputs_reruns_no_simulation(ran):
+    root, _ = ran
+    config = with_overrides(root, "states_only", {"outputs": ["states", "figures"]})
+    proc = snakemake(root, "-n", "--cores", "2", *config)
+    assert proc.returncode == 0 and job_counts(proc.output) == {}, proc.output
+
+
 def test_editing_simulator_code_reruns_the_piles(ran):
     root, targets = ran
     with edited(root / "sim" / "kernels.py"):
@@ -264,6 +333,7 @@ def test_editing_analysis_code_or_a_caption_leaves_the_piles(ran, folder):
     ("model", {"friction": 0.4}, ("pour", "relax", "probe")),
     ("relax", {"max_time": 2.0}, ("relax", "probe")),
     ("probe", {"mode": "ramp"}, ("probe",)),
+    ("physics", {"rotation": False}, ("pour", "relax", "probe")),
 ])
 def test_simulation_parameters_rerun_exactly_the_jobs_that_read_them(ran, section, change,
                                                                        rerun):
@@ -312,3 +382,31 @@ def test_smoke_study_end_to_end(tmp_path):
     # A second run has nothing to do: no parameter or code trigger fires spuriously.
     again = snakemake(root, "-n", "--cores", "2", *SMOKE)
     assert again.returncode == 0 and job_counts(again.output) == {}, again.output
+    check_stress_only_scene_gives_the_same_values(root)
+
+
+def check_stress_only_scene_gives_the_same_values(root):
+    """The stress-only scene over the finished smoke study: it pours, relaxes and
+    probes nothing again (same simulation settings), recomputes the fields with
+    the stress only, and every variable it writes holds the values of the full
+    study's, bit for bit."""
+    import xarray as xr
+
+    full = root / "full"
+    for name in ("fields", "ensemble"):
+        shutil.copytree(root / "results" / name, full / name)
+    proc = snakemake(root, "--cores", "2", *scene_args("stress_only"), "--show-failed-logs",
+                     timeout=600)
+    assert proc.returncode == 0, proc.output[-20000:]
+    n = len(smoke_piles())
+    assert job_counts(proc.output) == {"analysis_fields": n, "analysis_ensemble": 2, "all": 1}
+    files = [f"fields/{p}/seed{s}.nc" for p, s in smoke_piles()]
+    files += [f"ensemble/{p}/fields.nc" for p in ("wedge", "layered")]
+    for name in files:
+        with xr.open_dataset(root / "results" / name) as part, \
+                xr.open_dataset(full / name) as whole:
+            assert "stress" in part and "stress_increment" not in part and "fabric" not in part
+            assert set(part.data_vars) < set(whole.data_vars)
+            for var in part.data_vars:
+                np.testing.assert_array_equal(part[var].values, whole[var].values,
+                                              err_msg=f"{name}: {var}")

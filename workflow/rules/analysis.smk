@@ -7,6 +7,7 @@
 #   ANALYSIS_CODE  list of the analysis/*.py files (an input: code edits rerun the analysis)
 #   PY, py_shell   the python executable and the helper that prefixes it to a shell command
 #   and the global wildcard_constraints of protocol and seed
+# and from workflow/rules/scene.smk has_probes() and field_quantities() (the scene's outputs),
 # and the state files results/piles/{protocol}/seed{seed}/{stage}.nc (CONTRACT.md section 1).
 #
 # Every rule passes config["analysis"] as sorted JSON in params, so a change of
@@ -20,13 +21,15 @@
 rule analysis_fields:
     input:
         relaxed="results/piles/{protocol}/seed{seed}/relaxed.nc",
-        reduced="results/piles/{protocol}/seed{seed}/reduced.nc",
+        reduced=_analysis_fields_reduced,
         code=ANALYSIS_CODE,
     output:
         fields="results/fields/{protocol}/seed{seed}.nc",
         checks="results/fields/{protocol}/seed{seed}.checks.json",
     params:
         cfg=ANALYSIS_PARAMS,
+        reduced=_analysis_reduced_option,
+        quantities=" ".join(field_quantities()),
     log:
         "logs/analysis/fields/{protocol}/seed{seed}.log",
     benchmark:
@@ -40,7 +43,7 @@ rule analysis_fields:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis fields --relaxed {input.relaxed:q} --reduced {input.reduced:q} "
+            "-m analysis fields --relaxed {input.relaxed:q} {params.reduced} --quantities {params.quantities} "
             "--params {params.cfg:q} --out {output.fields:q} --checks {output.checks:q} > {log:q} 2>&1"
         )
 

@@ -1,12 +1,17 @@
 # Settings and helpers of the analysis rules (workflow/rules/analysis.smk).
 
 import json
+import shlex
 
 ANALYSIS_CFG = config.get("analysis", {}) or {}
 ANALYSIS_PARAMS = json.dumps(ANALYSIS_CFG, sort_keys=True)
 ANALYSIS_MEM_MB = 2000
-ANALYSIS_FIGURES = ("fig1_convergence", "fig2_vertical_strain", "fig3_fabric", "fig4_moduli",
-                    "fig5_invariants", "base_pressure")
+# Each figure and the output (config `outputs`) whose data it draws.
+ANALYSIS_FIGURES = {"fig1_convergence": "strain", "fig2_vertical_strain": "strain", "fig3_fabric": "fabric",
+                    "fig4_moduli": "fits", "fig5_invariants": "fits", "base_pressure": "fields"}
+# The ensemble files of each output.
+ANALYSIS_ENSEMBLE = {"fields": ("fields.nc", "base_pressure.nc"), "strain": ("convergence.nc",),
+                     "fits": ("moduli.nc", "invariants.nc")}
 
 
 def _analysis_setting(section, key, default):
@@ -30,13 +35,23 @@ def _analysis_fields(wildcards):
 
 
 def analysis_targets():
-    """Every final output of the analysis (for `rule all`)."""
-    targets = []
-    for p in PROTOCOLS:
-        targets += [f"results/ensemble/{p}/{name}" for name in
-                    ("fields.nc", "moduli.nc", "base_pressure.nc", "invariants.nc", "convergence.nc")]
-    targets += [f"results/figures/{stem}.{ext}" for stem in ANALYSIS_FIGURES for ext in ("png", "pdf")]
+    """The final outputs of the analysis that the scene asks for (for `rule all`)."""
+    names = [name for output, files in ANALYSIS_ENSEMBLE.items() if wants(output) for name in files]
+    targets = [f"results/ensemble/{p}/{name}" for p in PROTOCOLS for name in names]
+    if wants("figures"):
+        targets += [f"results/figures/{stem}.{ext}" for stem, output in ANALYSIS_FIGURES.items()
+                    if wants(output) for ext in ("png", "pdf")]
     return targets
+
+
+def _analysis_fields_reduced(wildcards):
+    """The reduced state of a pile's fields: with a gravity probe only (the stress increment and strain)."""
+    return f"results/piles/{wildcards.protocol}/seed{wildcards.seed}/reduced.nc" if has_probes() else []
+
+
+def _analysis_reduced_option(wildcards, input):
+    """`--reduced FILE` of `analysis fields` when the pile has a reduced state, else nothing."""
+    return f"--reduced {shlex.quote(input.reduced)}" if input.reduced else ""
 
 
 def _labelled(files, protocols):

@@ -121,8 +121,9 @@ def sim_params(*sections):
     """The given simulator sections of the config as canonical JSON (sorted keys).
 
     A simulation job receives only the sections it reads, so a changed setting
-    re-runs exactly the jobs that depend on it (pouring reads model, particles
-    and pour; relaxing model, pour and relax; probing also probe). Adding a
+    re-runs exactly the jobs that depend on it (pouring reads model, particles,
+    pour and physics; relaxing model, pour and relax, the physics coming with
+    the poured state; probing also probe). Adding a
     gravity level therefore re-runs only the probes, and a change in analysis
     or protocols no simulation.
     """

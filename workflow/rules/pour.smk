@@ -32,7 +32,7 @@ rule pour:
     output:
         pile("{protocol}", "{seed}", "poured"),
     params:
-        sim=sim_params("model", "particles", "pour"),
+        sim=sim_params("model", "particles", "pour", "physics"),
         checkpoint=lambda wildcards: pour_checkpoint(wildcards.protocol, wildcards.seed),
     log:
         "logs/pour/{protocol}/seed{seed}.log",

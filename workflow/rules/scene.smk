@@ -1,0 +1,72 @@
+# The scene: what the configuration asks the workflow to build (config
+# `outputs`) and the physics it declares (model.friction, model.damping,
+# physics, probe.levels). Only the targets of the asked outputs are built, so
+# a stress-only scene never runs a gravity probe, a strain fit or a figure.
+# Functions only (snakemake --lint wants functions and rules apart); included
+# after common.smk.
+
+OUTPUTS = set(config["outputs"])
+
+# Outputs that need the piles (pour and relax), and what each output needs.
+PILE_OUTPUTS = {"states", "fields", "strain", "fabric", "fits"}
+OUTPUT_NEEDS = {"strain": "fields", "fabric": "fields", "fits": "strain"}
+
+
+def wants(output):
+    """Whether the scene asks for `output` (one of the names of config `outputs`)."""
+    return output in OUTPUTS
+
+
+def has_probes():
+    """Whether the scene has gravity probes (config probe.levels not empty)."""
+    return bool(config["probe"]["levels"])
+
+
+def field_quantities():
+    """The optional quantities of the per-pile fields besides the stress
+    (`python -m analysis fields --quantities`), in the analysis' order."""
+    return [q for q in ("fabric", "strain") if wants(q)]
+
+
+def _check_scene():
+    """Outputs the scene's physics or other outputs cannot give; fail before
+    any job runs, naming the settings."""
+    problems = []
+    asked = config["outputs"]
+    for output, needed in OUTPUT_NEEDS.items():
+        if wants(output) and not wants(needed):
+            problems.append(
+                f"outputs {asked}: {output} needs {needed}; add {needed!r} or leave "
+                f"{output!r} out"
+            )
+    if wants("strain") and not has_probes():
+        problems.append(
+            f"outputs {asked}: strain is the response to a gravity probe but "
+            f"probe.levels is {config['probe']['levels']}; give a level (e.g. [0.10]) "
+            "or leave strain (and fits) out"
+        )
+    if not config["physics"]["support"] and OUTPUTS & PILE_OUTPUTS:
+        problems.append(
+            f"physics.support = false with outputs {asked}: the piles are poured onto "
+            f"the support; without it the only allowed output is [numerics]"
+        )
+    stage = config["analysis"]["base_pressure"]["stage"]
+    if wants("fields") and stage not in ["poured", "relaxed"] + probe_stages():
+        problems.append(
+            f"analysis.base_pressure.stage = {stage!r} is not a stage of this scene "
+            f"(poured, relaxed and the probes {probe_stages()})"
+        )
+    if problems:
+        raise ValueError("invalid scene:\n  " + "\n  ".join(problems))
+
+
+_check_scene()
+
+
+def scene_targets():
+    """Everything the scene asks for, the input of `all`. The pile states, the
+    pictures of the relaxed piles, and the analysis (analysis_targets())."""
+    targets = pile_targets() if wants("states") else []
+    if wants("figures") and OUTPUTS & PILE_OUTPUTS:
+        targets += pile_figure_targets("relaxed")
+    return targets + analysis_targets()
