@@ -41,7 +41,7 @@ rule numerics_pile_pour:
         numerics_pile_benchmark("{integrator}", "{factor}", "{seed}", "pour")
     threads: SIM_THREADS
     resources:
-        mem_mb=SIM_MEM_MB,
+        mem_mb=sim_mem_mb,
         runtime=30,
     conda:
         "../envs/polypile.yaml"
@@ -70,7 +70,7 @@ rule numerics_pile_relax:
         numerics_pile_benchmark("{integrator}", "{factor}", "{seed}", "relax")
     threads: SIM_THREADS
     resources:
-        mem_mb=SIM_MEM_MB,
+        mem_mb=sim_mem_mb,
         runtime=30,
     conda:
         "../envs/polypile.yaml"
@@ -99,7 +99,7 @@ rule numerics_piles_data:
         "logs/numerics/piles_data.log",
     threads: 1
     resources:
-        mem_mb=SIM_MEM_MB,
+        mem_mb=sim_mem_mb,
         runtime=10,
     conda:
         "../envs/polypile.yaml"
@@ -130,7 +130,7 @@ rule numerics_ensemble:
         "logs/numerics/ensemble.log",
     threads: 1
     resources:
-        mem_mb=SIM_MEM_MB,
+        mem_mb=sim_mem_mb,
         runtime=10,
     conda:
         "../envs/polypile.yaml"
@@ -157,7 +157,7 @@ rule numerics_piles_figures:
         "logs/numerics/piles_figures.log",
     threads: 1
     resources:
-        mem_mb=SIM_MEM_MB,
+        mem_mb=sim_mem_mb,
         runtime=10,
     conda:
         "../envs/polypile.yaml"
@@ -186,7 +186,7 @@ rule numerics_piles_table:
         "logs/numerics/piles_table.log",
     threads: 1
     resources:
-        mem_mb=SIM_MEM_MB,
+        mem_mb=sim_mem_mb,
         runtime=10,
     conda:
         "../envs/polypile.yaml"
