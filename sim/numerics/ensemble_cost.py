@@ -255,7 +255,7 @@ def figure(ds: xr.Dataset, outputs: list[str]) -> None:
                 ax.plot(nn * per_pile, rel[m] * np.sqrt((m + 1) / nn), ls="--", color=line.get_color(), lw=1,
                         label=f"{proto}: 1/sqrt(n)")
         log_axes(ax)
-        ax.set_xlabel("compute time of the ensemble (CPU, pour + relax + probe), s")
+        ax.set_xlabel("CPU time of the n piles, s")
         ax.set_ylabel(f"relative standard error of {name.replace('_', ' ')}")
         ax.grid(True, which="both", alpha=0.3)
     axes[0].legend(fontsize=7)

@@ -368,8 +368,11 @@ def log_axes(ax) -> None:
            for line in ax.get_lines()]
     pts = np.concatenate(pts) if pts else np.empty((0, 2))
     if np.any(np.all(np.isfinite(pts) & (pts > 0), axis=1)):
+        from matplotlib.ticker import NullFormatter
+
         ax.set_xscale("log")
         ax.set_yscale("log")
+        ax.xaxis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap on short ranges
     else:
         ax.text(0.5, 0.5, "no finite values", transform=ax.transAxes, ha="center")
 
@@ -395,8 +398,8 @@ def figure(ds: xr.Dataset, outputs: list[str]) -> None:
             e = ds[f"{name}_error"].values[a]
             bar = ds[f"{name}_error_bar"].values[a]
             keep = ~((a == ref_i) & (np.arange(t.size) == ref_f)) & (e > 0)
-            # on a log axis the lower bar stops short of zero
-            yerr = [np.minimum(bar[keep], 0.999 * e[keep]), bar[keep]]
+            # on a log axis the lower bar stops at a tenth of the error (it would reach zero)
+            yerr = [np.minimum(bar[keep], 0.9 * e[keep]), bar[keep]]
             ax.errorbar(t[keep], e[keep], yerr=yerr, marker="o", capsize=3, label=str(integ))
             for ti, ei, f in zip(t[keep], e[keep], ds.dt_factor.values[keep]):
                 ax.annotate(f"{f:g}", (ti, ei), textcoords="offset points", xytext=(4, 4), fontsize=7)
