@@ -317,7 +317,12 @@ KERNELS_SERIAL = tuple(njit(cache=True)(f) for f in
                        (predict_and_place, pair_forces, gather_and_correct))
 
 
-@njit(cache=True)
+# Not cached: its signature holds the types of the kernel dispatchers passed in,
+# which differ in every new process, so each process missed the cache, compiled
+# anyway and appended an entry to the cache index; after a few dozen processes
+# loading the index failed ("underlying object has vanished").  Compiling this
+# small loop costs well under a second; the kernels themselves stay cached.
+@njit(cache=False)
 def advance(kernels, n_steps, n, r, coeffs, dt, node_offset, node_x, node_y, wx, wy, box,
             pi, pj, spring, pout, pair_offset, pair_index, body_p, body_m,
             body_friction, bspring, bout, mass, inv_mass, inv_inertia, area,
