@@ -1,5 +1,6 @@
 # Numerical checks of the simulator (README "Numerics: accuracy against run
-# time and stability"); not part of `all`: run `snakemake numerics`.
+# time and stability"); part of `all` only when config `outputs` lists numerics;
+# otherwise run `snakemake numerics`.
 #   numerics_collisions: error against wall time of binary collisions
 #   numerics_stability: stiff and extreme cases, largest stable time step
 # Each rule receives only its own section of config["numerics"] (sorted JSON),

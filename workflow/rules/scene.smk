@@ -65,8 +65,12 @@ _check_scene()
 
 def scene_targets():
     """Everything the scene asks for, the input of `all`. The pile states, the
-    pictures of the relaxed piles, and the analysis (analysis_targets())."""
+    pictures of the relaxed piles, the analysis (analysis_targets()) and the
+    numerical checks. Called from the Snakefile after every rule file is
+    included, so the numerics rules exist."""
     targets = pile_targets() if wants("states") else []
     if wants("figures") and OUTPUTS & PILE_OUTPUTS:
         targets += pile_figure_targets("relaxed")
+    if wants("numerics"):
+        targets += list(rules.numerics.input) + numerics_piles_targets()
     return targets + analysis_targets()
