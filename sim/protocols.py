@@ -111,21 +111,28 @@ def target_pile(shapes, slope_deg):
 
 
 def release_point(sim, cfg: SimConfig, protocol, seed, k):
-    """Where particle k would be released now, as ``(x, y)``."""
+    """Where particle k would be released now, as ``(x, y)``.
+
+    With side walls the point lies at least one circumradius inside them.
+    """
     rng = np.random.default_rng([seed, 1, k])
     radius = float(sim.shapes.radius[k])
     top = pile_top(sim)
     y = top + cfg.pour.release_height + radius
     if protocol == "wedge":
-        return rng.uniform(-cfg.pour.jitter, cfg.pour.jitter), y
-    half, height = target_pile(sim.shapes, cfg.pour.layered_slope_deg)
-    bound = max(half * (1.0 - top / height), radius)
-    extent = top_width(sim, cfg.pour.top_band)
-    lo, hi = (-bound, bound) if extent is None else extent
-    lo = max(lo - cfg.pour.line_margin, -bound)
-    hi = min(hi + cfg.pour.line_margin, bound)
-    if hi <= lo:
-        lo, hi = -bound, bound
+        lo, hi = -cfg.pour.jitter, cfg.pour.jitter
+    else:
+        half, height = target_pile(sim.shapes, cfg.pour.layered_slope_deg)
+        bound = max(half * (1.0 - top / height), radius)
+        extent = top_width(sim, cfg.pour.top_band)
+        lo, hi = (-bound, bound) if extent is None else extent
+        lo = max(lo - cfg.pour.line_margin, -bound)
+        hi = min(hi + cfg.pour.line_margin, bound)
+        if hi <= lo:
+            lo, hi = -bound, bound
+    if sim.walls is not None:
+        lo = min(max(lo, sim.walls[0] + radius), sim.walls[1] - radius)
+        hi = max(min(hi, sim.walls[1] - radius), lo)
     return rng.uniform(lo, hi), y
 
 

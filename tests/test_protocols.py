@@ -115,3 +115,16 @@ def test_rocking_drag_brings_the_rocking_polygon_to_rest():
     weight = sim.shapes.mass[0] * 9.81
     assert np.all(c["j"] == -1)
     assert abs(np.sum(c["fy"]) - weight) < 1e-3 * weight
+
+
+@pytest.mark.parametrize("protocol", ["wedge", "layered"])
+def test_release_points_stay_inside_side_walls(protocol):
+    """The line source is wider than a narrow box: its particles must still be
+    released wholly inside the walls (else they start inside a wall)."""
+    walls = (-0.02, 0.01)
+    cfg = SimConfig.from_dict({"pour": {"n_particles": 400, "jitter": 0.05}})
+    sim = Simulation(protocols.pile_shapes(cfg, 1), cfg.model, walls=walls)
+    for k in range(1, 400):
+        x, _ = protocols.release_point(sim, cfg, protocol, 1, k)
+        r = sim.shapes.radius[k]
+        assert walls[0] + r <= x <= walls[1] - r
