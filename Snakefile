@@ -7,7 +7,13 @@ from snakemake.utils import min_version, validate
 min_version("9.0")
 
 
-configfile: "config/config.yaml"
+# config/config.yaml is the default; a --configfile replaces it instead of being
+# merged into it. --replace-workflow-config does that only in the main process:
+# cluster jobs (the SLURM executor) get --configfiles but not that flag, and
+# would merge the study's settings back in.
+if not workflow.overwrite_configfiles:
+
+    configfile: "config/config.yaml"
 
 
 # Fills in every default of the schema, so the rules see a complete config.

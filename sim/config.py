@@ -227,6 +227,11 @@ class RelaxParams:
         limit cycle with speeds of a few mm/s that 20/s of drag does not stop
         and 100/s does).  The switch comes after the pile itself is calm, so
         it cannot freeze a flowing flank.
+    drag_time : float
+        Simulated time after which ``rocking_drag`` takes over even if the
+        kinetic-energy criterion does not hold yet, s.  In a small pile a
+        single rocking polygon keeps the mean kinetic energy above the
+        criterion, so without this cap the switch would never come.
     """
 
     kinetic_energy_fraction: float = 1.0e-6
@@ -235,6 +240,7 @@ class RelaxParams:
     max_time: float = 10.0
     drag: float = 20.0
     rocking_drag: float = 100.0
+    drag_time: float = 0.5
 
     def __post_init__(self):
         s = "relax"
@@ -245,6 +251,7 @@ class RelaxParams:
         _check_number(s, "max_time", self.max_time, lo=0, lo_open=True)
         _check_number(s, "drag", self.drag, lo=0, hi=1e4)
         _check_number(s, "rocking_drag", self.rocking_drag, lo=0, hi=1e4)
+        _check_number(s, "drag_time", self.drag_time, lo=0)
 
 
 @dataclass(frozen=True)

@@ -278,7 +278,7 @@ def relax(sim: Simulation, cfg: SimConfig, what="relax"):
 
     The background drag ``relax.drag`` acts while this runs (and during a
     gravity ramp), never while pouring; once the kinetic-energy criterion
-    holds it becomes ``relax.rocking_drag``.
+    holds, or after ``relax.drag_time``, it becomes ``relax.rocking_drag``.
 
     Raises
     ------
@@ -302,10 +302,11 @@ def _relax_loop(sim, cfg, what, t0):
     while True:
         sim.run(duration=chunk)
         ke, vmax = _rest_measures(sim)
-        if ke < r.kinetic_energy_fraction and sim.drag != r.rocking_drag:
-            log.info("%s: calm after %.4f s (KE per particle %.3g m g d, max speed %.3g m/s);"
-                     " drag %g -> %g 1/s", what, sim.time - t0, ke, vmax, sim.drag,
-                     r.rocking_drag)
+        calm = ke < r.kinetic_energy_fraction
+        if (calm or sim.time - t0 >= r.drag_time) and sim.drag != r.rocking_drag:
+            log.info("%s: %s after %.4f s (KE per particle %.3g m g d, max speed %.3g m/s);"
+                     " drag %g -> %g 1/s", what, "calm" if calm else "relax.drag_time over",
+                     sim.time - t0, ke, vmax, sim.drag, r.rocking_drag)
             sim.drag = r.rocking_drag
         if ke < r.kinetic_energy_fraction and vmax < r.max_speed:
             rest_since = sim.time if rest_since is None else rest_since

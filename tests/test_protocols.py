@@ -77,9 +77,9 @@ def test_relaxation_fails_loudly_when_time_runs_out():
         protocols.relax(sim, cfg)
 
 
-# A hexagon that rolled off the full-size wedge pile (seed 1) onto the bare
-# support, as it was when the pour ended: body-frame corners (m) and state
-# (x, y, theta, vx, vy, omega).  Alone on the support it rocks in a limit cycle.
+# Two polygons that rolled off the full-size wedge pile (seed 1) onto the bare
+# support, as they were when the pour ended: body-frame corners (m) and state
+# (x, y, theta, vx, vy, omega).  Alone on the support each rocks in a limit cycle.
 ROCKER_CORNERS = ([-0.002737158512365691, -0.0016874906937216804, 0.00039863014060406796,
                    0.0026416827716659293, 0.0020429306346834084, -0.00035538817743884887],
                   [0.0009855440524517848, -0.001907432581742812, -0.0025236347387351346,
@@ -87,10 +87,19 @@ ROCKER_CORNERS = ([-0.002737158512365691, -0.0016874906937216804, 0.000398630140
 ROCKER_STATE = (0.9811273061951751, 0.002331363554199414, -349.2974956759441,
                 0.004482984761211977, -0.0026352574019162067, -1.940812055988008)
 
+HEPTAGON_CORNERS = ([-0.002815792006063629, -0.0026886091581005316, -0.0008513862421583409,
+                     0.002000260619051215, 0.003290530378913625, 0.0015652349307173244,
+                     -0.00030708360465746644],
+                    [0.0019109759760094767, -0.001955969089955421, -0.00316961166477102,
+                     -0.0026669675026290925, 0.0002775219430409712, 0.0028197354186042735,
+                     0.0032616385471365907])
+HEPTAGON_STATE = (1.081812754087111, 0.0027528255399059663, -337.75302171208455,
+                  -0.0019902496108876165, 0.0007439688633269366, 0.6424208632497496)
 
-def _rocker(relax):
+
+def _rocker(relax, corners=ROCKER_CORNERS, state=ROCKER_STATE):
     cfg = SimConfig.from_dict({"model": {"integrator": "verlet"}, "relax": relax})
-    sim = scene([tuple(np.array(c) for c in ROCKER_CORNERS)], [ROCKER_STATE],
+    sim = scene([tuple(np.array(c) for c in corners)], [state],
                 gravity=(0.0, -9.81), support=True, **cfg.to_dict()["model"])
     return sim, cfg
 
@@ -115,6 +124,18 @@ def test_rocking_drag_brings_the_rocking_polygon_to_rest():
     weight = sim.shapes.mass[0] * 9.81
     assert np.all(c["j"] == -1)
     assert abs(np.sum(c["fy"]) - weight) < 1e-3 * weight
+
+
+def test_drag_time_stops_a_rocker_that_never_looks_calm():
+    """Alone, the heptagon's rocking keeps its kinetic energy above the
+    criterion under 20/s, so only relax.drag_time brings in the 100/s that
+    stops it; with the switch put off beyond max_time it never rests."""
+    sim, cfg = _rocker({"max_time": 1.0, "drag_time": 2.0}, HEPTAGON_CORNERS, HEPTAGON_STATE)
+    with pytest.raises(protocols.RelaxationError, match="not at rest"):
+        protocols.relax(sim, cfg)
+    sim, cfg = _rocker({"max_time": 1.0}, HEPTAGON_CORNERS, HEPTAGON_STATE)
+    protocols.relax(sim, cfg)
+    assert sim.time < cfg.relax.drag_time + 0.3
 
 
 @pytest.mark.parametrize("protocol", ["wedge", "layered"])

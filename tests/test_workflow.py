@@ -91,6 +91,19 @@ def test_lint_passes(workdir, configfile):
 
 # --- (b) dry runs ------------------------------------------------------------
 
+@pytest.mark.parametrize("replace", [True, False], ids=["replace", "no-replace"])
+def test_a_configfile_replaces_the_study_config(workdir, replace):
+    """With or without --replace-workflow-config, `--configfile smoke.yaml` runs
+    the smoke piles with the schema's defaults, never the study's settings:
+    cluster jobs receive --configfiles without that flag, and a job that merged
+    config/config.yaml back in would simulate with another integrator."""
+    args = SMOKE if replace else SMOKE[:2]
+    proc = snakemake(workdir, "-n", "-p", "--cores", "2", *args)
+    assert proc.returncode == 0, proc.output
+    assert job_counts(proc.output)["pour"] == len(smoke_piles())
+    assert '"integrator": "gear"' in proc.output      # the schema default, not the study's
+
+
 def test_smoke_dry_run_lists_the_pile_jobs(workdir):
     proc = snakemake(workdir, "-n", "-p", "--cores", "2", *SMOKE)
     assert proc.returncode == 0, proc.output
