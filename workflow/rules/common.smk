@@ -218,7 +218,7 @@ DT_REFERENCE_S = {"gear": 1.9e-6, "verlet": 6.9e-6}
 # n_particles / rate: 26.3 s instead of 17.5 s for the pour above.
 POUR_TIME_FACTOR = 1.5
 # Simulated time a relaxation or gravity probe typically needs: a 3500-particle
-# pile relaxed in 0.83 s (at most relax.max_time, after which the simulator
+# pile relaxed in 0.42-0.83 s (at most relax.max_time, after which the simulator
 # gives up by itself).
 RELAX_TYPICAL_S = 2.0
 # Peak memory measured for 150 and for 3500 particles: 230-250 MB (Python,
