@@ -126,7 +126,8 @@ def test_workflow_target_dry_run(tmp_path):
         shutil.copytree(REPO / name, tmp_path / name,
                         ignore=shutil.ignore_patterns("__pycache__"))
     proc = subprocess.run([sys.executable, "-m", "snakemake", "-n", "-p", "--cores", "2",
-                           "numerics", "--configfile", "config/numerics_ci.yaml"],
+                           "numerics", "--configfile", "config/config.yaml",
+                           "config/numerics_ci.yaml"],
                           cwd=tmp_path, capture_output=True, text=True, timeout=300)
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, out
