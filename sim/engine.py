@@ -32,7 +32,8 @@ import numpy as np
 
 from .broadphase import candidate_pairs, carry_history, particle_pair_index
 from .config import ModelParams
-from .forces import KERNELS_PARALLEL, KERNELS_SERIAL, ROW, ROW_SIZE, advance
+from .forces import (GEOMETRY_SIZE, KERNELS_PARALLEL, KERNELS_SERIAL, ROW, ROW_SIZE, Bodies,
+                     Law, Motion, Pairs, Particles, Workspace, advance)
 from .geometry import make_scratch
 from .integrators import corrector_coefficients, scale_derivatives, unscale_derivatives
 from .timestep import choose_dt, stability_bound
@@ -137,13 +138,16 @@ class Simulation:
         self.wy = np.zeros_like(shapes.node_y)
         self.box = np.zeros((self.capacity, 4))
         max_corners = int(np.max(shapes.node_count)) if self.capacity else 3
-        self.scratch = np.stack([make_scratch(max_corners)
-                                 for _ in range(numba.config.NUMBA_NUM_THREADS)])
+        self.work = Workspace(
+            np.stack([make_scratch(max_corners) for _ in range(numba.config.NUMBA_NUM_THREADS)]),
+            np.zeros((numba.config.NUMBA_NUM_THREADS, GEOMETRY_SIZE)))
         self.cs = np.zeros((self.capacity if not self.rotate else 0, 2))
         self.full_law = False
         self.pi = np.empty(0, np.int64)
         self.pj = np.empty(0, np.int64)
         self.spring = np.empty(0)
+        self.axis = np.empty(0, np.int64)
+        self.cross = np.empty((0, 4), np.int64)
         self._stale = True
         self.check_every = max(50, int(round(1e-3 / self.dt)))
         self.energy_tolerance = 0.25
@@ -294,9 +298,39 @@ class Simulation:
         self.pi, self.pj = pi, pj
         self.pair_offset, self.pair_index = particle_pair_index(pi, pj, n)
         self.pout = np.zeros((len(pi), ROW_SIZE))
+        self.pforce = np.zeros((len(pi), 4))
+        self.axis = np.full(len(pi), -1, np.int64)
+        self.cross = np.full((len(pi), 4), -1, np.int64)
         self.x_ref = x.copy()
         self.y_ref = y.copy()
         self._stale = False
+
+    def _kernel_state(self):
+        """The state as the kernels take it: particles, pairs, bodies, law, motion, work."""
+        damped, tangential, body_tangential = self._law_flags()
+        m = self.model
+        sh = self.shapes
+        return (Particles(self.r, sh.node_offset, sh.node_x, sh.node_y, self.wx, self.wy,
+                          self.box, self.cs, sh.mass, self.inv_mass, self.inv_inertia, sh.area),
+                Pairs(self.pi, self.pj, self.spring, self.axis, self.cross, self.pout,
+                      self.pforce, self.pair_offset, self.pair_index),
+                Bodies(self.body_p, self.body_m, self.body_friction, self.bspring, self.bout),
+                Law(float(m.youngs_modulus), float(m.damping), float(m.friction), self.eps,
+                    bool(damped), bool(tangential), bool(body_tangential)),
+                Motion(self.dt, self.coeffs, self.gravity[0], self.gravity[1],
+                       float(self.drag), self.rotate),
+                self.work)
+
+    def mark_restart_point(self):
+        """Continue from here exactly as a run restarted from a file of this state would.
+
+        A restarted run starts with a new pair list and without the narrow
+        phase's witnesses (:mod:`sim.warmstart`), and a witness changes the
+        contact geometry at the rounding level; rebuilding both here too keeps
+        an interrupted and resumed run bit for bit equal to an uninterrupted
+        one.  :func:`sim.io.save_state` calls it.
+        """
+        self._stale = True
 
     def snapshot(self) -> Snapshot:
         """A copy of the dynamic state, enough to continue the run exactly."""
@@ -342,17 +376,8 @@ class Simulation:
             chunk = min(steps - done, self.check_every - self.step % self.check_every)
             kernels = (KERNELS_PARALLEL if self.n >= self.parallel_threshold and
                        numba.get_num_threads() > 1 else KERNELS_SERIAL)
-            damped, tangential, body_tangential = self._law_flags()
-            k = advance(kernels, chunk, self.n, self.r, self.coeffs, self.dt, self.shapes.node_offset,
-                        self.shapes.node_x, self.shapes.node_y, self.wx, self.wy, self.box,
-                        self.pi, self.pj, self.spring, self.pout, self.pair_offset,
-                        self.pair_index, self.body_p, self.body_m, self.body_friction,
-                        self.bspring, self.bout, self.shapes.mass, self.inv_mass,
-                        self.inv_inertia, self.shapes.area, self.gravity[0],
-                        self.gravity[1], self.model.youngs_modulus, self.model.damping,
-                        self.model.friction, self.rotate, self.drag, self.eps, self.x_ref,
-                        self.y_ref, rebuild_sq, self.scratch, self.cs, damped, tangential,
-                        body_tangential)
+            k = advance(kernels, chunk, self.n, *self._kernel_state(), self.x_ref, self.y_ref,
+                        rebuild_sq)
             done += k
             self.step += k
             self.time += k * self.dt

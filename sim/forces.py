@@ -2,35 +2,60 @@
 
 A step is three parallel passes without write races:
 
-1. :func:`predict_and_place` (over particles): integrator predictor, corners in
-   world coordinates, bounding boxes;
+1. :func:`predict_and_place` (over particles): the integrator's predictor
+   (:func:`sim.integrators.nordsieck_predict`), corners in world coordinates,
+   bounding boxes;
 2. :func:`pair_forces` (over candidate pairs): narrow phase and contact law;
-   each pair writes only its own row of ``pout`` and its own spring;
+   each pair writes only its own row of ``Pairs.out``, its spring and its
+   separating-axis cache;
 3. :func:`gather_and_correct` (over particles): sums the rows of the pairs a
    particle belongs to (in the fixed order of the broad phase's index, so the
    sum is deterministic), adds its contacts with the fixed bodies (support,
    walls; their spring history is per particle) and gravity, then applies the
-   corrector.
+   integrator's corrector (:func:`sim.integrators.nordsieck_correct`).
 
-Rows of ``pout`` (per pair) and ``bout`` (per body and particle), see
-:data:`ROW`: the narrow phase's output (area, c1, c2, force point s, normal n
-pointing from i to j, contact-line length), then the force on i, the torques
-on i and j, the overlap fraction and an active flag.  ``scratch`` holds one
-clipping work array per thread (:func:`sim.geometry.make_scratch`), indexed by
-Numba's thread id.
+The state reaches the kernels bundled in four named tuples, so that a kernel's
+signature says what it uses: :class:`Particles`, :class:`Pairs`,
+:class:`Bodies` and the contact law's parameters :class:`Law`; the integrator's
+settings come as :class:`Motion`, the per-thread work arrays as
+:class:`Workspace`.
+
+Rows of ``Pairs.out`` (per pair) and ``Bodies.out`` (per body and particle),
+see :data:`ROW`: the narrow phase's output (area, c1, c2, force point s,
+normal n pointing from i to j, contact-line length), then the force on i, the
+torques on i and j, the overlap fraction and an active flag.
+
+Contacts live for thousands of steps, and most candidate pairs that do not
+touch stay apart for as long.  Each candidate pair keeps a witness of its last
+narrow phase (:mod:`sim.warmstart`): the edge that separated it, or the edges
+that crossed at its contact points.  While the witness holds, a pair costs a
+projection of one polygon's corners (apart) or two segment crossings and a few
+inside tests (in contact); only the others are clipped
+(:func:`sim.geometry.polygon_overlap_range`).  Both tests are exact.
 
 Work a scene does not need is skipped, decided per run by flags: without
 damping (γ = 0) no damping force, without friction (μ = 0) no tangential force
-and no spring history (``spring`` and ``bspring`` are neither read nor
-written), and without rotation no orientation is predicted or corrected (the
-corners are placed with the cached ``cos θ, sin θ`` of ``cs``).  Where a
-flag is off, the full law would compute exactly zero for the skipped term.
+and no spring history (the springs are neither read nor written), and without
+rotation no orientation is predicted or corrected (the corners are placed with
+the cached ``cos θ, sin θ`` of ``Particles.cs``).  Where a flag is off, the
+full law would compute exactly zero for the skipped term.
+
+Every kernel exists in a serial and a parallel build (:data:`KERNELS_SERIAL`,
+:data:`KERNELS_PARALLEL`): below a few hundred particles starting a parallel
+region costs more than the work.  The builds are compiled from copies of the
+kernels under distinct names, because Numba's on-disk cache does not tell a
+``parallel=True`` build from a serial one of the same function (numba issue
+6845): under one name, whichever build was compiled first served both.  The
+loops touch arrays only by index (no array views per pair or particle), so no
+reference counts are updated in the hot loops.
 """
 
 from __future__ import annotations
 
 import math
+import types
 import warnings
+from collections import namedtuple
 
 import numba
 import numpy as np
@@ -39,51 +64,96 @@ from numba import njit, prange
 from .contact_law import (characteristic_length, elastic_force, normal_force,
                           reduced_mass, tangential_force, tangential_mass)
 from .geometry import halfplane_overlap_range, polygon_overlap_range
+from .integrators import nordsieck_correct, nordsieck_predict
+from .warmstart import axis_separates, find_axis, find_crossings, overlap_from_crossings
 
 ROW = {"area": 0, "c1x": 1, "c1y": 2, "c2x": 3, "c2y": 4, "sx": 5, "sy": 6, "nx": 7,
        "ny": 8, "length": 9, "fx": 10, "fy": 11, "torque_i": 12, "torque_j": 13,
        "ratio": 14, "active": 15}
 ROW_SIZE = 16
-BLOCK = 256  # particles per parallel work item of the predictor
+GEOMETRY_SIZE = 10  # the narrow phase's part of a row (area .. length)
+BLOCK = 256  # particles per parallel work item of the predictor and the gather
+PAIR_BLOCK = 128  # pairs per parallel work item of the pair pass
+
+Particles = namedtuple("Particles", "r node_offset node_x node_y wx wy box cs mass inv_mass "
+                                    "inv_inertia area")
+Particles.__doc__ = """The particles' state and shapes (capacity-sized arrays).
+
+r : (n_values, 3, capacity) scaled derivatives of (x, y, θ) (:mod:`sim.integrators`);
+node_offset, node_x, node_y : CSR body-frame corners; wx, wy : world corners;
+box : (capacity, 4) bounding boxes (xmin, xmax, ymin, ymax); cs : (capacity, 2)
+cached ``cos θ, sin θ`` (used when rotation is fixed); mass, inv_mass,
+inv_inertia, area : per particle.
+"""
+
+Pairs = namedtuple("Pairs", "i j spring axis cross out force offset index")
+Pairs.__doc__ = """The candidate pairs of the broad phase (:mod:`sim.broadphase`).
+
+i, j : particle indices (i < j, sorted); spring : tangential spring force;
+axis : (n_pairs,) separating edge, cross : (n_pairs, 4) crossing edges
+(witnesses of the last step, :mod:`sim.warmstart`); out : (n_pairs, ROW_SIZE)
+rows; force : (n_pairs, 4) the force on i (x, y) and the torques on i and j,
+zero where the pair does not touch (the gather's compact copy of the rows'
+force columns); offset, index : CSR list of the pairs of each particle.
+"""
+
+Bodies = namedtuple("Bodies", "point normal friction spring out")
+Bodies.__doc__ = """Fixed half-plane bodies ``{q : (q − point)·normal < 0}`` of infinite mass.
+
+point, normal : (n_bodies, 2), normal is the unit outward normal; friction :
+(n_bodies,) μ with particles; spring : (n_bodies, capacity) tangential
+springs; out : (n_bodies, capacity, ROW_SIZE) rows.
+"""
+
+Law = namedtuple("Law", "youngs_modulus damping friction eps damped tangential "
+                        "body_tangential")
+Law.__doc__ = """Contact-law parameters and the flags of the terms that can be nonzero.
+
+youngs_modulus (N/m), damping γ, friction μ between particles, eps (length
+tolerance of the narrow phase, m); damped: damping force on; tangential:
+tangential force between particles; body_tangential: with bodies.
+"""
+
+Motion = namedtuple("Motion", "dt coeffs gravity_x gravity_y drag rotate")
+Motion.__doc__ = """Integrator settings: time step (s), corrector coefficients, gravity
+(m/s²), background drag (1/s, relaxation only) and whether θ is integrated."""
+
+Workspace = namedtuple("Workspace", "scratch out")
+Workspace.__doc__ = """Per-thread work arrays indexed by Numba's thread id: clipping
+scratch (n_threads, 7, cap) (:func:`sim.geometry.make_scratch`) and one
+narrow-phase output row (n_threads, GEOMETRY_SIZE)."""
 
 
-def predict_and_place(r, n, node_offset, node_x, node_y, wx, wy, box, rotate, cs):
+def predict_and_place(n, pt, motion):
     """Integrator predictor, world corners and bounding boxes of the first n particles.
 
     Parameters
     ----------
-    r : numpy.ndarray, shape (n_values, 3, capacity)
-        Scaled derivatives of (x, y, θ); replaced by their prediction (θ only
-        when ``rotate``).
-    node_offset, node_x, node_y : numpy.ndarray
-        Body-frame corners (CSR).
-    wx, wy : numpy.ndarray
-        Output world corners.
-    box : numpy.ndarray, shape (capacity, 4)
-        Output bounding boxes (xmin, xmax, ymin, ymax).
-    rotate : bool
-        Whether orientations are integrated.
-    cs : numpy.ndarray, shape (capacity, 2)
-        ``cos θ, sin θ`` of each particle, used instead of θ when not ``rotate``.
+    n : int
+        Active particles.
+    pt : Particles
+        ``r`` is replaced by its prediction (θ only with ``motion.rotate``);
+        ``wx, wy, box`` receive the corners and boxes.
+    motion : Motion
     """
-    nv = r.shape[0]
+    # fields are unpacked once: taking an array out of a tuple inside the loop
+    # would update its reference count at every access
+    r, node_offset, node_x, node_y, wx, wy, box, cs = pt[:8]
+    rotate = motion.rotate
+    n_dof = 3 if rotate else 2
     n_blocks = (n + BLOCK - 1) // BLOCK
     for blk in prange(n_blocks):
         lo = blk * BLOCK
         hi = min(lo + BLOCK, n)
-        # Pascal-triangle predictor as repeated in-place sweeps, particles
-        # innermost so the loop vectorises
-        for d in range(3 if rotate else 2):
-            for top in range(nv - 1, 0, -1):
-                for k in range(top - 1, nv - 1):
-                    for i in range(lo, hi):
-                        r[k, d, i] += r[k + 1, d, i]
+        nordsieck_predict(r, lo, hi, n_dof)
         for i in range(lo, hi):
             if rotate:
-                _place(r, i, math.cos(r[0, 2, i]), math.sin(r[0, 2, i]), node_offset, node_x,
-                       node_y, wx, wy, box)
+                c = math.cos(r[0, 2, i])
+                s = math.sin(r[0, 2, i])
             else:
-                _place(r, i, cs[i, 0], cs[i, 1], node_offset, node_x, node_y, wx, wy, box)
+                c = cs[i, 0]
+                s = cs[i, 1]
+            _place(r, i, c, s, node_offset, node_x, node_y, wx, wy, box)
 
 
 @njit(cache=True, inline="always")
@@ -111,41 +181,28 @@ def _place(r, i, c, s, node_offset, node_x, node_y, wx, wy, box):
 
 
 @njit(cache=True, inline="always")
-def _separated_along_centres(wx, wy, a0, a1, b0, b1, xi, yi, xj, yj):
-    """Separating-axis test on the line of centres (cheap rejection before clipping)."""
-    dx = xj - xi
-    dy = yj - yi
-    amax = -np.inf
-    for k in range(a0, a1):
-        amax = max(amax, (wx[k] - xi) * dx + (wy[k] - yi) * dy)
-    for k in range(b0, b1):
-        if (wx[k] - xi) * dx + (wy[k] - yi) * dy < amax:
-            return False
-    return True
-
-
-@njit(cache=True, inline="always")
-def _contact_force(row, spring, vrx, vry, l, inv_mi, inv_mj, ri, rj, inv_ii, inv_ij,
-                   youngs_modulus, damping, friction, dt, damped, tangential):
-    """Force on i of one contact whose narrow phase is in ``row`` (Appendix).
+def _contact_force(geo, spring, vrx, vry, l, inv_mi, inv_mj, ri, rj, inv_ii, inv_ij,
+                   law, friction, dt, tangential):
+    """Force on i of one contact whose narrow phase is in ``geo`` (Appendix).
 
     ``vrx, vry`` is the relative velocity at the force point (read only when
-    ``damped`` or ``tangential``); without ``damped`` the normal force is the
-    elastic one, without ``tangential`` there is no tangential force and the
-    spring is returned unchanged.
+    ``law.damped`` or ``tangential``); without ``law.damped`` the normal force
+    is the elastic one, without ``tangential`` there is no tangential force
+    and the spring is returned unchanged.
 
     Returns
     -------
     (float, float, float)
         Force on i (x, y) and the updated spring.
     """
-    nx = row[7]
-    ny = row[8]
-    if damped:
-        f_el, f_n = normal_force(row[0], row[9] * (vrx * nx + vry * ny), l,
-                                 reduced_mass(inv_mi, inv_mj), youngs_modulus, damping)
+    nx = geo[7]
+    ny = geo[8]
+    if law.damped:
+        f_el, f_n = normal_force(geo[0], geo[9] * (vrx * nx + vry * ny), l,
+                                 reduced_mass(inv_mi, inv_mj), law.youngs_modulus,
+                                 law.damping)
     else:
-        f_el = elastic_force(row[0], l, youngs_modulus)
+        f_el = elastic_force(geo[0], l, law.youngs_modulus)
         f_n = f_el
     fx = -f_n * nx
     fy = -f_n * ny
@@ -154,185 +211,294 @@ def _contact_force(row, spring, vrx, vry, l, inv_mi, inv_mj, ri, rj, inv_ii, inv
         ty = nx
         t_force, spring = tangential_force(
             spring, vrx * tx + vry * ty, f_el,
-            tangential_mass(inv_mi, inv_mj, ri, rj, inv_ii, inv_ij), youngs_modulus,
+            tangential_mass(inv_mi, inv_mj, ri, rj, inv_ii, inv_ij), law.youngs_modulus,
             friction, dt)
         fx -= t_force * tx
         fy -= t_force * ty
     return fx, fy, spring
 
 
-def pair_forces(pi, pj, spring, pout, r, dt, node_offset, wx, wy, box, inv_mass,
-                inv_inertia, area, youngs_modulus, damping, friction, eps, scratch,
-                damped, tangential):
+@njit(cache=True, inline="always")
+def _write_row(rows, p, geo, fx, fy, torque_i, torque_j, ratio):
+    """Row p of ``rows`` (2D): the narrow phase ``geo``, the force, torques, ratio, active."""
+    for k in range(GEOMETRY_SIZE):
+        rows[p, k] = geo[k]
+    rows[p, 10] = fx
+    rows[p, 11] = fy
+    rows[p, 12] = torque_i
+    rows[p, 13] = torque_j
+    rows[p, 14] = ratio
+    rows[p, 15] = 1.0
+
+
+@njit(cache=True)
+def _clip_pair(wx, wy, a0, a1, b0, b1, xi, yi, xj, yj, eps, geo, S, axis, cross, p):
+    """The general narrow phase of pair p, for when its witness failed; finds a new one.
+
+    Not inlined: it runs for few pairs a step, and inlined into the pair loop
+    it slowed every pair down.
+
+    Returns
+    -------
+    bool
+        Whether the pair overlaps (then ``geo`` holds its geometry).
+    """
+    if polygon_overlap_range(wx, wy, a0, a1, wx, wy, b0, b1, xi, yi, xj, yj, eps, geo, S):
+        axis[p] = -1
+        find_crossings(wx, wy, a0, a1, b0, b1, geo, cross, p)
+        return True
+    axis[p] = find_axis(wx, wy, a0, a1, b0, b1)
+    cross[p, 0] = -1
+    return False
+
+
+def pair_forces(pt, pairs, law, dt, work):
     """Narrow phase and contact law for every candidate pair.
 
-    Writes row p of ``pout`` and, when ``tangential``, updates ``spring[p]``
-    (reset to zero when the pair does not overlap, so a new contact starts
-    with an unloaded spring).
+    Writes row p of ``pairs.out`` (active flag 0 when the pair does not
+    overlap) and its separating-edge cache ``pairs.axis[p]``; with
+    ``law.tangential`` it updates ``pairs.spring[p]`` (reset to zero when the
+    pair does not overlap, so a new contact starts with an unloaded spring).
+
+    Parameters
+    ----------
+    pt : Particles
+    pairs : Pairs
+    law : Law
+    dt : float
+        Time step, s (velocities are ``r[1] / dt``).
+    work : Workspace
     """
-    for p in prange(pi.shape[0]):
-        i = pi[p]
-        j = pj[p]
-        row = pout[p]
-        row[15] = 0.0
-        if (box[i, 1] < box[j, 0] or box[j, 1] < box[i, 0] or
-                box[i, 3] < box[j, 2] or box[j, 3] < box[i, 2]):
+    # fields are unpacked once: taking an array out of a tuple inside the loop
+    # would update its reference count at every access
+    r, node_offset, _, _, wx, wy, box, _, _, inv_mass, inv_inertia, area = pt
+    pi, pj, spring, axis, cross, out, force, _, _ = pairs
+    scratch, geo_rows = work
+    tangential = law.tangential
+    inv_dt = 1.0 / dt
+    n_pairs = pi.shape[0]
+    n_blocks = (n_pairs + PAIR_BLOCK - 1) // PAIR_BLOCK
+    for blk in prange(n_blocks):
+        tid = numba.get_thread_id()
+        S = scratch[tid]
+        geo = geo_rows[tid]
+        for p in range(blk * PAIR_BLOCK, min(blk * PAIR_BLOCK + PAIR_BLOCK, n_pairs)):
+            i = pi[p]
+            j = pj[p]
+            out[p, 15] = 0.0
+            for k in range(4):
+                force[p, k] = 0.0
+            a0 = node_offset[i]
+            a1 = node_offset[i + 1]
+            b0 = node_offset[j]
+            b1 = node_offset[j + 1]
+            if (box[i, 1] < box[j, 0] or box[j, 1] < box[i, 0] or
+                    box[i, 3] < box[j, 2] or box[j, 3] < box[i, 2] or
+                    (axis[p] >= 0 and axis_separates(wx, wy, a0, a1, b0, b1, axis[p]))):
+                if tangential:
+                    spring[p] = 0.0
+                continue
+            xi = r[0, 0, i]
+            yi = r[0, 1, i]
+            xj = r[0, 0, j]
+            yj = r[0, 1, j]
+            if not (overlap_from_crossings(wx, wy, a0, a1, b0, b1, xi, yi, xj, yj, law.eps,
+                                           geo, cross, p) or
+                    _clip_pair(wx, wy, a0, a1, b0, b1, xi, yi, xj, yj, law.eps, geo, S, axis,
+                               cross, p)):
+                if tangential:
+                    spring[p] = 0.0
+                continue
+            rix = geo[5] - xi
+            riy = geo[6] - yi
+            rjx = geo[5] - xj
+            rjy = geo[6] - yj
+            ri = math.sqrt(rix * rix + riy * riy)
+            rj = math.sqrt(rjx * rjx + rjy * rjy)
+            l = max(characteristic_length(ri, rj), law.eps)
+            vrx = 0.0
+            vry = 0.0
+            if law.damped or tangential:
+                wi = r[1, 2, i] * inv_dt
+                wj = r[1, 2, j] * inv_dt
+                vrx = (r[1, 0, i] - r[1, 0, j]) * inv_dt - wi * riy + wj * rjy
+                vry = (r[1, 1, i] - r[1, 1, j]) * inv_dt + wi * rix - wj * rjx
+            fx, fy, sp = _contact_force(geo, spring[p] if tangential else 0.0, vrx, vry, l,
+                                        inv_mass[i], inv_mass[j], ri, rj, inv_inertia[i],
+                                        inv_inertia[j], law, law.friction, dt, tangential)
             if tangential:
-                spring[p] = 0.0
-            continue
-        a0 = node_offset[i]
-        a1 = node_offset[i + 1]
-        b0 = node_offset[j]
-        b1 = node_offset[j + 1]
-        xi = r[0, 0, i]
-        yi = r[0, 1, i]
-        xj = r[0, 0, j]
-        yj = r[0, 1, j]
-        if _separated_along_centres(wx, wy, a0, a1, b0, b1, xi, yi, xj, yj) or \
-                not polygon_overlap_range(wx, wy, a0, a1, wx, wy, b0, b1, xi, yi, xj, yj, eps,
-                                     row, scratch[numba.get_thread_id()]):
-            if tangential:
-                spring[p] = 0.0
-            continue
-        sx = row[5]
-        sy = row[6]
-        rix = sx - xi
-        riy = sy - yi
-        rjx = sx - xj
-        rjy = sy - yj
-        ri = math.sqrt(rix * rix + riy * riy)
-        rj = math.sqrt(rjx * rjx + rjy * rjy)
-        l = max(characteristic_length(ri, rj), eps)
-        vrx = 0.0
-        vry = 0.0
-        if damped or tangential:
-            wi = r[1, 2, i] / dt
-            wj = r[1, 2, j] / dt
-            vrx = (r[1, 0, i] / dt - wi * riy) - (r[1, 0, j] / dt - wj * rjy)
-            vry = (r[1, 1, i] / dt + wi * rix) - (r[1, 1, j] / dt + wj * rjx)
-        fx, fy, s = _contact_force(row, spring[p] if tangential else 0.0, vrx, vry, l,
-                                   inv_mass[i], inv_mass[j], ri, rj, inv_inertia[i],
-                                   inv_inertia[j], youngs_modulus, damping, friction, dt,
-                                   damped, tangential)
-        if tangential:
-            spring[p] = s
-        row[10] = fx
-        row[11] = fy
-        row[12] = rix * fy - riy * fx
-        row[13] = -(rjx * fy - rjy * fx)
-        row[14] = row[0] / min(area[i], area[j])
-        row[15] = 1.0
+                spring[p] = sp
+            tq_i = rix * fy - riy * fx
+            tq_j = -(rjx * fy - rjy * fx)
+            _write_row(out, p, geo, fx, fy, tq_i, tq_j, geo[0] / min(area[i], area[j]))
+            force[p, 0] = fx
+            force[p, 1] = fy
+            force[p, 2] = tq_i
+            force[p, 3] = tq_j
 
 
-def gather_and_correct(r, n, coeffs, dt, pi, pout, pair_offset, pair_index, body_p,
-                       body_m, body_friction, bspring, bout, node_offset, wx, wy, box,
-                       mass, inv_mass, inv_inertia, area, gravity_x, gravity_y,
-                       youngs_modulus, damping, rotate, drag, eps, scratch, damped,
-                       body_tangential):
+@njit(cache=True)
+def _body_contact(b, i, r, node_offset, wx, wy, inv_mass, inv_inertia, area, bodies, law,
+                  dt, S, geo):
+    """Force (x, y) and torque on particle i from body b, whose box it reaches.
+
+    Not inlined: most particles touch no body, and the clipping inlined into
+    the gather's loop slowed every particle down.
+    """
+    px = bodies.point[b, 0]
+    py = bodies.point[b, 1]
+    if not halfplane_overlap_range(wx, wy, node_offset[i], node_offset[i + 1], px, py,
+                                   bodies.normal[b, 0], bodies.normal[b, 1], law.eps, geo,
+                                   S):
+        _clear_body_contact(bodies.out, bodies.spring, b, i, law.body_tangential)
+        return 0.0, 0.0, 0.0
+    wi = r[1, 2, i] / dt
+    rix = geo[5] - r[0, 0, i]
+    riy = geo[6] - r[0, 1, i]
+    ri = math.sqrt(rix * rix + riy * riy)
+    l = max(characteristic_length(ri, np.inf), law.eps)
+    fx, fy, s = _contact_force(
+        geo, bodies.spring[b, i] if law.body_tangential else 0.0,
+        r[1, 0, i] / dt - wi * riy, r[1, 1, i] / dt + wi * rix, l, inv_mass[i], 0.0, ri,
+        0.0, inv_inertia[i], 0.0, law, bodies.friction[b], dt, law.body_tangential)
+    if law.body_tangential:
+        bodies.spring[b, i] = s
+    tq = rix * fy - riy * fx
+    _write_row(bodies.out[b], i, geo, fx, fy, tq, 0.0, geo[0] / area[i])
+    return fx, fy, tq
+
+
+@njit(cache=True, inline="always")
+def _clear_body_contact(bout, bspring, b, i, body_tangential):
+    """Mark particle i out of contact with body b (and unload its spring)."""
+    if bout[b, i, 15] != 0.0:
+        bout[b, i, 15] = 0.0
+        if body_tangential:
+            bspring[b, i] = 0.0
+
+
+def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref):
     """Total force and torque on each particle, then the corrector (Eq. 1).
 
-    ``drag`` (1/s) adds the background damping ``−drag·m·v`` and ``−drag·I·ω``
-    used only while relaxing (see :mod:`sim.protocols`); it is 0 otherwise.
-    Bodies are half-planes ``{q : (q − p)·m < 0}`` (point ``body_p[b]``, unit
-    outward normal ``body_m[b]``) of infinite mass, e.g. the support ``y < 0``.
-    With ``rotate`` false the angular degree of freedom is not integrated;
-    ``damped`` and ``body_tangential`` are the flags of :func:`_contact_force`
-    for the contacts with bodies.
+    ``motion.drag`` (1/s) adds the background damping ``−drag·m·v`` and
+    ``−drag·I·ω`` used only while relaxing (see :mod:`sim.protocols`); it is 0
+    otherwise.
+
+    Parameters
+    ----------
+    n : int
+        Active particles.
+    pt, pairs, bodies, law, motion, work
+        See the module docstring.
+    x_ref, y_ref : numpy.ndarray
+        Centres at the last pair-list build.
+
+    Returns
+    -------
+    float
+        The largest squared displacement of a centre since the last build, m².
     """
-    nv = r.shape[0]
+    r, node_offset, _, _, wx, wy, box, _, mass, inv_mass, inv_inertia, area = pt
+    pi, _, _, _, _, _, force, offset, index = pairs
+    point, normal, _, bspring, bout = bodies
+    scratch, geo_rows = work
+    coeffs = motion.coeffs
+    dt = motion.dt
+    drag = motion.drag
+    gx = motion.gravity_x
+    gy = motion.gravity_y
+    n_dof = 3 if motion.rotate else 2
+    n_bodies = point.shape[0]
     half_dt2 = 0.5 * dt * dt
-    for i in prange(n):
-        fx = mass[i] * gravity_x
-        fy = mass[i] * gravity_y
-        tq = 0.0
-        for q in range(pair_offset[i], pair_offset[i + 1]):
-            p = pair_index[q]
-            if pout[p, 15] == 0.0:
-                continue
-            if pi[p] == i:
-                fx += pout[p, 10]
-                fy += pout[p, 11]
-                tq += pout[p, 12]
-            else:
-                fx -= pout[p, 10]
-                fy -= pout[p, 11]
-                tq += pout[p, 13]
-        a0 = node_offset[i]
-        a1 = node_offset[i + 1]
-        xi = r[0, 0, i]
-        yi = r[0, 1, i]
-        vxi = r[1, 0, i] / dt
-        vyi = r[1, 1, i] / dt
-        wi = r[1, 2, i] / dt
-        for b in range(body_p.shape[0]):
-            row = bout[b, i]
-            row[15] = 0.0
-            # the box corner deepest into the body decides whether to clip at all
-            deep = ((box[i, 0] if body_m[b, 0] > 0.0 else box[i, 1]) - body_p[b, 0]) * \
-                body_m[b, 0] + ((box[i, 2] if body_m[b, 1] > 0.0 else box[i, 3]) -
-                                body_p[b, 1]) * body_m[b, 1]
-            if deep >= 0.0 or not halfplane_overlap_range(
-                    wx, wy, a0, a1, body_p[b, 0], body_p[b, 1], body_m[b, 0], body_m[b, 1],
-                    eps, row, scratch[numba.get_thread_id()]):
-                if body_tangential:
-                    bspring[b, i] = 0.0
-                continue
-            rix = row[5] - xi
-            riy = row[6] - yi
-            ri = math.sqrt(rix * rix + riy * riy)
-            l = max(characteristic_length(ri, np.inf), eps)
-            bfx, bfy, s = _contact_force(
-                row, bspring[b, i] if body_tangential else 0.0, vxi - wi * riy, vyi + wi * rix,
-                l, inv_mass[i], 0.0, ri, 0.0, inv_inertia[i], 0.0, youngs_modulus, damping,
-                body_friction[b], dt, damped, body_tangential)
-            if body_tangential:
-                bspring[b, i] = s
-            row[10] = bfx
-            row[11] = bfy
-            row[12] = rix * bfy - riy * bfx
-            row[13] = 0.0
-            row[14] = row[0] / area[i]
-            row[15] = 1.0
-            fx += bfx
-            fy += bfy
-            tq += row[12]
-        acc0 = fx * inv_mass[i] - drag * vxi
-        acc1 = fy * inv_mass[i] - drag * vyi
-        acc2 = tq * inv_inertia[i] - drag * wi
-        for d in range(3 if rotate else 2):
-            a = acc0 if d == 0 else (acc1 if d == 1 else acc2)
-            delta = half_dt2 * a - r[2, d, i]
-            for k in range(nv):
-                r[k, d, i] += coeffs[k] * delta
+    n_blocks = (n + BLOCK - 1) // BLOCK
+    moved = 0.0
+    for blk in prange(n_blocks):
+        tid = numba.get_thread_id()
+        S = scratch[tid]
+        geo = geo_rows[tid]
+        block_moved = 0.0
+        for i in range(blk * BLOCK, min(blk * BLOCK + BLOCK, n)):
+            fx = mass[i] * gx
+            fy = mass[i] * gy
+            tq = 0.0
+            for q in range(offset[i], offset[i + 1]):
+                p = index[q]
+                if pi[p] == i:
+                    fx += force[p, 0]
+                    fy += force[p, 1]
+                    tq += force[p, 2]
+                else:
+                    fx -= force[p, 0]
+                    fy -= force[p, 1]
+                    tq += force[p, 3]
+            for b in range(n_bodies):
+                # the corner of i's box deepest into the body decides whether to clip
+                mx = normal[b, 0]
+                my = normal[b, 1]
+                if ((box[i, 0] if mx > 0.0 else box[i, 1]) - point[b, 0]) * mx + \
+                        ((box[i, 2] if my > 0.0 else box[i, 3]) - point[b, 1]) * my >= 0.0:
+                    _clear_body_contact(bout, bspring, b, i, law.body_tangential)
+                    continue
+                bfx, bfy, btq = _body_contact(b, i, r, node_offset, wx, wy, inv_mass,
+                                              inv_inertia, area, bodies, law, dt, S, geo)
+                fx += bfx
+                fy += bfy
+                tq += btq
+            nordsieck_correct(r, i, half_dt2 * (fx * inv_mass[i] - drag * r[1, 0, i] / dt),
+                              half_dt2 * (fy * inv_mass[i] - drag * r[1, 1, i] / dt),
+                              half_dt2 * (tq * inv_inertia[i] - drag * r[1, 2, i] / dt),
+                              coeffs, n_dof)
+            dx = r[0, 0, i] - x_ref[i]
+            dy = r[0, 1, i] - y_ref[i]
+            block_moved = max(block_moved, dx * dx + dy * dy)
+        moved = max(moved, block_moved)
+    return moved
 
 
 # kernels are passed to advance() as first-class functions
 warnings.filterwarnings("ignore", category=numba.NumbaExperimentalFeatureWarning)
 
-# each kernel in a parallel and a serial build: below a few hundred particles
-# the cost of starting a parallel region exceeds the work
-KERNELS_PARALLEL = tuple(njit(cache=True, parallel=True)(f) for f in
-                         (predict_and_place, pair_forces, gather_and_correct))
-KERNELS_SERIAL = tuple(njit(cache=True)(f) for f in
-                       (predict_and_place, pair_forces, gather_and_correct))
+KERNELS = (predict_and_place, pair_forces, gather_and_correct)
+
+
+def _build(kernel, parallel):
+    """A Numba build of ``kernel`` cached under a name of its own per build."""
+    tag = "parallel" if parallel else "serial"
+    clone = types.FunctionType(kernel.__code__, kernel.__globals__,
+                               f"{kernel.__name__}_{tag}", kernel.__defaults__,
+                               kernel.__closure__)
+    clone.__qualname__ = f"{kernel.__qualname__}_{tag}"
+    clone.__doc__ = kernel.__doc__
+    return njit(cache=True, parallel=parallel)(clone)
+
+
+#: Parallel builds of (predict, pairs, gather), for a few hundred particles and more.
+KERNELS_PARALLEL = tuple(_build(k, True) for k in KERNELS)
+#: Serial builds of the same kernels.
+KERNELS_SERIAL = tuple(_build(k, False) for k in KERNELS)
 
 
 # Not cached: its signature holds the types of the kernel dispatchers passed in,
-# which differ in every new process, so each process missed the cache, compiled
-# anyway and appended an entry to the cache index; after a few dozen processes
-# loading the index failed ("underlying object has vanished").  Compiling this
-# small loop costs well under a second; the kernels themselves stay cached.
+# which differ in every new process, so each process would miss the cache, compile
+# anyway and append an entry to the cache index.  Compiling this small loop costs
+# well under a second; the kernels themselves stay cached.
 @njit(cache=False)
-def advance(kernels, n_steps, n, r, coeffs, dt, node_offset, node_x, node_y, wx, wy, box,
-            pi, pj, spring, pout, pair_offset, pair_index, body_p, body_m,
-            body_friction, bspring, bout, mass, inv_mass, inv_inertia, area,
-            gravity_x, gravity_y, youngs_modulus, damping, friction, rotate, drag, eps,
-            x_ref, y_ref, rebuild_sq, scratch, cs, damped, tangential, body_tangential):
+def advance(kernels, n_steps, n, pt, pairs, bodies, law, motion, work, x_ref, y_ref,
+            rebuild_sq):
     """Run up to ``n_steps`` steps; stop early when the pair list needs a rebuild.
 
-    ``kernels`` is :data:`KERNELS_PARALLEL` or :data:`KERNELS_SERIAL`; ``rotate``,
-    ``cs``, ``damped``, ``tangential`` (pairs) and ``body_tangential`` select the
-    work done (module docstring).
+    Parameters
+    ----------
+    kernels : tuple
+        :data:`KERNELS_PARALLEL` or :data:`KERNELS_SERIAL`.
+    n_steps, n : int
+        Steps to run, active particles.
+    pt, pairs, bodies, law, motion, work
+        See the module docstring.
+    x_ref, y_ref : numpy.ndarray
+        Centres at the last pair-list build.
+    rebuild_sq : float
+        Squared displacement that calls for a rebuild, m².
 
     Returns
     -------
@@ -340,22 +506,10 @@ def advance(kernels, n_steps, n, r, coeffs, dt, node_offset, node_x, node_y, wx,
         Steps done.  Fewer than ``n_steps`` means some particle moved more than
         ``sqrt(rebuild_sq)`` since the last pair-list build.
     """
-    predict, pairs, gather = kernels
+    predict, pair_pass, gather = kernels
     for s in range(n_steps):
-        predict(r, n, node_offset, node_x, node_y, wx, wy, box, rotate, cs)
-        pairs(pi, pj, spring, pout, r, dt, node_offset, wx, wy, box, inv_mass,
-              inv_inertia, area, youngs_modulus, damping, friction, eps, scratch, damped,
-              tangential)
-        gather(r, n, coeffs, dt, pi, pout, pair_offset, pair_index, body_p,
-               body_m, body_friction, bspring, bout, node_offset, wx, wy, box,
-               mass, inv_mass, inv_inertia, area, gravity_x, gravity_y,
-               youngs_modulus, damping, rotate, drag, eps, scratch, damped,
-               body_tangential)
-        m = 0.0
-        for i in range(n):
-            dx = r[0, 0, i] - x_ref[i]
-            dy = r[0, 1, i] - y_ref[i]
-            m = max(m, dx * dx + dy * dy)
-        if m > rebuild_sq:
+        predict(n, pt, motion)
+        pair_pass(pt, pairs, law, motion.dt, work)
+        if gather(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref) > rebuild_sq:
             return s + 1
     return n_steps

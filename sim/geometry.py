@@ -302,7 +302,7 @@ def _min_edge_distance(vx, vy, px, py, p0, p1, ox, oy):
 
 
 @njit(cache=True, inline="always")
-def _write_contact(out, area, c1x, c1y, c2x, c2y, nx, ny, ox, oy):
+def write_contact(out, area, c1x, c1y, c2x, c2y, nx, ny, ox, oy):
     """Fill ``out`` from local-frame contact points and a unit normal.
 
     Orders ``c1, c2`` so that ``c2 - c1`` points along ``t = (-n_y, n_x)``.
@@ -465,7 +465,7 @@ def _clip(ax, ay, a0, a1, bx, by, b0, b1, ox, oy, gx, gy, S):
 
 
 @njit(cache=True, inline="always")
-def _orient_normal(nx, ny, gx, gy, S, r, n, smx, smy, eps):
+def orient_normal(nx, ny, gx, gy, S, r, n, smx, smy, eps):
     """Sign of the contact normal: along ``g = cb - ca``, else by boundary chains.
 
     Returns ``(nx, ny)`` possibly flipped.  Rows ``r..r+2`` of ``S`` hold the
@@ -586,9 +586,9 @@ def polygon_overlap_range(ax, ay, a0, a1, bx, by, b0, b1, cax, cay, cbx, cby, ep
         ln = np.sqrt(tx * tx + ty * ty)
         nx = ty / ln
         ny = -tx / ln
-        nx, ny = _orient_normal(nx, ny, gx, gy, scratch, r, n, 0.5 * (c1x + c2x),
+        nx, ny = orient_normal(nx, ny, gx, gy, scratch, r, n, 0.5 * (c1x + c2x),
                                 0.5 * (c1y + c2y), eps)
-        _write_contact(out, area, c1x, c1y, c2x, c2y, nx, ny, ox, oy)
+        write_contact(out, area, c1x, c1y, c2x, c2y, nx, ny, ox, oy)
         return True
     # nested fall-back
     sx, sy = _centroid(scratch, r, n)
@@ -599,7 +599,7 @@ def polygon_overlap_range(ax, ay, a0, a1, bx, by, b0, b1, cax, cay, cbx, cby, ep
     else:
         nx = 1.0
         ny = 0.0
-    _write_contact(out, area, sx, sy, sx, sy, nx, ny, ox, oy)
+    write_contact(out, area, sx, sy, sx, sy, nx, ny, ox, oy)
     return True
 
 
@@ -755,10 +755,10 @@ def halfplane_overlap_range(ax, ay, a0, a1, px, py, mx, my, eps, out, scratch):
                 m += 1
         i, j, d2 = _farthest_pair(S, 0, 3, m)
     if d2 > eps * eps:
-        _write_contact(out, area, S[0, i], S[1, i], S[0, j], S[1, j], nx, ny, ox, oy)
+        write_contact(out, area, S[0, i], S[1, i], S[0, j], S[1, j], nx, ny, ox, oy)
         return True
     sx, sy = _centroid(S, 0, n)
-    _write_contact(out, area, sx, sy, sx, sy, nx, ny, ox, oy)
+    write_contact(out, area, sx, sy, sx, sy, nx, ny, ox, oy)
     return True
 
 

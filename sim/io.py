@@ -150,8 +150,13 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
 
 
 def save_state(sim: Simulation, path, config: dict | None = None, **attrs) -> None:
-    """Write the simulation's state to ``path`` atomically (see :func:`state_dataset`)."""
+    """Write the simulation's state to ``path`` atomically (see :func:`state_dataset`).
+
+    The simulation then continues as a run restarted from this file would
+    (:meth:`sim.engine.Simulation.mark_restart_point`).
+    """
     atomic_write(state_dataset(sim, config, **attrs), path)
+    sim.mark_restart_point()
 
 
 REQUIRED = list(PARTICLE_VARS) + ["node_count", "node_x", "node_y", "contact_i",
