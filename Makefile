@@ -50,7 +50,7 @@ lint: venv
 # benchmarks, Snakemake's metadata) and the caches; keeps .venv.
 clean:
 	find results -mindepth 1 -maxdepth 1 ! -name README.md -exec rm -rf {} +
-	rm -rf logs benchmarks .snakemake .numba_cache .pytest_cache
+	rm -rf logs benchmarks .bench .snakemake .numba_cache .pytest_cache
 	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
 
 distclean: clean

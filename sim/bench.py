@@ -1,13 +1,18 @@
-"""Benchmark: ns per particle-step and per contact on a dense, settling heap.
+"""Benchmark: ns per particle-step in settled, loaded piles, and per scene variant.
 
-``python -m sim bench`` builds, for each N, a packing of the paper's particles
-between two walls on the support (a triangular lattice with spacing equal to
-the mean circumdiameter), lets it settle under gravity with the relaxation
-drag until the rows have collapsed into a contact network (``settle`` seconds
-of simulated time), then times a fixed number of steps on 1 and on 2 threads
-without the drag.  It prints a table (with the contacts per particle, so the
-figures can be judged) and ends with one JSON line of the figures.  Timings
-are medians of repeats.
+``python -m sim bench`` times the regime a study pays for: a pile late in its
+pour, at rest under its own weight, with every particle in contact.  For each
+N it builds such a pile once (:func:`loaded_pile`: particles on a triangular
+lattice filling a heap of :data:`HEAP_SLOPE_DEG`, collapsed under gravity and
+relaxed with the study's relaxation) and keeps it in ``--cache`` (default ``.bench/``), so
+later runs time the same pile.  Each pile is timed with both integrators on 1
+and 2 threads: wall and CPU time of ``steps`` steps, medians of ``repeats``,
+giving ns per particle-step, ns per contact, the contacts per particle (of
+particle–particle contacts; the support's are counted apart) and the CPU
+cores used (CPU time / wall time).  A second, kernel-by-kernel timing gives
+the share of the predictor, the pair pass and the gather.  It prints a table
+and ends with one JSON line of the figures.  ``--state FILE`` times a saved
+pile instead (e.g. a poured full-size pile).
 
 ``python -m sim bench --scenes STATE`` times the steps of a saved pile under
 each scene variant of :data:`SCENE_VARIANTS` (the work each skips, against the
@@ -20,15 +25,30 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 import resource
 import time
+from pathlib import Path
 
 import numba
 import numpy as np
 
-from .config import ModelParams, ParticleParams
+from .config import ModelParams, ParticleParams, RelaxParams, SimConfig
 from .engine import Simulation
+from .forces import KERNELS_PARALLEL, KERNELS_SERIAL
+from .integrators import INTEGRATORS
+from .io import load_simulation, save_state
+from .protocols import RelaxationError, relax
 from .shapes import make_shapes
+
+log = logging.getLogger("sim")
+
+#: Flank slope of the lattice heap a loaded pile is built from, degrees: below
+#: the angle of repose, so that the heap settles instead of flowing (a 30°
+#: heap of 3000 particles was still flowing after 1.6 s).
+HEAP_SLOPE_DEG = 20.0
+#: Relaxation of a benchmark pile: the study's criterion, at most this long.
+HEAP_RELAX = RelaxParams(max_time=3.0)
 
 
 def dense_packing(n, seed=0, model=None, particles=None):
@@ -65,45 +85,160 @@ def dense_packing(n, seed=0, model=None, particles=None):
     return sim
 
 
-def _array_bytes(sim):
-    """Bytes held by the simulation's arrays."""
-    total = 0
-    for v in list(vars(sim).values()) + list(vars(sim.shapes).values()):
-        if isinstance(v, np.ndarray):
-            total += v.nbytes
-    return total
+def lattice_heap(n, seed=0, model=None, particles=None, slope_deg=HEAP_SLOPE_DEG):
+    """``n`` particles on a triangular lattice filling a heap with flanks of ``slope_deg``.
+
+    The lattice spacing is the largest circumdiameter, so no two particles
+    overlap; rows are filled from the support up, each as wide as the heap at
+    its height.
+
+    Returns
+    -------
+    Simulation
+        At rest, with gravity, the support and no walls.
+    """
+    model = model or ModelParams(integrator="verlet")
+    pp = particles or ParticleParams()
+    rng = np.random.default_rng(seed)
+    shapes = make_shapes(rng, n, pp.corners_min, pp.corners_max, pp.semi_axis_mean,
+                         pp.semi_axis_spread, model.density, pp.min_edge_fraction,
+                         pp.min_angle_deg)
+    d = 2.0 * float(np.max(shapes.radius))
+    row_height = d * np.sqrt(3.0) / 2.0
+    cot = 1.0 / np.tan(np.radians(slope_deg))
+    height = np.sqrt(n * d * row_height / cot)
+    sim = Simulation(shapes, model)
+    k = 0
+    row = 0
+    while k < n:
+        y = 0.5 * d + row * row_height
+        count = max(int(2.0 * (height - y) * cot / d), 1)
+        for c in range(min(count, n - k)):
+            x = (c - 0.5 * (count - 1) + 0.25 * (row % 2)) * d
+            sim.place(k, x, y, rng.uniform(0.0, 2.0 * np.pi))
+            k += 1
+        row += 1
+    return sim
 
 
-def measure(n, steps=300, settle=0.05, repeats=3, threads=(1, 2), seed=0):
-    """Time ``steps`` steps of a settled packing of ``n`` particles.
+def loaded_pile(n, seed=0, cache=Path(".bench")):
+    """A settled, loaded pile of ``n`` particles, built once and kept in ``cache``.
+
+    The lattice heap of :func:`lattice_heap` collapses under gravity and is
+    relaxed with the study's relaxation (:func:`sim.protocols.relax`, at most
+    ``HEAP_RELAX.max_time``; a pile still creeping then is kept as it is).
+
+    Returns
+    -------
+    pathlib.Path
+        Its state file.
+    """
+    path = Path(cache) / f"pile-n{n}-seed{seed}-slope{HEAP_SLOPE_DEG:g}.nc"
+    if path.exists():
+        return path
+    path.parent.mkdir(parents=True, exist_ok=True)
+    sim = lattice_heap(n, seed)
+    t0 = time.monotonic()
+    try:
+        relax(sim, SimConfig(relax=HEAP_RELAX), f"bench pile of {n}")
+    except RelaxationError as exc:
+        log.warning("%s; kept as it is", exc)
+    log.info("bench pile of %d particles built in %.0f s: %.2f contacts per particle", n,
+             time.monotonic() - t0, _particle_contacts(sim) / n)
+    save_state(sim, path, stage="bench")
+    return path
+
+
+def _particle_contacts(sim):
+    """Particle–particle contacts of the last force evaluation."""
+    return int(np.count_nonzero(sim.contacts()["j"] >= 0))
+
+
+def _load(path, integrator, **options):
+    """The pile of ``path`` with its springs, continued with ``integrator`` at its
+    automatic time step; ``options`` change the model or the scene
+    (``rotate``, ``support``, ``full_law``)."""
+    base, ds = load_simulation(path)
+    law = {k: v for k, v in options.items() if k not in ("rotate", "support", "full_law")}
+    model = dataclasses.replace(base.model, integrator=integrator, dt=None, **law)
+    sim = Simulation(base.shapes, model, base.gravity, support=options.get("support", True),
+                     walls=base.walls, rotate=options.get("rotate", base.rotate))
+    sim.full_law = options.get("full_law", False)
+    sim.set_scaled_derivatives(base.scaled_derivatives(), base.dt)
+    sim.set_springs(ds["contact_i"].values.astype(np.int64),
+                    ds["contact_j"].values.astype(np.int64), ds["contact_spring"].values)
+    return sim
+
+
+def kernel_shares(sim, steps):
+    """Shares of the predictor, the pair pass and the gather in ``steps`` steps.
+
+    The three kernels are called one by one from Python (with the build
+    :meth:`Simulation.run` would use), each timed; the pair list is not
+    rebuilt, so keep ``steps`` short of a rebuild.
 
     Returns
     -------
     dict
-        ``n``, ``contacts``, ``ns_per_particle_step`` and ``ns_per_contact``
-        for each thread count, ``bytes_per_particle``.
+        ``predict``, ``pairs``, ``gather``: fractions of their total.
     """
-    sim = dense_packing(n, seed)
-    sim.drag = 100.0
-    sim.run(duration=settle)
-    sim.drag = 0.0
-    n_contacts = len(sim.contacts()["i"])
-    out = {"n": n, "contacts": n_contacts, "dt": sim.dt,
-           "bytes_per_particle": _array_bytes(sim) / n}
-    for t in threads:
-        if t > numba.config.NUMBA_NUM_THREADS:
-            continue
-        numba.set_num_threads(t)
-        times = []
+    sim.run(steps=1)  # current pair list
+    kernels = (KERNELS_PARALLEL if sim.n >= sim.parallel_threshold and
+               numba.get_num_threads() > 1 else KERNELS_SERIAL)
+    predict, pairs, gather = kernels
+    pt, pr, bodies, law, motion, work = sim.kernel_state()
+    spent = np.zeros(3)
+    for _ in range(steps):
+        t0 = time.perf_counter()
+        predict(sim.n, pt, motion)
+        t1 = time.perf_counter()
+        pairs(pt, pr, law, motion.dt, work)
+        t2 = time.perf_counter()
+        gather(sim.n, pt, pr, bodies, law, motion, work, sim.x_ref, sim.y_ref)
+        spent += (t1 - t0, t2 - t1, time.perf_counter() - t2)
+    sim.mark_restart_point()
+    total = float(np.sum(spent))
+    return {"predict": spent[0] / total, "pairs": spent[1] / total,
+            "gather": spent[2] / total}
+
+
+def measure(path, integrator, threads, steps=200, repeats=5):
+    """Time ``steps`` steps of the pile of ``path`` on ``threads`` threads.
+
+    Returns
+    -------
+    dict
+        ``n_particles``, ``threads``, ``integrator``, ``contacts_per_particle``
+        (particle–particle), ``body_contacts``, ``ns_per_particle_step``,
+        ``ns_per_contact``, ``cpu_ns_per_particle_step``, ``cores_used`` and
+        the kernel shares ``share_predict``, ``share_pairs``, ``share_gather``.
+    """
+    numba.set_num_threads(threads)
+    try:
+        sim = _load(path, integrator)
+        sim.run(steps=20)  # compiles outside the timing
+        walls, cpus = [], []
         for _ in range(repeats):
             t0 = time.perf_counter()
+            c0 = time.process_time()
             sim.run(steps=steps)
-            times.append(time.perf_counter() - t0)
-        med = float(np.median(times))
-        out[f"ns_per_particle_step_{t}t"] = med / steps / n * 1e9
-        out[f"ns_per_contact_{t}t"] = med / steps / max(n_contacts, 1) * 1e9
-    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-    return out
+            cpus.append(time.process_time() - c0)
+            walls.append(time.perf_counter() - t0)
+        contacts = _particle_contacts(sim)
+        shares = kernel_shares(sim, min(steps, 50))
+    finally:
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    wall = float(np.median(walls))
+    cpu = float(np.median(cpus))
+    n = sim.n
+    return {"n_particles": n, "threads": threads, "integrator": integrator,
+            "contacts_per_particle": contacts / n,
+            "body_contacts": len(sim.contacts()["i"]) - contacts,
+            "ns_per_particle_step": wall / steps / n * 1e9,
+            "ns_per_contact": wall / steps / max(contacts, 1) * 1e9,
+            "cpu_ns_per_particle_step": cpu / steps / n * 1e9,
+            "cores_used": cpu / wall,
+            **{f"share_{k}": v for k, v in shares.items()}}
 
 
 # name: (model settings changed, Simulation options changed)
@@ -121,28 +256,19 @@ SCENE_VARIANTS = {
 def scene_costs(path, steps=200, repeats=5):
     """CPU ns per particle-step of the pile of a state file under each scene variant.
 
-    Every variant starts from the file's state (its time step, integrator and
-    tangential springs) with the settings of :data:`SCENE_VARIANTS`; the
-    variants run ``steps`` steps in turn, ``repeats`` times.
+    Every variant starts from the file's state (its integrator and tangential
+    springs) with the settings of :data:`SCENE_VARIANTS`; the variants run
+    ``steps`` steps in turn, ``repeats`` times.
 
     Returns
     -------
     dict
         ``n``, ``contacts`` and, per variant, the median ns per particle-step.
     """
-    from .io import load_simulation
-
-    base, ds = load_simulation(path)
-    c = {"i": ds["contact_i"].values.astype(np.int64),
-         "j": ds["contact_j"].values.astype(np.int64), "spring": ds["contact_spring"].values}
+    integrator = load_simulation(path)[0].model.integrator
     sims = {}
     for name, (law, options) in SCENE_VARIANTS.items():
-        sim = Simulation(base.shapes, dataclasses.replace(base.model, **law), base.gravity,
-                         support=options.get("support", True), walls=base.walls,
-                         rotate=options.get("rotate", base.rotate))
-        sim.full_law = options.get("full_law", False)
-        sim.set_scaled_derivatives(base.scaled_derivatives(), base.dt)
-        sim.set_springs(c["i"], c["j"], c["spring"])
+        sim = _load(path, integrator, **law, **options)
         sim.run(steps=10)  # compiles and builds the pair list outside the timing
         sims[name] = sim
     times = {name: [] for name in sims}
@@ -151,9 +277,11 @@ def scene_costs(path, steps=200, repeats=5):
             t0 = time.process_time()
             sim.run(steps=steps)
             times[name].append(time.process_time() - t0)
-    out = {"n": base.n, "contacts": len(c["i"]), "threads": numba.get_num_threads()}
+    study = sims["study"]
+    out = {"n": study.n, "contacts": len(study.contacts()["i"]),
+           "threads": numba.get_num_threads()}
     for name, t in times.items():
-        out[name] = float(np.median(t)) / steps / base.n * 1e9
+        out[name] = float(np.median(t)) / steps / study.n * 1e9
     return out
 
 
@@ -169,19 +297,51 @@ def main_scenes(path, steps=200, repeats=5):
     return r
 
 
-def main(sizes=(1000, 3000, 10000, 30000), steps=300):
-    """Run the benchmark and print a table and a final JSON line."""
+def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear"),
+         threads=(1, 2), cache=Path(".bench"), state=None):
+    """Run the benchmark; print a table and a final JSON line.
+
+    Parameters
+    ----------
+    sizes : tuple of int
+        Particle counts of the loaded piles (built once, kept in ``cache``).
+    steps, repeats : int
+        Steps per timing and timings per figure (the median is reported).
+    integrators : tuple of str
+    threads : tuple of int
+        Thread counts; those above ``NUMBA_NUM_THREADS`` are skipped.
+    cache : Path
+        Folder of the benchmark piles.
+    state : str or Path, optional
+        Time this state file instead of the built piles.
+
+    Returns
+    -------
+    list of dict
+        The rows of :func:`measure`.
+    """
+    unknown = sorted(set(integrators) - set(INTEGRATORS))
+    if unknown:
+        raise ValueError(f"bench integrators {unknown}: must be among {sorted(INTEGRATORS)}")
+    paths = [Path(state)] if state else [loaded_pile(n, cache=cache) for n in sizes]
     rows = []
-    print(f"{'N':>7} {'contacts/N':>10} {'ns/p-step 1t':>13} {'ns/p-step 2t':>13} "
-          f"{'ns/contact 2t':>14} {'B/particle':>11}", flush=True)
-    for n in sizes:
-        r = measure(n, steps=steps)
-        rows.append(r)
-        print(f"{n:>7} {r['contacts'] / n:>10.2f} "
-              f"{r.get('ns_per_particle_step_1t', np.nan):>13.1f} "
-              f"{r.get('ns_per_particle_step_2t', np.nan):>13.1f} "
-              f"{r.get('ns_per_contact_2t', np.nan):>14.1f} "
-              f"{r['bytes_per_particle']:>11.0f}", flush=True)
+    print(f"{'N':>6} {'integrator':>10} {'thr':>3} {'contacts/N':>10} {'ns/p-step':>9} "
+          f"{'ns/contact':>10} {'cores':>5} {'predict':>7} {'pairs':>6} {'gather':>6}",
+          flush=True)
+    for path in paths:
+        for integrator in integrators:
+            for t in threads:
+                if t > numba.config.NUMBA_NUM_THREADS:
+                    log.warning("bench: %d threads skipped (NUMBA_NUM_THREADS = %d)", t,
+                                numba.config.NUMBA_NUM_THREADS)
+                    continue
+                r = measure(path, integrator, t, steps, repeats)
+                rows.append(r)
+                print(f"{r['n_particles']:>6} {integrator:>10} {t:>3} "
+                      f"{r['contacts_per_particle']:>10.2f} {r['ns_per_particle_step']:>9.1f} "
+                      f"{r['ns_per_contact']:>10.1f} {r['cores_used']:>5.2f} "
+                      f"{r['share_predict']:>7.0%} {r['share_pairs']:>6.0%} "
+                      f"{r['share_gather']:>6.0%}", flush=True)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     print(json.dumps({"bench": rows, "peak_rss_bytes": peak,
                       "threads_available": numba.config.NUMBA_NUM_THREADS}))

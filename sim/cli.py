@@ -35,6 +35,17 @@ def _params(text):
     return SimConfig.from_json(text)
 
 
+def _int_list(option, text):
+    """Comma-separated positive integers of a command-line option."""
+    try:
+        values = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if not values or min(values) < 1:
+        raise ValueError(f"{option} {text!r}: give positive integers separated by commas")
+    return values
+
+
 def _parser():
     ap = argparse.ArgumentParser(prog="python -m sim", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -64,14 +75,18 @@ def _parser():
 
     sub.add_parser("warmup", help="compile and cache all Numba kernels")
 
-    p = sub.add_parser("bench", help="ns per particle-step on settled heaps")
-    p.add_argument("--sizes", default="1000,3000,10000,30000",
-                   help="comma-separated particle counts")
-    p.add_argument("--steps", type=int, default=300)
+    p = sub.add_parser("bench", help="ns per particle-step in settled, loaded piles")
+    p.add_argument("--sizes", default="3000,10000",
+                   help="comma-separated particle counts of the loaded piles")
+    p.add_argument("--steps", type=int, default=200, help="steps per timing")
+    p.add_argument("--repeats", type=int, default=5, help="timings per figure (median)")
+    p.add_argument("--integrators", default="verlet,gear", help="comma-separated")
+    p.add_argument("--threads", default="1,2", help="comma-separated thread counts")
+    p.add_argument("--cache", default=".bench", help="folder of the built piles")
+    p.add_argument("--state", help="time this state file instead of the built piles")
     p.add_argument("--scenes", metavar="STATE",
                    help="instead: time the pile of this state file under each scene "
                         "variant (friction 0, damping 0, no rotation, no support)")
-    p.add_argument("--repeats", type=int, default=5, help="with --scenes: timed repeats")
 
     sub.add_parser("draw", help="picture of a pile state (PNG); "
                    "see python -m sim draw --help", add_help=False)
@@ -123,7 +138,10 @@ def main(argv=None):
             if args.scenes:
                 main_scenes(args.scenes, args.steps, args.repeats)
             else:
-                bench_main(tuple(int(s) for s in args.sizes.split(",")), args.steps)
+                bench_main(_int_list("--sizes", args.sizes), args.steps, args.repeats,
+                           tuple(args.integrators.split(",")),
+                           _int_list("--threads", args.threads), Path(args.cache),
+                           args.state)
             return 0
         cfg = _params(args.params)
         from . import protocols

@@ -305,7 +305,7 @@ class Simulation:
         self.y_ref = y.copy()
         self._stale = False
 
-    def _kernel_state(self):
+    def kernel_state(self):
         """The state as the kernels take it: particles, pairs, bodies, law, motion, work."""
         damped, tangential, body_tangential = self._law_flags()
         m = self.model
@@ -376,7 +376,7 @@ class Simulation:
             chunk = min(steps - done, self.check_every - self.step % self.check_every)
             kernels = (KERNELS_PARALLEL if self.n >= self.parallel_threshold and
                        numba.get_num_threads() > 1 else KERNELS_SERIAL)
-            k = advance(kernels, chunk, self.n, *self._kernel_state(), self.x_ref, self.y_ref,
+            k = advance(kernels, chunk, self.n, *self.kernel_state(), self.x_ref, self.y_ref,
                         rebuild_sq)
             done += k
             self.step += k
