@@ -155,18 +155,45 @@ def particle_pair_index(pi, pj, n):
 
 
 @njit(cache=True)
-def carry_history(old_i, old_j, old_value, new_i, new_j):
-    """Carry per-pair history from an old sorted pair list to a new one.
+def match_pairs(old_i, old_j, new_i, new_j):
+    """For each pair of a new sorted pair list, its index in an old one (-1: absent).
 
-    Pairs absent from the old list start at zero (a new contact's spring is
-    zero, Appendix).  Both lists must be sorted by ``(i, j)``.
+    Both lists must be sorted by ``(i, j)``; a merge, O(old + new).
     """
-    out = np.zeros(new_i.shape[0])
+    out = np.full(new_i.shape[0], -1, np.int64)
     a = 0
     for b in range(new_i.shape[0]):
         while a < old_i.shape[0] and (old_i[a] < new_i[b] or
                                       (old_i[a] == new_i[b] and old_j[a] < new_j[b])):
             a += 1
         if a < old_i.shape[0] and old_i[a] == new_i[b] and old_j[a] == new_j[b]:
-            out[b] = old_value[a]
+            out[b] = a
+    return out
+
+
+def carry_history(old_i, old_j, old_value, new_i, new_j, fill=0.0):
+    """Carry per-pair history from an old sorted pair list to a new one.
+
+    Parameters
+    ----------
+    old_i, old_j : numpy.ndarray
+        The old pair list, sorted by ``(i, j)``.
+    old_value : numpy.ndarray, shape (n_old,) or (n_old, k)
+        History per old pair (tangential springs, narrow-phase witnesses).
+    new_i, new_j : numpy.ndarray
+        The new pair list, sorted by ``(i, j)``.
+    fill : scalar
+        Value of pairs absent from the old list: 0 for a spring (a new
+        contact's spring is unloaded, Appendix), -1 for a witness (none).
+
+    Returns
+    -------
+    numpy.ndarray
+        One row of history per new pair, of ``old_value``'s dtype.
+    """
+    old_value = np.asarray(old_value)
+    idx = match_pairs(old_i, old_j, new_i, new_j)
+    out = np.full((len(idx),) + old_value.shape[1:], fill, dtype=old_value.dtype)
+    found = idx >= 0
+    out[found] = old_value[idx[found]]
     return out

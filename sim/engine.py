@@ -71,6 +71,8 @@ class Snapshot:
     pj: np.ndarray
     spring: np.ndarray
     bspring: np.ndarray
+    axis: np.ndarray
+    cross: np.ndarray
 
 
 class Simulation:
@@ -290,6 +292,10 @@ class Simulation:
             self.spring = carry_history(self.pi, self.pj, self.spring, pi, pj)
         else:
             self.spring = np.zeros(len(pi))
+        # the witnesses stay with their pairs, so that no result depends on when
+        # the list was rebuilt (nor on a restart, which rebuilds it)
+        self.axis = carry_history(self.pi, self.pj, self.axis, pi, pj, fill=-1)
+        self.cross = carry_history(self.pi, self.pj, self.cross, pi, pj, fill=-1)
         if not self.rotate:
             # orientations are fixed: no angular velocity, corners placed with cached cos, sin
             self.r[1:, 2, :n] = 0.0
@@ -299,8 +305,6 @@ class Simulation:
         self.pair_offset, self.pair_index = particle_pair_index(pi, pj, n)
         self.pout = np.zeros((len(pi), ROW_SIZE))
         self.pforce = np.zeros((len(pi), 4))
-        self.axis = np.full(len(pi), -1, np.int64)
-        self.cross = np.full((len(pi), 4), -1, np.int64)
         self.x_ref = x.copy()
         self.y_ref = y.copy()
         self._stale = False
@@ -321,22 +325,11 @@ class Simulation:
                        float(self.drag), self.rotate),
                 self.work)
 
-    def mark_restart_point(self):
-        """Continue from here exactly as a run restarted from a file of this state would.
-
-        A restarted run starts with a new pair list and without the narrow
-        phase's witnesses (:mod:`sim.warmstart`), and a witness changes the
-        contact geometry at the rounding level; rebuilding both here too keeps
-        an interrupted and resumed run bit for bit equal to an uninterrupted
-        one.  :func:`sim.io.save_state` calls it.
-        """
-        self._stale = True
-
     def snapshot(self) -> Snapshot:
         """A copy of the dynamic state, enough to continue the run exactly."""
         return Snapshot(self.n, self.r.copy(), self.time, self.step, self.gravity,
                         self.pi.copy(), self.pj.copy(), self.spring.copy(),
-                        self.bspring.copy())
+                        self.bspring.copy(), self.axis.copy(), self.cross.copy())
 
     def restore(self, snap: Snapshot):
         """Return to a :class:`Snapshot`."""
@@ -344,6 +337,7 @@ class Simulation:
         self.gravity = snap.gravity
         self.pi, self.pj, self.spring = snap.pi.copy(), snap.pj.copy(), snap.spring.copy()
         self.bspring = snap.bspring.copy()
+        self.axis, self.cross = snap.axis.copy(), snap.cross.copy()
         self._stale = True
         self._reset_energy_reference()
 
@@ -450,7 +444,9 @@ class Simulation:
         dict of numpy.ndarray
             ``i``, ``j`` (j < 0: a body), ``x``, ``y`` (force point), ``fx``,
             ``fy`` (total force on i), ``nx``, ``ny`` (normal from i to j),
-            ``area``, ``spring`` (tangential history).
+            ``area``, ``spring`` (tangential history), ``witness`` (n, 4): the
+            crossing edges the narrow phase starts from next step
+            (:mod:`sim.warmstart`; -1 for bodies).
         """
         rows = self._pair_rows()
         act = np.flatnonzero(rows[:, ROW["active"]] > 0) if rows.shape[0] else np.empty(0, int)
@@ -458,6 +454,7 @@ class Simulation:
         parts_j = [self.pj[act]]
         parts_rows = [rows[act]]
         parts_spring = [self.spring[act]]
+        parts_witness = [self.cross[act]]
         for b, body in enumerate(self.body_ids):
             brow = self.bout[b, :self.n]
             bact = np.flatnonzero(brow[:, ROW["active"]] > 0)
@@ -465,6 +462,7 @@ class Simulation:
             parts_j.append(np.full(len(bact), body, np.int64))
             parts_rows.append(brow[bact])
             parts_spring.append(self.bspring[b, bact])
+            parts_witness.append(np.full((len(bact), 4), -1, np.int64))
         allrows = np.concatenate(parts_rows) if parts_rows else np.zeros((0, ROW_SIZE))
         return {
             "i": np.concatenate(parts_i).astype(np.int64),
@@ -474,10 +472,16 @@ class Simulation:
             "nx": allrows[:, ROW["nx"]], "ny": allrows[:, ROW["ny"]],
             "area": allrows[:, ROW["area"]],
             "spring": np.concatenate(parts_spring),
+            "witness": np.concatenate(parts_witness),
         }
 
-    def set_springs(self, ci, cj, spring):
-        """Load tangential history for contacts ``(ci, cj)`` (j < 0: a body)."""
+    def set_springs(self, ci, cj, spring, witness=None):
+        """Load the history of contacts ``(ci, cj)`` (j < 0: a body, i < j otherwise).
+
+        ``spring`` is their tangential springs, ``witness`` (n_contacts, 4)
+        their narrow-phase witnesses (:mod:`sim.warmstart`; as from
+        :meth:`contacts`), which a restart needs to retrace the run bit for bit.
+        """
         body = cj < 0
         for b, bid in enumerate(self.body_ids):
             sel = cj == bid
@@ -489,6 +493,9 @@ class Simulation:
         self._rebuild()
         self.spring = carry_history(lo[order], hi[order], spring[pair][order],
                                     self.pi, self.pj)
+        if witness is not None:
+            self.cross = carry_history(lo[order], hi[order], witness[pair][order],
+                                       self.pi, self.pj, fill=-1)
 
     def net_forces(self):
         """Net force (n, 2) on each active particle from the last evaluation plus gravity."""

@@ -120,6 +120,11 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
     for name, (units, long_name) in CONTACT_VARS.items():
         ds[name] = xr.DataArray(values[name], dims="contact",
                                 attrs={"units": units, "long_name": long_name})
+    ds["contact_witness"] = xr.DataArray(
+        c["witness"].astype(np.int32), dims=("contact", "witness"), attrs={
+            "units": "1", "long_name": "edges of i and j crossing where i's boundary enters "
+            "j and where it leaves (-1: none); the narrow phase's warm start for the next "
+            "step (restart data)"})
     ds["integrator_state"] = xr.DataArray(
         sim.scaled_derivatives(), dims=("derivative", "dof", "particle"),
         coords={"dof": ["x", "y", "theta"]},
@@ -151,12 +156,8 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
 
 def save_state(sim: Simulation, path, config: dict | None = None, **attrs) -> None:
     """Write the simulation's state to ``path`` atomically (see :func:`state_dataset`).
-
-    The simulation then continues as a run restarted from this file would
-    (:meth:`sim.engine.Simulation.mark_restart_point`).
     """
     atomic_write(state_dataset(sim, config, **attrs), path)
-    sim.mark_restart_point()
 
 
 REQUIRED = list(PARTICLE_VARS) + ["node_count", "node_x", "node_y", "contact_i",
@@ -256,5 +257,7 @@ def load_simulation(path, model: ModelParams | None = None, capacity_shapes=None
     sim.step = int(ds.attrs["step"])
     sim.set_springs(ds["contact_i"].values.astype(np.int64),
                     ds["contact_j"].values.astype(np.int64),
-                    ds["contact_spring"].values)
+                    ds["contact_spring"].values,
+                    ds["contact_witness"].values.astype(np.int64)
+                    if "contact_witness" in ds else None)
     return sim, ds
