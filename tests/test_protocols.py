@@ -69,7 +69,7 @@ def test_layered_line_stays_within_the_target_flanks():
 
 
 def test_relaxation_fails_loudly_when_time_runs_out():
-    cfg = SimConfig.from_dict({"relax": {"max_time": 0.002, "drag": 0.0}})
+    cfg = SimConfig.from_dict({"relax": {"max_time": 0.002, "hold_time": 0.001, "drag": 0.0}})
     shapes = protocols.pile_shapes(SimConfig.from_dict({"pour": {"n_particles": 2}}), 0)
     sim = Simulation(shapes, cfg.model)
     sim.place(0, 0.0, 0.05, 0.0)         # still falling: not at rest
