@@ -144,6 +144,13 @@ def test_each_probe_level_is_a_stage(workdir):
     ("corners", {"particles": {"corners_min": 8, "corners_max": 6}}, "corners_min"),
     ("levels", {"probe": {"levels": [0.1, 0.05, 0.051]}}, "percent resolution"),
     ("threads", {"threads": 0}, "threads"),
+    # workflow/validation.py runs before any job (and before resource functions)
+    ("nan", {"model": {"youngs_modulus": float("nan")}}, "model.youngs_modulus = nan"),
+    ("integer", {"pour": {"n_particles": 150.0}}, "pour.n_particles = 150.0: must be an integer"),
+    ("grid", {"analysis": {"grid": {"x_min": 0.1, "x_max": -0.1}}}, "analysis.grid.x_min = 0.1"),
+    ("size", {"pour": {"n_particles": 10**9}}, "would need about 100001000 MB"),
+    ("convergence_seed", {"analysis": {"convergence": {"seed": 7}}},
+     "analysis.convergence.seed = 7 is not a seed of protocol wedge"),
 ])
 def test_bad_config_stops_before_any_job(workdir, name, override, message):
     config = with_overrides(workdir, f"bad_{name}", override)

@@ -4,11 +4,13 @@
 
 import json
 import math
+import os
 import re
 import shlex
 import sys
 from pathlib import Path
 
+from snakemake.logging import logger
 from snakemake.settings.types import DeploymentMethod
 
 REPO = Path(workflow.basedir).resolve()
@@ -283,3 +285,41 @@ def sim_mem_mb(wildcards, attempt):
     for memory asks for more when resubmitted)."""
     n = config["pour"]["n_particles"]
     return attempt * math.ceil(SIM_MEM_BASE_MB + SIM_MEM_PER_PARTICLE_MB * n)
+
+
+# Largest memory (MB) a cluster node is assumed to have when no --resources
+# mem_mb says otherwise: 4 TB.
+CLUSTER_NODE_MEM_MB = 4_000_000
+# Run-time estimate (min) of one pour beyond which the plan is called absurd: a week.
+ABSURD_RUNTIME_MIN = 7 * 24 * 60
+
+
+def _check_size():
+    """Refuse, before any job, a pile whose job cannot fit in memory: the limit
+    is --resources mem_mb if given, else this machine's memory (local jobs) or
+    CLUSTER_NODE_MEM_MB (cluster jobs). Warn about a pour estimated to take
+    longer than ABSURD_RUNTIME_MIN."""
+    need = sim_mem_mb(None, 1)
+    limit = workflow.global_resources.get("mem_mb")
+    limit, where = getattr(limit, "value", limit), "--resources mem_mb"
+    if limit is not None:
+        pass
+    elif workflow.local_exec:
+        limit = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**20
+        where = "the memory of this machine"
+    else:
+        limit, where = CLUSTER_NODE_MEM_MB, "the largest cluster node assumed"
+    n = config["pour"]["n_particles"]
+    if need > limit:
+        raise ValueError(
+            f"pour.n_particles = {n}: a simulation job would need about {need:.0f} MB "
+            f"({SIM_MEM_BASE_MB} MB + {SIM_MEM_PER_PARTICLE_MB} MB per particle), more than "
+            f"{where} ({limit:.0f} MB); pour fewer particles")
+    minutes = pour_runtime_min(None, 1)
+    if minutes > ABSURD_RUNTIME_MIN:
+        logger.warning(
+            f"pour.n_particles = {n}, pour.rate = {config['pour']['rate']}: each pour is "
+            f"estimated to take {minutes / 1440:.0f} days on {SIM_THREADS} threads")
+
+
+_check_size()
