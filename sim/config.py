@@ -384,15 +384,6 @@ class SimConfig:
             sections[f.name] = klass(**sub)
         return cls(**sections)
 
-    @classmethod
-    def from_json(cls, text: str) -> "SimConfig":
-        """Build from JSON text (see :meth:`from_dict`)."""
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ConfigError(f"--params is not valid JSON: {exc}") from None
-        return cls.from_dict(data)
-
     def to_dict(self) -> dict:
         """Plain nested dict of all settings (JSON-serialisable)."""
         out = dataclasses.asdict(self)

@@ -99,6 +99,18 @@ def test_a_checkpoint_is_resumed_when_only_bookkeeping_changed(tmp_path, caplog)
     assert not list(tmp_path.glob("*.unused"))
 
 
+def test_bookkeeping_comes_apart_and_may_hold_nothing_else():
+    from sim.cli import _params
+    from sim.config import ConfigError
+
+    cfg = _params('{"pour": {"rate": 50.0, "progress_interval": 1.0}}',
+                  '{"pour": {"progress_interval": 2.0, "checkpoint_interval": 3.0}}')
+    assert (cfg.pour.rate, cfg.pour.progress_interval, cfg.pour.checkpoint_interval) == \
+        (50.0, 2.0, 3.0)
+    with pytest.raises(ConfigError, match="change the result"):
+        _params(None, '{"pour": {"rate": 5.0}}')
+
+
 def test_a_truncated_checkpoint_is_set_aside_and_the_pour_restarts(tmp_path, caplog, whole):
     ckpt = tmp_path / "pour.checkpoint.nc"
     started_checkpoint(ckpt, tiny())

@@ -234,12 +234,15 @@ if cmd == "warmup":
     assert os.environ["NUMBA_CACHE_DIR"].endswith(".numba_cache")
     sys.exit(0)
 parser = argparse.ArgumentParser()
-for option in ("--params", "--protocol", "--seed", "--out", "--checkpoint",
+for option in ("--params", "--bookkeeping", "--protocol", "--seed", "--out", "--checkpoint",
                "--input", "--level"):
     parser.add_argument(option)
 args = parser.parse_args(rest)
 if cmd in ("pour", "relax", "probe"):
     assert set(json.loads(args.params)) == SECTIONS[cmd], args.params
+    assert "checkpoint_interval" not in json.loads(args.params)["pour"], args.params
+    assert set(json.loads(args.bookkeeping)["pour"]) == {"checkpoint_interval",
+                                                        "progress_interval"}
     assert int(os.environ["NUMBA_NUM_THREADS"]) >= 1
 if cmd != "pour":
     assert Path(args.input).exists()
@@ -354,6 +357,9 @@ def test_editing_analysis_code_or_a_caption_leaves_the_piles(ran, folder):
     ("relax", {"max_time": 2.0}, ("relax", "probe")),
     ("probe", {"mode": "ramp"}, ("probe",)),
     ("physics", {"rotation": False}, ("pour", "relax", "probe")),
+    # bookkeeping: how often a pour saves and reports, never what it pours
+    ("pour", {"checkpoint_interval": 5.0}, ()),
+    ("pour", {"progress_interval": 1.0}, ()),
 ])
 def test_simulation_parameters_rerun_exactly_the_jobs_that_read_them(ran, section, change,
                                                                        rerun):

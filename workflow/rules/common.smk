@@ -13,6 +13,8 @@ from pathlib import Path
 from snakemake.logging import logger
 from snakemake.settings.types import DeploymentMethod
 
+from sim.config import BOOKKEEPING, result_settings
+
 REPO = Path(workflow.basedir).resolve()
 
 # Protocols to run, in a fixed order (wedge before layered), subset of the
@@ -127,9 +129,31 @@ def sim_params(*sections):
     pour and physics; relaxing model, pour and relax, the physics coming with
     the poured state; probing also probe). Adding a
     gravity level therefore re-runs only the probes, and a change in analysis
-    or protocols no simulation.
+    or protocols no simulation. The bookkeeping settings (sim.config.BOOKKEEPING:
+    checkpoint and progress intervals) change no result and are left out; they
+    travel in sim_bookkeeping().
     """
-    return json.dumps({k: config[k] for k in sections}, sort_keys=True)
+    return json.dumps(result_settings({k: config[k] for k in sections}), sort_keys=True)
+
+
+class Unrecorded:
+    """A rule param that Snakemake does not record, so that changing it re-runs
+    nothing: Snakemake records and compares only params of builtin types. In a
+    shell command it formats as `text`."""
+
+    def __init__(self, text):
+        self.text = text
+
+    def __str__(self):
+        return self.text
+
+
+def sim_bookkeeping():
+    """The bookkeeping settings (sim.config.BOOKKEEPING) as JSON for the
+    simulator's --bookkeeping option, an Unrecorded param: a changed checkpoint
+    or progress interval re-pours no pile."""
+    settings = {s: {k: config[s][k] for k in keys} for s, keys in BOOKKEEPING.items()}
+    return Unrecorded(json.dumps(settings, sort_keys=True))
 
 
 def pile_targets(stages=None):
