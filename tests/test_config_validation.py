@@ -143,3 +143,11 @@ def test_valid_configs_pass_and_get_their_defaults():
         validate_config(config)
         assert config["analysis"]["grid"]["spacing"] > 0
         assert config["pour"]["checkpoint_interval"] > 0
+
+
+def test_a_crafted_stage_is_refused_even_when_no_fields_are_asked_for():
+    """analysis.base_pressure.stage reaches a file name in a shell command."""
+    config = with_value(("outputs",), ["states"])
+    config["analysis"]["base_pressure"]["stage"] = "relaxed.nc; touch pwned; echo "
+    with pytest.raises(ConfigurationError, match="analysis.base_pressure.stage"):
+        validate_config(config)

@@ -159,6 +159,34 @@ def test_bad_config_stops_before_any_job(workdir, name, override, message):
     assert message in proc.output, proc.output
 
 
+def shell_blocks(text):
+    """The `shell:` sections of a rule file, each as one string."""
+    blocks, lines = [], text.splitlines()
+    for k, line in enumerate(lines):
+        if line.strip() == "shell:":
+            indent = len(line) - len(line.lstrip())
+            block = []
+            for rest in lines[k + 1:]:
+                if rest.strip() and len(rest) - len(rest.lstrip()) <= indent:
+                    break
+                block.append(rest)
+            blocks.append("\n".join(block))
+    return blocks
+
+
+def test_every_file_and_param_reaches_the_shell_quoted():
+    """A value with a space or a `;` must stay one argument: every {input},
+    {output}, {log} and {params} in a shell command carries :q."""
+    found = 0
+    for path in sorted((REPO / "workflow" / "rules").glob("*.smk")):
+        for block in shell_blocks(path.read_text()):
+            for name, spec in re.findall(r"(?<!\{)\{((?:input|output|log|params)[.\w]*)(:\w*)?\}",
+                                         block):
+                found += 1
+                assert spec == ":q", f"{path.name}: {{{name}{spec}}} is not quoted"
+    assert found > 50
+
+
 # --- scenes: only what the configuration's outputs ask for is built -----------
 
 def scene_args(name):

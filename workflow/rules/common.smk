@@ -65,7 +65,7 @@ def sim_shell(command, numba=True):
 
 def py_shell(command):
     """Shell command `python <command>` run by PY, e.g.
-    `shell: py_shell("-m analysis fields ... > {log} 2>&1")`. Writing `{PY}`
+    `shell: py_shell("-m analysis fields ... > {log:q} 2>&1")`. Writing `{PY}`
     in a shell string directly works too, but snakemake --lint flags it."""
     return f"{shlex.quote(PY)} {command}"
 

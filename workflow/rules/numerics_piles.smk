@@ -49,7 +49,7 @@ rule numerics_pile_pour:
     shell:
         sim_shell(
             "pour --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
-            " --protocol {params.protocol} --seed {wildcards.seed}"
+            " --protocol {params.protocol:q} --seed {wildcards.seed}"
             " --out {output.state:q} --checkpoint {params.checkpoint:q} > {log:q} 2>&1"
         )
         + "; times > {output.cpu:q}"
@@ -139,7 +139,7 @@ rule numerics_ensemble:
     shell:
         py_shell(
             "-m sim.numerics.ensemble_cost data --params {params.cfg:q} --analysis-params {params.analysis:q}"
-            " {params.protocols} --out {output:q} > {log:q} 2>&1"
+            " {params.protocols:q} --out {output:q} > {log:q} 2>&1"
         )
 
 

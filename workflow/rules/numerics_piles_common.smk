@@ -99,7 +99,7 @@ _check_numerics_piles()
 
 
 def _numerics_ensemble_args(wildcards, input):
-    """Per-protocol options of `ensemble_cost data`, in PROTOCOLS order."""
+    """Per-protocol arguments of `ensemble_cost data`, in PROTOCOLS order (a list)."""
     args = []
     for p in PROTOCOLS:
         s = seeds(p)
@@ -109,4 +109,4 @@ def _numerics_ensemble_args(wildcards, input):
         for kind in ("pour", "relax", "probe"):
             files = [f for f in getattr(input, kind) if f.startswith(f"benchmarks/{kind}/{p}/")]
             args += [f"--{kind}-benchmarks", *files]
-    return " ".join(shlex.quote(a) for a in args)
+    return args

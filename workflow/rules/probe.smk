@@ -29,6 +29,6 @@ rule probe:
     shell:
         sim_shell(
             "probe --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
-            " --input {input.state:q} --level {params.level}"
+            " --input {input.state:q} --level {params.level:q}"
             " --out {output:q} > {log:q} 2>&1"
         )
