@@ -59,7 +59,9 @@ class BlowUpError(RuntimeError):
 
 @dataclass
 class Snapshot:
-    """A copy of everything needed to continue a run (see :meth:`Simulation.snapshot`)."""
+    """A copy of everything needed to continue a run (see :meth:`Simulation.snapshot`),
+    and of the contact rows of its last force evaluation (``pout``, ``bout``),
+    so that a restored state reports its own contacts."""
 
     n: int
     r: np.ndarray
@@ -70,6 +72,8 @@ class Snapshot:
     pj: np.ndarray
     spring: np.ndarray
     bspring: np.ndarray
+    pout: np.ndarray
+    bout: np.ndarray
 
 
 class Simulation:
@@ -302,7 +306,7 @@ class Simulation:
         """A copy of the dynamic state, enough to continue the run exactly."""
         return Snapshot(self.n, self.r.copy(), self.time, self.step, self.gravity,
                         self.pi.copy(), self.pj.copy(), self.spring.copy(),
-                        self.bspring.copy())
+                        self.bspring.copy(), self._pair_rows().copy(), self.bout.copy())
 
     def restore(self, snap: Snapshot):
         """Return to a :class:`Snapshot`."""
@@ -310,6 +314,7 @@ class Simulation:
         self.gravity = snap.gravity
         self.pi, self.pj, self.spring = snap.pi.copy(), snap.pj.copy(), snap.spring.copy()
         self.bspring = snap.bspring.copy()
+        self.pout, self.bout = snap.pout.copy(), snap.bout.copy()
         self._stale = True
         self._reset_energy_reference()
 

@@ -100,12 +100,23 @@ def test_blow_up_is_detected_and_last_good_state_kept():
     is made 40 times the automatic one."""
     sim = scene([rectangle(4e-3, 4e-3)], [(0, 2e-3 - 1e-7, 0, 0, 0, 0)], gravity=(0, -9.81),
                 support=True)
+    sim.run(steps=200)            # at rest on the support: its contact is evaluated
     sim.dt *= 40.0
-    sim.r[2] *= 1600.0
+    sim.r *= 40.0 ** np.arange(sim.r.shape[0])[:, None, None]
     with pytest.raises(BlowUpError, match="unstable") as err:
         sim.run(steps=20000)
     assert np.all(np.isfinite(sim.r[:, :, :2]))
     assert err.value.last_good.time == sim.time
+    # the contacts reported (and saved as *.lastgood.nc) are those of the good
+    # state's positions, not of the step that failed
+    c = sim.contacts()
+    assert len(c["i"]) == 1 and np.all(np.isfinite(c["fx"]))
+    x, y = sim.position[0]
+    assert np.hypot(c["x"][0] - x, c["y"][0] - y) <= sim.shapes.radius[0]
+    assert c["area"][0] <= sim.model.max_overlap_fraction * sim.shapes.area[0]
+    assert c["area"][0] == pytest.approx(4e-3 * max(0.0, -float(np.min(
+        y + sim.shapes.node_x[:4] * np.sin(sim.theta[0]) + sim.shapes.node_y[:4] *
+        np.cos(sim.theta[0])))), rel=0.05)
 
 
 @pytest.mark.parametrize("section,key,value,message", [
