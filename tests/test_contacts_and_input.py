@@ -55,6 +55,29 @@ def test_normal_force_never_attracts():
             assert total > f_el
 
 
+@pytest.mark.parametrize("rate", [-1e-3, -1e-5, -1e-7, 0.0, 1e-5])
+def test_normal_damping_is_the_appendix_value_clamped_at_minus_the_elastic_force(rate):
+    """Total = F + D* with D* = gamma sqrt(Y m) dA/dt / l, but never below 0:
+    a fast separation gives exactly 0, a slow one the undamped value less D*."""
+    area, l, m, Y, gamma = 1e-9, 1e-3, 0.02, 1e7, 5.0
+    f_el, total = normal_force(area, rate, l, m, Y, gamma)
+    expected = Y * area / l + gamma * np.sqrt(Y * m) * rate / l
+    assert total == pytest.approx(max(expected, 0.0), rel=1e-12, abs=1e-300)
+    if expected < 0:
+        assert total == 0.0
+
+
+def test_pair_history_is_carried_across_a_rebuild():
+    """The tangential springs of pairs kept by a new pair list keep their
+    value; new pairs start at zero (both lists sorted by (i, j))."""
+    from sim.broadphase import carry_history
+
+    old_i, old_j = np.array([0, 0, 1, 2]), np.array([1, 3, 2, 5])
+    new_i, new_j = np.array([0, 1, 1, 2, 4]), np.array([3, 2, 4, 5, 6])
+    carried = carry_history(old_i, old_j, np.array([1.5, -2.5, 3.5, 4.5]), new_i, new_j)
+    np.testing.assert_array_equal(carried, [-2.5, 3.5, 0.0, 4.5, 0.0])
+
+
 def test_tangential_force_capped_and_opposes_sliding():
     f_el = 2.0
     mu = 0.4
