@@ -242,3 +242,31 @@ def test_fit_uncertainty_is_the_spread_of_the_piles_moduli(method):
     same = fit_uncertainty(np.stack([one[0]] * 3), np.stack([one[1]] * 3), method, 1, 1e-12,
                            samples=50)
     np.testing.assert_allclose(same["bulk_modulus"], 0.0, atol=1e-6)
+
+
+def test_moduli_dataset_holds_the_fit_of_the_mean_and_the_spread_of_the_piles():
+    import xarray as xr
+
+    from analysis.elastic import moduli_dataset
+    from analysis.netcdf import tensor_coords, var
+    from analysis.params import resolve_params
+
+    K = np.array([3.0e6, 3.4e6, 2.6e6])
+    G = np.array([1.0e6, 1.1e6, 0.9e6])
+    coords = {"y": var("y", [0.03, 0.045, 0.06], "y", "m"),
+              "x": var("x", [-0.015, 0.0, 0.015, 0.03], "x", "m"), **tensor_coords()}
+    piles = []
+    for k, g in zip(K, G):
+        sigma, u = _isotropic_pile(np.random.default_rng(3), k, g)
+        pile = xr.Dataset(coords=coords)
+        pile["stress_increment"] = var(("y", "x", "i", "j"), sigma, "dsigma", "N m-1")
+        pile["strain_increment"] = var(("y", "x", "i", "j"), u, "u", "1")
+        piles.append(pile)
+    ensemble = (sum(piles) / len(piles)).assign_attrs(n_seeds=3, protocol="wedge")
+    ds = moduli_dataset(ensemble, piles, resolve_params({"moduli": {"min_points": 1}}))
+    assert ds["bulk_modulus"].dims == ("fit", "points", "y", "x")
+    np.testing.assert_allclose(ds["bulk_modulus"].values, K.mean(), rtol=1e-9)
+    np.testing.assert_allclose(ds["shear_modulus"].values, G.mean(), rtol=1e-9)
+    np.testing.assert_allclose(ds["bulk_modulus_sem"].values, np.std(K, ddof=1) / np.sqrt(3),
+                               rtol=1e-9)
+    assert ds.attrs["n_seeds"] == 3 and ds.attrs["uncertainty_method"] == "pile_fits"
