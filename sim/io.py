@@ -4,7 +4,8 @@ A state file holds exactly the contract's variables plus what a restart needs
 to continue the same trajectory: ``integrator_state`` (the scaled time
 derivatives the integrator keeps, stored as they are so a restart with the
 same dt is exact to the bit) and ``contact_spring`` (the Cundall–Strack history of
-each contact).  Files are written to a temporary name and renamed when
+each contact); the global attribute ``code_version`` (:func:`code_version`)
+names the simulator code that wrote it.  Files are written to a temporary name and renamed when
 complete, so a killed job never leaves a file that looks whole.
 """
 
