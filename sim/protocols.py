@@ -268,14 +268,18 @@ class PourLock:
         self.owner = f"{socket.gethostname()} {os.getpid()}"
 
     def _holder_alive(self, text):
+        """Whether the holder named by the lock's `text` may still run (an
+        empty or garbled lock is one whose writer died while writing it)."""
         host, _, pid = text.partition(" ")
+        if not pid.isdigit():
+            return False
         if host != socket.gethostname():
             return _time.time() - self.path.stat().st_mtime < self.stale_after
         try:
             os.kill(int(pid), 0)
         except ProcessLookupError:
             return False
-        except (PermissionError, ValueError):
+        except PermissionError:      # a process of another user
             return True
         return True
 

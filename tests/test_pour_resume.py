@@ -171,6 +171,9 @@ def test_another_hosts_lock_counts_until_it_is_stale(tmp_path):
     os.utime(lock_path, (old, old))
     with protocols.PourLock(lock_path, stale_after=60.0):
         assert lock_path.read_text().split()[1] == str(os.getpid())
+    lock_path.write_text("")     # its writer was killed before writing
+    with protocols.PourLock(lock_path, stale_after=60.0):
+        pass
 
 
 def test_a_pour_with_particles_in_flight_fails_naming_the_cause(tmp_path):
