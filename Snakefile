@@ -2,7 +2,12 @@
 # Granular Matter (2010). Thin entry point: configuration, its validation and
 # the rule files; see README.md for the stages and CONTRACT.md for the files.
 
-from snakemake.utils import min_version, validate
+import sys
+
+from snakemake.utils import min_version
+
+sys.path.insert(0, workflow.basedir)  # for workflow/validation.py
+from workflow.validation import validate_config
 
 min_version("9.0")
 
@@ -16,9 +21,10 @@ if not workflow.overwrite_configfiles:
     configfile: "config/config.yaml"
 
 
-# Fills in every default of the schema, so the rules see a complete config.
-validate(config, "workflow/schemas/config.schema.yaml")
-validate(config["analysis"], "workflow/schemas/analysis.schema.yaml")
+# The one validator (schemas, finite numbers, integers, the simulator's and the
+# analysis' own checks); it fills in every default of the schemas, so the
+# rules see a complete config.
+validate_config(config)
 
 
 report: "workflow/report/workflow.rst"

@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+import re
 from typing import Any
 
 from .errors import ParamError
@@ -113,7 +114,7 @@ _SPEC: dict[str, dict[str, dict[str, Any]]] = {
         "x_min": {"type": _NUM},
         "x_max": {"type": _NUM},
         "bin_width": {"type": _NUM, "min": 0.0, "exclusive": True},
-        "stage": {"type": _STR},
+        "stage": {"type": _STR, "pattern": r"poured|relaxed|reduced|reduced[0-9][0-9]"},
     },
     "moduli": {
         "min_points": {"type": _INT, "min": 1, "max": 5},
@@ -166,6 +167,8 @@ def _check_value(name: str, value: Any, spec: dict[str, Any]) -> None:
         if "choices" in spec and value not in spec["choices"]:
             allowed = ", ".join(repr(c) for c in spec["choices"])
             raise ParamError(f"analysis.{name} = {value!r} is not allowed; allowed values: {allowed}")
+        if "pattern" in spec and not re.fullmatch(spec["pattern"], value):
+            raise ParamError(f"analysis.{name} = {value!r} is not allowed; allowed: {spec['pattern']}")
         return
     elif kind == "sizes":
         if (not isinstance(value, list) or not value

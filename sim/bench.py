@@ -51,6 +51,14 @@ HEAP_SLOPE_DEG = 20.0
 HEAP_RELAX = RelaxParams(max_time=3.0)
 
 
+def _shapes(rng, n, model, particles=None):
+    """``n`` of the study's particles (or of ``particles``) at ``model.density``."""
+    pp = particles or ParticleParams()
+    return make_shapes(rng, n, pp.corners_min, pp.corners_max, pp.semi_axis_mean,
+                       pp.semi_axis_spread, model.density, pp.min_edge_fraction,
+                       pp.min_angle_deg)
+
+
 def dense_packing(n, seed=0, model=None, particles=None):
     """A box-confined packing of ``n`` particles on the support.
 
@@ -68,11 +76,8 @@ def dense_packing(n, seed=0, model=None, particles=None):
     Simulation
     """
     model = model or ModelParams()
-    pp = particles or ParticleParams()
     rng = np.random.default_rng(seed)
-    shapes = make_shapes(rng, n, pp.corners_min, pp.corners_max, pp.semi_axis_mean,
-                         pp.semi_axis_spread, model.density, pp.min_edge_fraction,
-                         pp.min_angle_deg)
+    shapes = _shapes(rng, n, model, particles)
     d = 2.0 * float(np.mean(shapes.radius))
     ncol = max(int(np.sqrt(n)), 1)
     width = (ncol + 0.5) * d
@@ -98,11 +103,8 @@ def lattice_heap(n, seed=0, model=None, particles=None, slope_deg=HEAP_SLOPE_DEG
         At rest, with gravity, the support and no walls.
     """
     model = model or ModelParams(integrator="verlet")
-    pp = particles or ParticleParams()
     rng = np.random.default_rng(seed)
-    shapes = make_shapes(rng, n, pp.corners_min, pp.corners_max, pp.semi_axis_mean,
-                         pp.semi_axis_spread, model.density, pp.min_edge_fraction,
-                         pp.min_angle_deg)
+    shapes = _shapes(rng, n, model, particles)
     d = 2.0 * float(np.max(shapes.radius))
     row_height = d * np.sqrt(3.0) / 2.0
     cot = 1.0 / np.tan(np.radians(slope_deg))

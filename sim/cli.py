@@ -4,7 +4,10 @@ Run parameters come as ``--params`` (JSON text, or ``@file`` with JSON or YAML)
 holding any of the sections ``model``, ``particles``, ``pour``, ``relax``,
 ``probe``, ``physics`` (see :mod:`sim.config`; missing settings take their defaults).  A
 setting with a wrong type or value is refused before anything runs, with a
-message naming the setting, the value and what is allowed.
+message naming the setting, the value and what is allowed.  ``--bookkeeping``
+(JSON) carries the settings that change no result (checkpoint and progress
+intervals), which the workflow passes apart so that changing them re-runs
+nothing.
 """
 
 from __future__ import annotations
@@ -15,24 +18,51 @@ import logging
 import sys
 from pathlib import Path
 
-from .config import ConfigError, SimConfig
+from .config import BOOKKEEPING, ConfigError, SimConfig
 
 
-def _params(text):
+def _load_params(text):
+    """The settings dict of ``--params`` (JSON text, or ``@file`` with JSON or YAML)."""
     if text is None:
-        return SimConfig()
-    if text.startswith("@"):
-        path = Path(text[1:])
-        raw = path.read_text()
-        if path.suffix in (".yaml", ".yml"):
-            import yaml
-            data = yaml.safe_load(raw) or {}
-        else:
-            data = json.loads(raw)
-        keep = {k: v for k, v in data.items()
-                if k in ("model", "particles", "pour", "relax", "probe", "physics")}
-        return SimConfig.from_dict(keep)
-    return SimConfig.from_json(text)
+        return {}
+    if not text.startswith("@"):
+        try:
+            return json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ConfigError(f"--params is not valid JSON: {exc}") from None
+    path = Path(text[1:])
+    raw = path.read_text()
+    if path.suffix in (".yaml", ".yml"):
+        import yaml
+        data = yaml.safe_load(raw) or {}
+    else:
+        data = json.loads(raw)
+    return {k: v for k, v in data.items()
+            if k in ("model", "particles", "pour", "relax", "probe", "physics")}
+
+
+def _params(text, bookkeeping=None):
+    """The run's :class:`SimConfig` from ``--params`` and ``--bookkeeping``.
+
+    ``--bookkeeping`` (JSON) holds only settings of :data:`BOOKKEEPING`; they
+    override those of ``--params``.
+    """
+    data = _load_params(text)
+    if bookkeeping is not None:
+        try:
+            extra = json.loads(bookkeeping)
+        except json.JSONDecodeError as exc:
+            raise ConfigError(f"--bookkeeping is not valid JSON: {exc}") from None
+        if not isinstance(extra, dict):
+            raise ConfigError(f"--bookkeeping = {bookkeeping!r}: must be a JSON object")
+        for section, values in extra.items():
+            allowed = BOOKKEEPING.get(section, ())
+            if not isinstance(values, dict) or set(values) - set(allowed):
+                raise ConfigError(
+                    f"--bookkeeping: {section} = {values!r} holds settings that change the "
+                    f"result; only {dict(BOOKKEEPING)} may come here, the rest in --params")
+            data.setdefault(section, {}).update(values)
+    return SimConfig.from_dict(data)
 
 
 def _int_list(option, text):
@@ -51,9 +81,12 @@ def _parser():
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="command", required=True)
     params_help = "run parameters: JSON text, or @FILE (JSON or YAML config)"
+    bookkeeping_help = ("settings that change no result (checkpoint and progress "
+                        "intervals) as JSON, e.g. '{\"pour\": {\"progress_interval\": 5}}'")
 
     p = sub.add_parser("pour", help="pour a pile (wedge: point source, layered: line source)")
     p.add_argument("--params", help=params_help)
+    p.add_argument("--bookkeeping", help=bookkeeping_help)
     p.add_argument("--protocol", required=True, choices=["wedge", "layered"])
     p.add_argument("--seed", required=True, type=int)
     p.add_argument("--out", required=True, help="state file of the poured pile (.nc)")
@@ -61,11 +94,13 @@ def _parser():
 
     p = sub.add_parser("relax", help="relax a pile to rest")
     p.add_argument("--params", help=params_help)
+    p.add_argument("--bookkeeping", help=bookkeeping_help)
     p.add_argument("--input", required=True)
     p.add_argument("--out", required=True)
 
     p = sub.add_parser("probe", help="lower gravity by a level and relax again")
     p.add_argument("--params", help=params_help)
+    p.add_argument("--bookkeeping", help=bookkeeping_help)
     p.add_argument("--input", required=True, help="relaxed state file")
     p.add_argument("--level", required=True, type=float,
                    help="relative gravity reduction Delta, in (0, 1)")
@@ -143,7 +178,7 @@ def main(argv=None):
                            _int_list("--threads", args.threads), Path(args.cache),
                            args.state)
             return 0
-        cfg = _params(args.params)
+        cfg = _params(args.params, args.bookkeeping)
         from . import protocols
         if args.command == "pour":
             protocols.pour(cfg, args.protocol, args.seed, args.out, args.checkpoint)

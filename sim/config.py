@@ -22,6 +22,12 @@ class ConfigError(ValueError):
     """A setting has a wrong type or a value outside what is allowed."""
 
 
+#: Settings that change how a run reports and saves its progress, never its
+#: result: a checkpoint made under other values is resumed, and the workflow
+#: passes them outside the rule params so that changing them re-runs nothing.
+BOOKKEEPING = {"pour": ("checkpoint_interval", "progress_interval")}
+
+
 def _check_number(section: str, name: str, value: Any, lo=None, hi=None,
                   lo_open=False, hi_open=False, integer=False) -> None:
     """Raise :class:`ConfigError` unless ``value`` is a finite number in range."""
@@ -252,6 +258,10 @@ class RelaxParams:
         _check_number(s, "drag", self.drag, lo=0, hi=1e4)
         _check_number(s, "rocking_drag", self.rocking_drag, lo=0, hi=1e4)
         _check_number(s, "drag_time", self.drag_time, lo=0)
+        if self.hold_time > self.max_time:
+            raise ConfigError(f"relax.hold_time = {self.hold_time!r}: must be <= "
+                              f"relax.max_time = {self.max_time!r} (the rest criteria "
+                              "could never hold long enough)")
 
 
 @dataclass(frozen=True)
@@ -335,6 +345,17 @@ class SimConfig:
     probe: ProbeParams = field(default_factory=ProbeParams)
     physics: PhysicsParams = field(default_factory=PhysicsParams)
 
+    def __post_init__(self):
+        if self.physics.walls is not None:
+            width = self.physics.walls[1] - self.physics.walls[0]
+            largest = 2.0 * self.particles.semi_axis_mean * (1.0 + self.particles.semi_axis_spread)
+            if width <= largest:
+                raise ConfigError(
+                    f"physics.walls = {list(self.physics.walls)!r}: {width:.4g} m apart, "
+                    f"but the largest particle is {largest:.4g} m across (2 x "
+                    "particles.semi_axis_mean x (1 + semi_axis_spread)); the walls must "
+                    "be farther apart than that")
+
     @classmethod
     def from_dict(cls, data: dict | None) -> "SimConfig":
         """Build from a nested dict (missing keys take defaults, unknown keys fail).
@@ -363,15 +384,6 @@ class SimConfig:
             sections[f.name] = klass(**sub)
         return cls(**sections)
 
-    @classmethod
-    def from_json(cls, text: str) -> "SimConfig":
-        """Build from JSON text (see :meth:`from_dict`)."""
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ConfigError(f"--params is not valid JSON: {exc}") from None
-        return cls.from_dict(data)
-
     def to_dict(self) -> dict:
         """Plain nested dict of all settings (JSON-serialisable)."""
         out = dataclasses.asdict(self)
@@ -379,3 +391,32 @@ class SimConfig:
         if out["physics"]["walls"] is not None:
             out["physics"]["walls"] = list(out["physics"]["walls"])
         return out
+
+    def result_dict(self, sections=None) -> dict:
+        """The settings that fix a run's result (see :func:`result_settings`)."""
+        return result_settings(self.to_dict(), sections)
+
+
+def result_settings(settings: dict, sections=None) -> dict:
+    """A settings dict (as :meth:`SimConfig.to_dict`) without its :data:`BOOKKEEPING` keys.
+
+    Parameters
+    ----------
+    settings : dict
+        Mapping of section name to a mapping of settings.
+    sections : iterable of str, optional
+        Keep only these sections (default: all).
+
+    Returns
+    -------
+    dict
+        A new dict; sections that are not mappings are kept as they are.
+    """
+    out = {}
+    for section, values in settings.items():
+        if sections is not None and section not in sections:
+            continue
+        drop = BOOKKEEPING.get(section, ())
+        out[section] = ({k: v for k, v in values.items() if k not in drop}
+                        if isinstance(values, dict) else values)
+    return out

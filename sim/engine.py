@@ -60,7 +60,9 @@ class BlowUpError(RuntimeError):
 
 @dataclass
 class Snapshot:
-    """A copy of everything needed to continue a run (see :meth:`Simulation.snapshot`)."""
+    """A copy of everything needed to continue a run (see :meth:`Simulation.snapshot`),
+    and of the contact rows of its last force evaluation (``pout``, ``bout``),
+    so that a restored state reports its own contacts."""
 
     n: int
     r: np.ndarray
@@ -71,6 +73,8 @@ class Snapshot:
     pj: np.ndarray
     spring: np.ndarray
     bspring: np.ndarray
+    pout: np.ndarray
+    bout: np.ndarray
     axis: np.ndarray
     cross: np.ndarray
 
@@ -329,7 +333,8 @@ class Simulation:
         """A copy of the dynamic state, enough to continue the run exactly."""
         return Snapshot(self.n, self.r.copy(), self.time, self.step, self.gravity,
                         self.pi.copy(), self.pj.copy(), self.spring.copy(),
-                        self.bspring.copy(), self.axis.copy(), self.cross.copy())
+                        self.bspring.copy(), self._pair_rows().copy(), self.bout.copy(),
+                        self.axis.copy(), self.cross.copy())
 
     def restore(self, snap: Snapshot):
         """Return to a :class:`Snapshot`."""
@@ -337,6 +342,7 @@ class Simulation:
         self.gravity = snap.gravity
         self.pi, self.pj, self.spring = snap.pi.copy(), snap.pj.copy(), snap.spring.copy()
         self.bspring = snap.bspring.copy()
+        self.pout, self.bout = snap.pout.copy(), snap.bout.copy()
         self.axis, self.cross = snap.axis.copy(), snap.cross.copy()
         self._stale = True
         self._reset_energy_reference()
@@ -362,6 +368,9 @@ class Simulation:
             self.step += steps
             return steps
         done = 0
+        # time from the steps done in this call, not summed chunk by chunk: the
+        # chunks end at pair-list rebuilds, which a resumed run has elsewhere
+        start_time = self.time
         last_good = self.snapshot()
         rebuild_sq = (0.45 * self.skin) ** 2
         while done < steps:
@@ -374,7 +383,7 @@ class Simulation:
                         rebuild_sq)
             done += k
             self.step += k
-            self.time += k * self.dt
+            self.time = start_time + done * self.dt
             if k < chunk:
                 self._stale = True
             if self.step % self.check_every == 0 or done == steps:

@@ -4,12 +4,15 @@ A state file holds exactly the contract's variables plus what a restart needs
 to continue the same trajectory: ``integrator_state`` (the scaled time
 derivatives the integrator keeps, stored as they are so a restart with the
 same dt is exact to the bit) and ``contact_spring`` (the Cundall–Strack history of
-each contact).  Files are written to a temporary name and renamed when
+each contact); the global attribute ``code_version`` (:func:`code_version`)
+names the simulator code that wrote it.  Files are written to a temporary name and renamed when
 complete, so a killed job never leaves a file that looks whole.
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import json
 import os
 import time as _time
@@ -49,7 +52,27 @@ CONTACT_VARS = {
 
 
 class StateFileError(ValueError):
-    """A state file is missing a variable or holds invalid values."""
+    """A state file cannot be read, is missing a variable or holds invalid values."""
+
+
+@functools.lru_cache(maxsize=1)
+def code_version() -> str:
+    """Hash of the simulator's sources, the code version recorded in every state file.
+
+    It covers ``sim/*.py`` except the picture code (``draw.py``): the files
+    the workflow lists as the simulation rules' code inputs.  A pour resumes
+    a checkpoint only if it was written by the same code.
+
+    Returns
+    -------
+    str
+        The first 16 hex digits of the SHA-256 of the sources.
+    """
+    digest = hashlib.sha256()
+    for path in sorted(Path(__file__).parent.glob("*.py")):
+        if path.name != "draw.py":
+            digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()[:16]
 
 
 def atomic_write(ds: xr.Dataset, path) -> None:
@@ -138,6 +161,7 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
         "Conventions": "CF-1.8",
         "title": "Particle state of a 2D pile of soft convex polygons",
         "source": f"polypile sim {__version__}",
+        "code_version": code_version(),
         "history": f"{_time.strftime('%Y-%m-%dT%H:%M:%SZ', _time.gmtime())} written by "
                    "sim.io.state_dataset",
         "config": json.dumps(config or {}, sort_keys=True),
@@ -175,8 +199,14 @@ def read_state(path) -> xr.Dataset:
     path = Path(path)
     if not path.exists():
         raise StateFileError(f"state file {path} does not exist")
-    with xr.open_dataset(path, engine="netcdf4") as ds:
-        ds = ds.load()
+    try:
+        with xr.open_dataset(path, engine="netcdf4") as ds:
+            ds = ds.load()
+    except (OSError, ValueError, RuntimeError, KeyError) as exc:
+        raise StateFileError(f"state file {path} cannot be read ({type(exc).__name__}: "
+                             f"{str(exc).splitlines()[0] if str(exc) else 'no detail'}): "
+                             "truncated or not a netCDF file; delete it and run the step "
+                             "that writes it again") from None
     missing = [v for v in REQUIRED if v not in ds]
     if missing:
         raise StateFileError(f"state file {path}: missing variable(s) {missing}")

@@ -31,16 +31,19 @@ releases the same particles at the same places as the uninterrupted one.
 
 from __future__ import annotations
 
+import json
 import logging
 import math
+import os
+import socket
 import time as _time
 from pathlib import Path
 
 import numpy as np
 
-from .config import ConfigError, SimConfig
+from .config import ConfigError, SimConfig, result_settings
 from .engine import BlowUpError, Simulation
-from .io import load_simulation, save_state
+from .io import StateFileError, code_version, load_simulation, save_state
 from .measure import angle_of_repose, mean_coordination
 from .shapes import make_shapes
 
@@ -52,6 +55,23 @@ GRAVITY = 9.81
 
 class RelaxationError(RuntimeError):
     """The pile did not come to rest within ``relax.max_time``."""
+
+
+class LandingError(RuntimeError):
+    """Poured particles were still in flight :data:`LANDING_TIME` after the last release."""
+
+
+class PourLockedError(RuntimeError):
+    """Another live process is pouring the same pile."""
+
+
+#: The configuration sections a pour reads; a checkpoint is resumed only under
+#: the same result-relevant settings of these.
+POUR_SECTIONS = ("model", "particles", "pour", "physics")
+
+#: Simulated time (s) after the last release within which every particle must
+#: have landed (see :func:`_in_flight`), else the pour fails.
+LANDING_TIME = 1.0
 
 
 def _keep_last_good(sim, out, cfg, exc, **attrs):
@@ -188,13 +208,26 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
         The ``poured`` state file (written atomically).
     checkpoint : path, optional
         Checkpoint file: resumed from if present, rewritten every
-        ``pour.checkpoint_interval`` wall seconds, deleted on success.
+        ``pour.checkpoint_interval`` wall seconds, deleted on success.  It is
+        resumed only if made for this pile by the same code (:func:`code_version`)
+        under the same settings (bookkeeping aside); otherwise, or when it
+        cannot be read, it is renamed aside (``*.unused``) and the pour starts
+        afresh, with a log line.  While pouring, the lock file
+        ``<checkpoint>.lock`` (:class:`PourLock`) keeps a second process off.
     settle_time : float
-        Simulated time after the last release before the state is saved, s.
+        Simulated time after the last release before the state is saved, s;
+        longer while particles are still in flight (see :func:`_land`).
 
     Returns
     -------
     Simulation
+
+    Raises
+    ------
+    PourLockedError
+        If a live process holds the lock.
+    LandingError
+        If particles are still in flight :data:`LANDING_TIME` after the last release.
     """
     if protocol not in ("wedge", "layered"):
         raise ValueError(f"protocol = {protocol!r}: must be 'wedge' or 'layered'")
@@ -203,20 +236,140 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
     if not cfg.physics.support:
         raise ConfigError("physics.support = false: a pile is poured onto the support; "
                           "without it the particles fall for ever (allowed: true)")
+    checkpoint = Path(checkpoint) if checkpoint else None
+    if checkpoint is None:
+        return _pour(cfg, protocol, seed, out, None, settle_time, None)
+    with PourLock(checkpoint.with_name(checkpoint.name + ".lock"),
+                  stale_after=3 * cfg.pour.checkpoint_interval + 60.0) as lock:
+        return _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock)
+
+
+class PourLock:
+    """A lock file naming the process that pours a pile (``host pid``).
+
+    Taking it fails with :class:`PourLockedError` while its holder lives, so
+    a pour left running by a killed Snakemake and the rerun's pour never
+    write the same checkpoint.  A lock whose holder is gone is taken over:
+    on this host when no process has its PID, from another host (a shared
+    file system) when it was not refreshed for ``stale_after`` seconds (the
+    holder refreshes it at every checkpoint).
+
+    Parameters
+    ----------
+    path : path
+        The lock file.
+    stale_after : float
+        Seconds without a refresh after which another host's lock is stale.
+    """
+
+    def __init__(self, path, stale_after):
+        self.path = Path(path)
+        self.stale_after = stale_after
+        self.owner = f"{socket.gethostname()} {os.getpid()}"
+
+    def _holder_alive(self, text):
+        """Whether the holder named by the lock's `text` may still run (an
+        empty or garbled lock is one whose writer died while writing it)."""
+        host, _, pid = text.partition(" ")
+        if not pid.isdigit():
+            return False
+        if host != socket.gethostname():
+            return _time.time() - self.path.stat().st_mtime < self.stale_after
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            return False
+        except PermissionError:      # a process of another user
+            return True
+        return True
+
+    def __enter__(self):
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            try:
+                holder = self.path.read_text().strip()
+                alive = self._holder_alive(holder)
+            except FileNotFoundError:
+                holder, alive = "", False
+            if alive:
+                raise PourLockedError(
+                    f"{self.path}: this pile is being poured by process {holder!r} "
+                    "(host pid); wait for it or stop it (delete the lock file only if "
+                    "that process is gone)") from None
+            log.warning("taking over the lock %s of %r, which is gone", self.path, holder)
+            fd = os.open(self.path, os.O_CREAT | os.O_TRUNC | os.O_WRONLY)
+        with os.fdopen(fd, "w") as fh:
+            fh.write(self.owner + "\n")
+        return self
+
+    def refresh(self):
+        """Mark the lock as still held (its modification time)."""
+        os.utime(self.path)
+
+    def __exit__(self, *exc):
+        try:
+            if self.path.read_text().strip() == self.owner:
+                self.path.unlink()
+        except FileNotFoundError:
+            pass
+
+
+def _set_aside(checkpoint, reason):
+    """Rename an unusable checkpoint out of the way (kept for inspection) and log why."""
+    aside = checkpoint.with_name(f"{checkpoint.name}.{_time.strftime('%Y%m%dT%H%M%S')}.unused")
+    os.replace(checkpoint, aside)
+    log.warning("checkpoint %s %s; set aside as %s, pouring afresh", checkpoint, reason, aside)
+
+
+def _resume(cfg, protocol, seed, checkpoint, shapes):
+    """The simulation and next release time of a usable checkpoint, or None.
+
+    A checkpoint is used only if it was made for the same pile by the same
+    code under the same result-relevant settings (:meth:`SimConfig.result_dict`);
+    otherwise, or if it cannot be read, it is set aside.
+    """
+    try:
+        sim, ds = load_simulation(checkpoint, cfg.model, capacity_shapes=shapes)
+        made = {"protocol": ds.attrs.get("protocol"), "seed": int(ds.attrs.get("seed", -1)),
+                "code version": ds.attrs.get("code_version"),
+                "configuration": result_settings(json.loads(ds.attrs.get("config", "{}")),
+                                                 POUR_SECTIONS)}
+        next_release = float(ds.attrs["next_release"])
+    except (StateFileError, KeyError, ValueError, AttributeError) as exc:
+        _set_aside(checkpoint, f"is unusable ({exc})")
+        return None
+    now = {"protocol": protocol, "seed": seed, "code version": code_version(),
+           "configuration": cfg.result_dict(POUR_SECTIONS)}
+    differ = [key for key in now if made[key] != now[key]]
+    if differ:
+        _set_aside(checkpoint, f"was made with another {' and '.join(differ)}")
+        return None
+    log.info("resuming %s seed %d from checkpoint %s: t = %.4f s, %d particles",
+             protocol, seed, checkpoint, sim.time, sim.n)
+    return sim, next_release
+
+
+def _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock):
+    """The pour itself (see :func:`pour`); ``lock`` is refreshed at each checkpoint."""
     p = cfg.pour
     shapes = pile_shapes(cfg, seed)
-    checkpoint = Path(checkpoint) if checkpoint else None
     interval = 1.0 / p.rate
-    next_release = 0.0
-    if checkpoint is not None and checkpoint.exists():
-        sim, ds = load_simulation(checkpoint, cfg.model, capacity_shapes=shapes)
-        next_release = float(ds.attrs["next_release"])
-        log.info("resuming %s seed %d from checkpoint %s: t = %.4f s, %d particles",
-                 protocol, seed, checkpoint, sim.time, sim.n)
+    resumed = None
+    if checkpoint is not None:
+        # temporary files of checkpoints whose writer was killed (we hold the lock)
+        for stale in checkpoint.parent.glob(f".{checkpoint.name}.*.tmp"):
+            stale.unlink()
+        if checkpoint.exists():
+            resumed = _resume(cfg, protocol, seed, checkpoint, shapes)
+    if resumed is not None:
+        sim, next_release = resumed
     else:
         phys = cfg.physics
         sim = Simulation(shapes, cfg.model, gravity=(0.0, -GRAVITY), support=phys.support,
                          walls=phys.walls, rotate=phys.rotation)
+        next_release = 0.0
     log.info("pouring %d particles (%s, seed %d), dt = %.3g s (%s; limit %.3g s)",
              p.n_particles, protocol, seed, sim.dt, cfg.model.integrator,
              sim.bound.dt_limit)
@@ -241,8 +394,11 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
             if checkpoint is not None and _time.monotonic() - last_ckpt > p.checkpoint_interval:
                 save_state(sim, checkpoint, cfg.to_dict(), stage="checkpoint",
                            next_release=next_release, **attrs)
+                if lock is not None:
+                    lock.refresh()
                 last_ckpt = _time.monotonic()
         sim.run(duration=settle_time)
+        _land(sim, cfg, f"pour {protocol} seed {seed}")
     except BlowUpError as exc:
         _keep_last_good(sim, out, cfg, exc, **attrs)
         raise
@@ -251,6 +407,45 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
         checkpoint.unlink()
     _summary(sim, f"pour {protocol} seed {seed}", _time.monotonic() - t_wall)
     return sim
+
+
+def _in_flight(sim, cfg):
+    """Mask of the particles in flight: touching nothing (no contact with a
+    particle or body), with the energy to rise above their release height
+    (``y + |v|²/2g`` above the pile's top plus ``release_height`` plus their
+    circumradius).  A polygon hopping on the support or rolling down the
+    flank is not in flight; one bounced off the pile is."""
+    c = sim.contacts()
+    touching = np.zeros(sim.n, bool)
+    touching[c["i"]] = True
+    touching[c["j"][c["j"] >= 0]] = True
+    g = max(float(np.hypot(*sim.gravity)), 1e-12)
+    reach = sim.position[:, 1] + np.sum(sim.velocity ** 2, axis=1) / (2.0 * g)
+    release = pile_top(sim) + cfg.pour.release_height + sim.shapes.radius[:sim.n]
+    return ~touching & (reach > release)
+
+
+def _land(sim, cfg, what):
+    """Run on until no particle is in flight (:func:`_in_flight`), at most
+    :data:`LANDING_TIME` s of simulated time.
+
+    Raises
+    ------
+    LandingError
+        Naming how many particles are still in flight and how fast they move.
+    """
+    t0 = sim.time
+    while np.any(flying := _in_flight(sim, cfg)):
+        if sim.time - t0 >= LANDING_TIME:
+            speed = np.hypot(*sim.velocity.T)
+            raise LandingError(
+                f"{what}: {int(np.sum(flying))} of {sim.n} particles are still in flight "
+                f"{LANDING_TIME} s after the last release (fastest {float(speed.max()):.3g} "
+                f"m/s, highest at y = {float(sim.position[:, 1].max()):.3g} m): they bounce "
+                f"off the pile; lower pour.release_speed = {cfg.pour.release_speed} m/s or "
+                f"pour.release_height = {cfg.pour.release_height} m, or raise "
+                f"model.damping = {cfg.model.damping}")
+        sim.run(duration=0.01)
 
 
 def _summary(sim, what, wall):

@@ -37,6 +37,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .geometry import write_contact
+
 
 
 @njit(cache=True, inline="always")
@@ -130,6 +132,34 @@ def _inside(x, y, p0, p1, vx, vy):
 
 
 @njit(cache=True, inline="always")
+def _arc(x, y, p0, n, k_from, k_to, q0, q1, ox, oy, x1, y1, a2, qx, qy):
+    """Walk the corners ``k_from + 1 .. k_to`` of polygon ``p`` (``n`` corners from
+    ``p0``), each of which must lie in polygon ``[q0, q1)``, adding their
+    shoelace terms to ``a2`` (coordinates relative to the local point ``(x1,
+    y1)`` of the frame at the world point ``o``; ``(qx, qy)`` the previous
+    corner).
+
+    Returns
+    -------
+    (bool, float, float, float)
+        Whether every corner lies inside, the sum, the last corner.
+    """
+    k = k_from
+    while k != k_to:
+        k = k + 1 if k + 1 < n else 0
+        vx = x[p0 + k]
+        vy = y[p0 + k]
+        if not _inside(x, y, q0, q1, vx, vy):
+            return False, a2, qx, qy
+        vx = (vx - ox) - x1
+        vy = (vy - oy) - y1
+        a2 += qx * vy - vx * qy
+        qx = vx
+        qy = vy
+    return True, a2, qx, qy
+
+
+@njit(cache=True, inline="always")
 def overlap_from_crossings(x, y, a0, a1, b0, b1, cax, cay, cbx, cby, eps, out, cross, p):
     """Overlap geometry of ``a = [a0, a1)`` and ``b = [b0, b1)`` from the crossing
     edges ``cross[p]`` of the last step, if they still describe it.
@@ -192,34 +222,16 @@ def overlap_from_crossings(x, y, a0, a1, b0, b1, cax, cay, cbx, cby, eps, out, c
     x2 = (x[i] - ox) + t2 * (x[i1] - x[i])
     y2 = (y[i] - oy) + t2 * (y[i1] - y[i])
     # shoelace over X1, a's corners inside b, X2, b's corners inside a (relative to X1)
-    a2 = 0.0
-    qx = 0.0
-    qy = 0.0
-    k = ka_in
-    while k != ka_out:
-        k = k + 1 if k + 1 < na else 0
-        if not _inside(x, y, b0, b1, x[a0 + k], y[a0 + k]):
-            return False
-        vx = (x[a0 + k] - ox) - x1
-        vy = (y[a0 + k] - oy) - y1
-        a2 += qx * vy - vx * qy
-        qx = vx
-        qy = vy
+    ok, a2, qx, qy = _arc(x, y, a0, na, ka_in, ka_out, b0, b1, ox, oy, x1, y1, 0.0, 0.0,
+                          0.0)
+    if not ok:
+        return False
     tx = x2 - x1
     ty = y2 - y1
     a2 += qx * ty - tx * qy
-    qx = tx
-    qy = ty
-    k = kb_out
-    while k != kb_in:
-        k = k + 1 if k + 1 < nb else 0
-        if not _inside(x, y, a0, a1, x[b0 + k], y[b0 + k]):
-            return False
-        vx = (x[b0 + k] - ox) - x1
-        vy = (y[b0 + k] - oy) - y1
-        a2 += qx * vy - vx * qy
-        qx = vx
-        qy = vy
+    ok, a2, qx, qy = _arc(x, y, b0, nb, kb_out, kb_in, a0, a1, ox, oy, x1, y1, a2, tx, ty)
+    if not ok:
+        return False
     d2 = tx * tx + ty * ty
     if not (0.5 * a2 > eps * eps and d2 > eps * eps):
         return False
@@ -232,21 +244,9 @@ def overlap_from_crossings(x, y, a0, a1, b0, b1, cax, cay, cbx, cby, eps, out, c
     if dot < -eps:
         nx = -nx
         ny = -ny
-        x1, x2 = x2, x1
-        y1, y2 = y2, y1
     elif not dot > eps:
         return False
-    # c2 − c1 runs along t = (−n_y, n_x), as written by the general kernel
-    out[0] = 0.5 * a2
-    out[1] = x1 + ox
-    out[2] = y1 + oy
-    out[3] = x2 + ox
-    out[4] = y2 + oy
-    out[5] = 0.5 * (x1 + x2) + ox
-    out[6] = 0.5 * (y1 + y2) + oy
-    out[7] = nx
-    out[8] = ny
-    out[9] = ln
+    write_contact(out, 0.5 * a2, x1, y1, x2, y2, nx, ny, ox, oy)
     return True
 
 

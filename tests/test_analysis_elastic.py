@@ -206,3 +206,67 @@ def test_gather_points_neighbours():
     assert g.shape == (3, 4, 5, 2, 2)
     assert sorted(g[1, 1, :, 0, 0].tolist()) == sorted([5.0, 9.0, 1.0, 6.0, 4.0])
     assert np.isnan(g[0, 0, :, 0, 0]).sum() == 2
+
+
+def _isotropic_pile(rng, K, G, shape=(3, 4)):
+    """Per-RVE strain increments (from `rng`) and the stress increments of an
+    isotropic medium."""
+    u = rng.standard_normal(shape + (2, 2)) * 1e-4
+    u = 0.5 * (u + np.swapaxes(u, -1, -2))
+    tr = (u[..., 0, 0] + u[..., 1, 1])[..., None, None]
+    return K * tr * np.eye(2) + 2 * G * (u - 0.5 * tr * np.eye(2)), u
+
+
+@pytest.mark.parametrize("method", ["pile_fits", "bootstrap"])
+def test_fit_uncertainty_is_the_spread_of_the_piles_moduli(method):
+    """Each pile exactly isotropic with its own K and G: the per-pile fits are
+    exact, so their standard error is that of the moduli themselves; equal
+    piles have none."""
+    from analysis.elastic import fit_uncertainty
+
+    rng = np.random.default_rng(7)
+    K = np.array([3.0e6, 3.3e6, 2.8e6, 3.1e6])
+    G = np.array([1.0e6, 1.2e6, 0.9e6, 1.1e6])
+    # the same strains in every pile: a resampled mean is the field of the mean moduli
+    piles = [_isotropic_pile(np.random.default_rng(7), k, g) for k, g in zip(K, G)]
+    sigma = np.stack([p[0] for p in piles])
+    u = np.stack([p[1] for p in piles])
+    out = fit_uncertainty(sigma, u, method, min_points=1, rtol=1e-12, samples=400, seed=1)
+    if method == "pile_fits":
+        np.testing.assert_allclose(out["bulk_modulus"], np.std(K, ddof=1) / 2, rtol=1e-9)
+        np.testing.assert_allclose(out["shear_modulus"], np.std(G, ddof=1) / 2, rtol=1e-9)
+    else:   # resampled means: of the order of the standard error
+        assert np.all((out["bulk_modulus"] > 0.3 * np.std(K, ddof=1) / 2) &
+                      (out["bulk_modulus"] < 2.0 * np.std(K, ddof=1) / 2))
+    one = _isotropic_pile(rng, 3e6, 1e6)
+    same = fit_uncertainty(np.stack([one[0]] * 3), np.stack([one[1]] * 3), method, 1, 1e-12,
+                           samples=50)
+    np.testing.assert_allclose(same["bulk_modulus"], 0.0, atol=1e-6)
+
+
+def test_moduli_dataset_holds_the_fit_of_the_mean_and_the_spread_of_the_piles():
+    import xarray as xr
+
+    from analysis.elastic import moduli_dataset
+    from analysis.netcdf import tensor_coords, var
+    from analysis.params import resolve_params
+
+    K = np.array([3.0e6, 3.4e6, 2.6e6])
+    G = np.array([1.0e6, 1.1e6, 0.9e6])
+    coords = {"y": var("y", [0.03, 0.045, 0.06], "y", "m"),
+              "x": var("x", [-0.015, 0.0, 0.015, 0.03], "x", "m"), **tensor_coords()}
+    piles = []
+    for k, g in zip(K, G):
+        sigma, u = _isotropic_pile(np.random.default_rng(3), k, g)
+        pile = xr.Dataset(coords=coords)
+        pile["stress_increment"] = var(("y", "x", "i", "j"), sigma, "dsigma", "N m-1")
+        pile["strain_increment"] = var(("y", "x", "i", "j"), u, "u", "1")
+        piles.append(pile)
+    ensemble = (sum(piles) / len(piles)).assign_attrs(n_seeds=3, protocol="wedge")
+    ds = moduli_dataset(ensemble, piles, resolve_params({"moduli": {"min_points": 1}}))
+    assert ds["bulk_modulus"].dims == ("fit", "points", "y", "x")
+    np.testing.assert_allclose(ds["bulk_modulus"].values, K.mean(), rtol=1e-9)
+    np.testing.assert_allclose(ds["shear_modulus"].values, G.mean(), rtol=1e-9)
+    np.testing.assert_allclose(ds["bulk_modulus_sem"].values, np.std(K, ddof=1) / np.sqrt(3),
+                               rtol=1e-9)
+    assert ds.attrs["n_seeds"] == 3 and ds.attrs["uncertainty_method"] == "pile_fits"

@@ -82,3 +82,17 @@ def test_different_grids_are_refused():
     other.attrs["rve_size"] = 0.1
     with pytest.raises(InputError, match="rve_size"):
         ensemble_fields([_pile(rng), other], ["a.nc", "b.nc"])
+
+
+def test_standard_errors_of_derived_fields_come_from_the_per_seed_values():
+    rng = np.random.default_rng(4)
+    piles = [_pile(rng) for _ in range(5)]
+    ens = ensemble_fields(piles)
+    for name in ("fabric_trace", "fabric_deviatoric_fraction"):
+        st = np.stack([p[name].values for p in piles])
+        np.testing.assert_allclose(ens[f"{name}_sem"].values,
+                                   np.std(st, axis=0, ddof=1) / np.sqrt(len(piles)), rtol=1e-12)
+    # an angle's spread is taken about the mean axis, folded into (-90, 90] deg
+    same = [_pile(np.random.default_rng(5)) for _ in range(3)]
+    np.testing.assert_allclose(ensemble_fields(same)["stress_orientation_sem"].values, 0.0, atol=1e-9)
+    assert np.all(ens["stress_orientation_sem"].values > 0.0)

@@ -49,6 +49,7 @@ def test_defaults_valid_against_schema_and_every_key_described():
     {"rve": {"shape": "hexagon"}}, {"rve": {"size": 0}}, {"rve": {"min_solid_fraction": 1.5}},
     {"moduli": {"uncertainty": "jackknife"}}, {"grid": {"spacing": -0.01}}, {"unknown": {}},
     {"rve": {"unknown": 1}}, {"convergence": {"points": [[0.0]]}}, {"figures": {"heights": []}},
+    {"base_pressure": {"stage": "relaxed; touch pwned"}}, {"base_pressure": {"stage": "reduced5"}},
 ])
 def test_schema_and_python_refuse_the_same_bad_settings(bad):
     with pytest.raises(jsonschema.ValidationError):

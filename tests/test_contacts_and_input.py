@@ -55,6 +55,29 @@ def test_normal_force_never_attracts():
             assert total > f_el
 
 
+@pytest.mark.parametrize("rate", [-1e-3, -1e-5, -1e-7, 0.0, 1e-5])
+def test_normal_damping_is_the_appendix_value_clamped_at_minus_the_elastic_force(rate):
+    """Total = F + D* with D* = gamma sqrt(Y m) dA/dt / l, but never below 0:
+    a fast separation gives exactly 0, a slow one the undamped value less D*."""
+    area, l, m, Y, gamma = 1e-9, 1e-3, 0.02, 1e7, 5.0
+    f_el, total = normal_force(area, rate, l, m, Y, gamma)
+    expected = Y * area / l + gamma * np.sqrt(Y * m) * rate / l
+    assert total == pytest.approx(max(expected, 0.0), rel=1e-12, abs=1e-300)
+    if expected < 0:
+        assert total == 0.0
+
+
+def test_pair_history_is_carried_across_a_rebuild():
+    """The tangential springs of pairs kept by a new pair list keep their
+    value; new pairs start at zero (both lists sorted by (i, j))."""
+    from sim.broadphase import carry_history
+
+    old_i, old_j = np.array([0, 0, 1, 2]), np.array([1, 3, 2, 5])
+    new_i, new_j = np.array([0, 1, 1, 2, 4]), np.array([3, 2, 4, 5, 6])
+    carried = carry_history(old_i, old_j, np.array([1.5, -2.5, 3.5, 4.5]), new_i, new_j)
+    np.testing.assert_array_equal(carried, [-2.5, 3.5, 0.0, 4.5, 0.0])
+
+
 def test_tangential_force_capped_and_opposes_sliding():
     f_el = 2.0
     mu = 0.4
@@ -100,12 +123,23 @@ def test_blow_up_is_detected_and_last_good_state_kept():
     is made 40 times the automatic one."""
     sim = scene([rectangle(4e-3, 4e-3)], [(0, 2e-3 - 1e-7, 0, 0, 0, 0)], gravity=(0, -9.81),
                 support=True)
+    sim.run(steps=200)            # at rest on the support: its contact is evaluated
     sim.dt *= 40.0
-    sim.r[2] *= 1600.0
+    sim.r *= 40.0 ** np.arange(sim.r.shape[0])[:, None, None]
     with pytest.raises(BlowUpError, match="unstable") as err:
         sim.run(steps=20000)
     assert np.all(np.isfinite(sim.r[:, :, :2]))
     assert err.value.last_good.time == sim.time
+    # the contacts reported (and saved as *.lastgood.nc) are those of the good
+    # state's positions, not of the step that failed
+    c = sim.contacts()
+    assert len(c["i"]) == 1 and np.all(np.isfinite(c["fx"]))
+    x, y = sim.position[0]
+    assert np.hypot(c["x"][0] - x, c["y"][0] - y) <= sim.shapes.radius[0]
+    assert c["area"][0] <= sim.model.max_overlap_fraction * sim.shapes.area[0]
+    assert c["area"][0] == pytest.approx(4e-3 * max(0.0, -float(np.min(
+        y + sim.shapes.node_x[:4] * np.sin(sim.theta[0]) + sim.shapes.node_y[:4] *
+        np.cos(sim.theta[0])))), rel=0.05)
 
 
 @pytest.mark.parametrize("section,key,value,message", [

@@ -93,13 +93,11 @@ def test_state_file_has_contract_variables(tmp_path, heap):
     assert np.allclose(ds.mass, ds.area * ds.attrs["density"])
 
 
-def test_parallel_and_serial_kernels_agree_bit_for_bit():
-    """No write races: 2 threads and the serial kernels give the same trajectory."""
+def compare_parallel_and_serial_kernels():
+    """Run a packing on 2 threads and on the serial kernels; raise unless equal."""
     import numba
     from sim.bench import dense_packing
 
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        pytest.skip("needs 2 Numba threads to compare against the serial kernels")
     runs = []
     for threads in (2, 1):
         numba.set_num_threads(threads)
@@ -109,3 +107,24 @@ def test_parallel_and_serial_kernels_agree_bit_for_bit():
         runs.append(sim.r[:, :, :sim.n].copy())
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_parallel_and_serial_kernels_agree_bit_for_bit():
+    """No write races: 2 threads and the serial kernels give the same
+    trajectory (in a process of its own when this one has a single thread)."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import numba
+
+    if numba.config.NUMBA_NUM_THREADS >= 2:
+        compare_parallel_and_serial_kernels()
+        return
+    proc = subprocess.run(
+        [sys.executable, "-c",
+         "import test_heap_and_restart as t; t.compare_parallel_and_serial_kernels()"],
+        cwd=Path(__file__).parent, env={**os.environ, "NUMBA_NUM_THREADS": "2"},
+        capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-5000:]

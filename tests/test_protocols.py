@@ -68,8 +68,23 @@ def test_layered_line_stays_within_the_target_flanks():
     assert max(np.abs(xs)) <= half * (1 - top / height) + 1e-12
 
 
+def test_layered_line_follows_the_measured_top_width():
+    """Over a settled pile the line spans the width of its top (plus
+    line_margin), not the whole base of the target pile."""
+    cfg = SimConfig.from_dict({"pour": {"n_particles": 400, "line_margin": 0.002}})
+    sim = Simulation(protocols.pile_shapes(cfg, 1), cfg.model)
+    for k, x in enumerate(np.linspace(0.01, 0.03, 4)):      # a settled row at rest
+        sim.place(k, x, 0.004, 0.0)
+    r = sim.shapes.radius[:4]
+    lo, hi = 0.01 - r[0] - 0.002, 0.03 + r[3] + 0.002
+    assert protocols.top_width(sim, cfg.pour.top_band) == pytest.approx((lo + 0.002, hi - 0.002))
+    xs = np.array([protocols.release_point(sim, cfg, "layered", 1, k)[0] for k in range(4, 300)])
+    assert xs.min() >= lo and xs.max() <= hi
+    assert xs.max() - xs.min() > 0.8 * (hi - lo)
+
+
 def test_relaxation_fails_loudly_when_time_runs_out():
-    cfg = SimConfig.from_dict({"relax": {"max_time": 0.002, "drag": 0.0}})
+    cfg = SimConfig.from_dict({"relax": {"max_time": 0.002, "hold_time": 0.001, "drag": 0.0}})
     shapes = protocols.pile_shapes(SimConfig.from_dict({"pour": {"n_particles": 2}}), 0)
     sim = Simulation(shapes, cfg.model)
     sim.place(0, 0.0, 0.05, 0.0)         # still falling: not at rest

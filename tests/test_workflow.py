@@ -144,12 +144,47 @@ def test_each_probe_level_is_a_stage(workdir):
     ("corners", {"particles": {"corners_min": 8, "corners_max": 6}}, "corners_min"),
     ("levels", {"probe": {"levels": [0.1, 0.05, 0.051]}}, "percent resolution"),
     ("threads", {"threads": 0}, "threads"),
+    # workflow/validation.py runs before any job (and before resource functions)
+    ("nan", {"model": {"youngs_modulus": float("nan")}}, "model.youngs_modulus = nan"),
+    ("integer", {"pour": {"n_particles": 150.0}}, "pour.n_particles = 150.0: must be an integer"),
+    ("grid", {"analysis": {"grid": {"x_min": 0.1, "x_max": -0.1}}}, "analysis.grid.x_min = 0.1"),
+    ("size", {"pour": {"n_particles": 10**9}}, "would need about 100001000 MB"),
+    ("convergence_seed", {"analysis": {"convergence": {"seed": 7}}},
+     "analysis.convergence.seed = 7 is not a seed of protocol wedge"),
 ])
 def test_bad_config_stops_before_any_job(workdir, name, override, message):
     config = with_overrides(workdir, f"bad_{name}", override)
     proc = snakemake(workdir, "-n", "--cores", "2", *config)
     assert proc.returncode != 0
     assert message in proc.output, proc.output
+
+
+def shell_blocks(text):
+    """The `shell:` sections of a rule file, each as one string."""
+    blocks, lines = [], text.splitlines()
+    for k, line in enumerate(lines):
+        if line.strip() == "shell:":
+            indent = len(line) - len(line.lstrip())
+            block = []
+            for rest in lines[k + 1:]:
+                if rest.strip() and len(rest) - len(rest.lstrip()) <= indent:
+                    break
+                block.append(rest)
+            blocks.append("\n".join(block))
+    return blocks
+
+
+def test_every_file_and_param_reaches_the_shell_quoted():
+    """A value with a space or a `;` must stay one argument: every {input},
+    {output}, {log} and {params} in a shell command carries :q."""
+    found = 0
+    for path in sorted((REPO / "workflow" / "rules").glob("*.smk")):
+        for block in shell_blocks(path.read_text()):
+            for name, spec in re.findall(r"(?<!\{)\{((?:input|output|log|params)[.\w]*)(:\w*)?\}",
+                                         block):
+                found += 1
+                assert spec == ":q", f"{path.name}: {{{name}{spec}}} is not quoted"
+    assert found > 50
 
 
 # --- scenes: only what the configuration's outputs ask for is built -----------
@@ -227,12 +262,15 @@ if cmd == "warmup":
     assert os.environ["NUMBA_CACHE_DIR"].endswith(".numba_cache")
     sys.exit(0)
 parser = argparse.ArgumentParser()
-for option in ("--params", "--protocol", "--seed", "--out", "--checkpoint",
+for option in ("--params", "--bookkeeping", "--protocol", "--seed", "--out", "--checkpoint",
                "--input", "--level"):
     parser.add_argument(option)
 args = parser.parse_args(rest)
 if cmd in ("pour", "relax", "probe"):
     assert set(json.loads(args.params)) == SECTIONS[cmd], args.params
+    assert "checkpoint_interval" not in json.loads(args.params)["pour"], args.params
+    assert set(json.loads(args.bookkeeping)["pour"]) == {"checkpoint_interval",
+                                                        "progress_interval"}
     assert int(os.environ["NUMBA_NUM_THREADS"]) >= 1
 if cmd != "pour":
     assert Path(args.input).exists()
@@ -347,6 +385,9 @@ def test_editing_analysis_code_or_a_caption_leaves_the_piles(ran, folder):
     ("relax", {"max_time": 2.0}, ("relax", "probe")),
     ("probe", {"mode": "ramp"}, ("probe",)),
     ("physics", {"rotation": False}, ("pour", "relax", "probe")),
+    # bookkeeping: how often a pour saves and reports, never what it pours
+    ("pour", {"checkpoint_interval": 5.0}, ()),
+    ("pour", {"progress_interval": 1.0}, ()),
 ])
 def test_simulation_parameters_rerun_exactly_the_jobs_that_read_them(ran, section, change,
                                                                        rerun):

@@ -29,7 +29,7 @@ rule analysis_fields:
     params:
         cfg=ANALYSIS_PARAMS,
         reduced=_analysis_reduced_option,
-        quantities=" ".join(field_quantities()),
+        quantities=field_quantities(),
     log:
         "logs/analysis/fields/{protocol}/seed{seed}.log",
     benchmark:
@@ -43,7 +43,7 @@ rule analysis_fields:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis fields --relaxed {input.relaxed:q} {params.reduced} --quantities {params.quantities} "
+            "-m analysis fields --relaxed {input.relaxed:q} {params.reduced:q} --quantities {params.quantities:q} "
             "--params {params.cfg:q} --out {output.fields:q} --checks {output.checks:q} > {log:q} 2>&1"
         )
 
@@ -67,7 +67,7 @@ rule analysis_ensemble:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis ensemble --fields {input.fields} --params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
+            "-m analysis ensemble --fields {input.fields:q} --params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
         )
 
 
@@ -91,7 +91,7 @@ rule analysis_moduli:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis moduli --ensemble {input.ensemble:q} --fields {input.fields} "
+            "-m analysis moduli --ensemble {input.ensemble:q} --fields {input.fields:q} "
             "--params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
         )
 
@@ -117,7 +117,7 @@ rule analysis_base_pressure:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis base-pressure --states {input.states} --params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
+            "-m analysis base-pressure --states {input.states:q} --params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
         )
 
 
@@ -191,8 +191,8 @@ rule analysis_figure_convergence:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis figure convergence --inputs {params.inputs} --params {params.cfg:q} "
-            "--out {output.png} {output.pdf} > {log:q} 2>&1"
+            "-m analysis figure convergence --inputs {params.inputs:q} --params {params.cfg:q} "
+            "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
         )
 
 
@@ -218,8 +218,8 @@ rule analysis_figure_vertical_strain:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis figure vertical-strain --inputs {params.inputs} --params {params.cfg:q} "
-            "--out {output.png} {output.pdf} > {log:q} 2>&1"
+            "-m analysis figure vertical-strain --inputs {params.inputs:q} --params {params.cfg:q} "
+            "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
         )
 
 
@@ -245,8 +245,8 @@ rule analysis_figure_fabric:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis figure fabric --inputs {params.inputs} --params {params.cfg:q} "
-            "--out {output.png} {output.pdf} > {log:q} 2>&1"
+            "-m analysis figure fabric --inputs {params.inputs:q} --params {params.cfg:q} "
+            "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
         )
 
 
@@ -272,8 +272,8 @@ rule analysis_figure_moduli:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis figure moduli --inputs {params.inputs} --params {params.cfg:q} "
-            "--out {output.png} {output.pdf} > {log:q} 2>&1"
+            "-m analysis figure moduli --inputs {params.inputs:q} --params {params.cfg:q} "
+            "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
         )
 
 
@@ -299,8 +299,8 @@ rule analysis_figure_invariants:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis figure invariants --inputs {params.inputs} --params {params.cfg:q} "
-            "--out {output.png} {output.pdf} > {log:q} 2>&1"
+            "-m analysis figure invariants --inputs {params.inputs:q} --params {params.cfg:q} "
+            "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
         )
 
 
@@ -326,6 +326,6 @@ rule analysis_figure_base_pressure:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis figure base-pressure --inputs {params.inputs} --params {params.cfg:q} "
-            "--out {output.png} {output.pdf} > {log:q} 2>&1"
+            "-m analysis figure base-pressure --inputs {params.inputs:q} --params {params.cfg:q} "
+            "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
         )

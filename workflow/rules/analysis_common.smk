@@ -1,7 +1,6 @@
 # Settings and helpers of the analysis rules (workflow/rules/analysis.smk).
 
 import json
-import shlex
 
 ANALYSIS_CFG = config.get("analysis", {}) or {}
 ANALYSIS_PARAMS = json.dumps(ANALYSIS_CFG, sort_keys=True)
@@ -50,9 +49,10 @@ def _analysis_fields_reduced(wildcards):
 
 
 def _analysis_reduced_option(wildcards, input):
-    """`--reduced FILE` of `analysis fields` when the pile has a reduced state, else nothing."""
-    return f"--reduced {shlex.quote(input.reduced)}" if input.reduced else ""
+    """The arguments `--reduced FILE` of `analysis fields` when the pile has a reduced state, else none."""
+    return ["--reduced", input.reduced] if input.reduced else []
 
 
 def _labelled(files, protocols):
-    return " ".join(f"{p}={f}" for p, f in zip(protocols, files))
+    """The `--inputs` of a figure: one PROTOCOL=FILE argument per file."""
+    return [f"{p}={f}" for p, f in zip(protocols, files)]

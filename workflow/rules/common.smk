@@ -4,12 +4,16 @@
 
 import json
 import math
+import os
 import re
 import shlex
 import sys
 from pathlib import Path
 
+from snakemake.logging import logger
 from snakemake.settings.types import DeploymentMethod
+
+from sim.config import BOOKKEEPING, result_settings
 
 REPO = Path(workflow.basedir).resolve()
 
@@ -61,7 +65,7 @@ def sim_shell(command, numba=True):
 
 def py_shell(command):
     """Shell command `python <command>` run by PY, e.g.
-    `shell: py_shell("-m analysis fields ... > {log} 2>&1")`. Writing `{PY}`
+    `shell: py_shell("-m analysis fields ... > {log:q} 2>&1")`. Writing `{PY}`
     in a shell string directly works too, but snakemake --lint flags it."""
     return f"{shlex.quote(PY)} {command}"
 
@@ -125,9 +129,31 @@ def sim_params(*sections):
     pour and physics; relaxing model, pour and relax, the physics coming with
     the poured state; probing also probe). Adding a
     gravity level therefore re-runs only the probes, and a change in analysis
-    or protocols no simulation.
+    or protocols no simulation. The bookkeeping settings (sim.config.BOOKKEEPING:
+    checkpoint and progress intervals) change no result and are left out; they
+    travel in sim_bookkeeping().
     """
-    return json.dumps({k: config[k] for k in sections}, sort_keys=True)
+    return json.dumps(result_settings({k: config[k] for k in sections}), sort_keys=True)
+
+
+class Unrecorded:
+    """A rule param that Snakemake does not record, so that changing it re-runs
+    nothing: Snakemake records and compares only params of builtin types. In a
+    shell command it formats as `text`."""
+
+    def __init__(self, text):
+        self.text = text
+
+    def __str__(self):
+        return self.text
+
+
+def sim_bookkeeping():
+    """The bookkeeping settings (sim.config.BOOKKEEPING) as JSON for the
+    simulator's --bookkeeping option, an Unrecorded param: a changed checkpoint
+    or progress interval re-pours no pile."""
+    settings = {s: {k: config[s][k] for k in keys} for s, keys in BOOKKEEPING.items()}
+    return Unrecorded(json.dumps(settings, sort_keys=True))
 
 
 def pile_targets(stages=None):
@@ -283,3 +309,41 @@ def sim_mem_mb(wildcards, attempt):
     for memory asks for more when resubmitted)."""
     n = config["pour"]["n_particles"]
     return attempt * math.ceil(SIM_MEM_BASE_MB + SIM_MEM_PER_PARTICLE_MB * n)
+
+
+# Largest memory (MB) a cluster node is assumed to have when no --resources
+# mem_mb says otherwise: 4 TB.
+CLUSTER_NODE_MEM_MB = 4_000_000
+# Run-time estimate (min) of one pour beyond which the plan is called absurd: a week.
+ABSURD_RUNTIME_MIN = 7 * 24 * 60
+
+
+def _check_size():
+    """Refuse, before any job, a pile whose job cannot fit in memory: the limit
+    is --resources mem_mb if given, else this machine's memory (local jobs) or
+    CLUSTER_NODE_MEM_MB (cluster jobs). Warn about a pour estimated to take
+    longer than ABSURD_RUNTIME_MIN."""
+    need = sim_mem_mb(None, 1)
+    limit = workflow.global_resources.get("mem_mb")
+    limit, where = getattr(limit, "value", limit), "--resources mem_mb"
+    if limit is not None:
+        pass
+    elif workflow.local_exec:
+        limit = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**20
+        where = "the memory of this machine"
+    else:
+        limit, where = CLUSTER_NODE_MEM_MB, "the largest cluster node assumed"
+    n = config["pour"]["n_particles"]
+    if need > limit:
+        raise ValueError(
+            f"pour.n_particles = {n}: a simulation job would need about {need:.0f} MB "
+            f"({SIM_MEM_BASE_MB} MB + {SIM_MEM_PER_PARTICLE_MB} MB per particle), more than "
+            f"{where} ({limit:.0f} MB); pour fewer particles")
+    minutes = pour_runtime_min(None, 1)
+    if minutes > ABSURD_RUNTIME_MIN:
+        logger.warning(
+            f"pour.n_particles = {n}, pour.rate = {config['pour']['rate']}: each pour is "
+            f"estimated to take {minutes / 1440:.0f} days on {SIM_THREADS} threads")
+
+
+_check_size()

@@ -32,6 +32,7 @@ rule numerics_pile_pour:
         cpu=numerics_pile_cpu("{integrator}", "{factor}", "{seed}", "pour"),
     params:
         sim=lambda wildcards: numerics_pile_params(wildcards, ("particles",)),
+        bookkeeping=sim_bookkeeping(),
         protocol=NUMERICS_PILES["protocol"],
         checkpoint=lambda wildcards: numerics_pile(wildcards.integrator, wildcards.factor, wildcards.seed,
                                                    "pour.checkpoint"),
@@ -47,8 +48,8 @@ rule numerics_pile_pour:
         "../envs/polypile.yaml"
     shell:
         sim_shell(
-            "pour --params {params.sim:q}"
-            " --protocol {params.protocol} --seed {wildcards.seed}"
+            "pour --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
+            " --protocol {params.protocol:q} --seed {wildcards.seed}"
             " --out {output.state:q} --checkpoint {params.checkpoint:q} > {log:q} 2>&1"
         )
         + "; times > {output.cpu:q}"
@@ -64,6 +65,7 @@ rule numerics_pile_relax:
         cpu=numerics_pile_cpu("{integrator}", "{factor}", "{seed}", "relax"),
     params:
         sim=lambda wildcards: numerics_pile_params(wildcards, ("relax",)),
+        bookkeeping=sim_bookkeeping(),
     log:
         "logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_relax.log",
     benchmark:
@@ -76,7 +78,7 @@ rule numerics_pile_relax:
         "../envs/polypile.yaml"
     shell:
         sim_shell(
-            "relax --params {params.sim:q}"
+            "relax --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
             " --input {input.state:q} --out {output.state:q} > {log:q} 2>&1"
         )
         + "; times > {output.cpu:q}"
@@ -137,7 +139,7 @@ rule numerics_ensemble:
     shell:
         py_shell(
             "-m sim.numerics.ensemble_cost data --params {params.cfg:q} --analysis-params {params.analysis:q}"
-            " {params.protocols} --out {output:q} > {log:q} 2>&1"
+            " {params.protocols:q} --out {output:q} > {log:q} 2>&1"
         )
 
 

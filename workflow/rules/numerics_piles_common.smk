@@ -39,7 +39,8 @@ def numerics_pile_params(wildcards, sections):
     """The simulator sections of one small pile as canonical JSON.
 
     The config's sections with pour.n_particles from numerics.piles, the
-    integrator of the run and its time step scaled by the dt factor.
+    integrator of the run and its time step scaled by the dt factor; the
+    bookkeeping settings travel apart (sim_bookkeeping()).
     """
     factor = float(wildcards.factor)
     model = dict(config["model"], integrator=wildcards.integrator)
@@ -50,7 +51,7 @@ def numerics_pile_params(wildcards, sections):
     cfg = {"model": model, "pour": dict(config["pour"], n_particles=NUMERICS_PILES["n_particles"])}
     for k in sections:
         cfg.setdefault(k, config[k])
-    return json.dumps(cfg, sort_keys=True)
+    return json.dumps(result_settings(cfg), sort_keys=True)
 
 
 def _numerics_pile_inputs(kind):
@@ -98,7 +99,7 @@ _check_numerics_piles()
 
 
 def _numerics_ensemble_args(wildcards, input):
-    """Per-protocol options of `ensemble_cost data`, in PROTOCOLS order."""
+    """Per-protocol arguments of `ensemble_cost data`, in PROTOCOLS order (a list)."""
     args = []
     for p in PROTOCOLS:
         s = seeds(p)
@@ -108,4 +109,4 @@ def _numerics_ensemble_args(wildcards, input):
         for kind in ("pour", "relax", "probe"):
             files = [f for f in getattr(input, kind) if f.startswith(f"benchmarks/{kind}/{p}/")]
             args += [f"--{kind}-benchmarks", *files]
-    return " ".join(shlex.quote(a) for a in args)
+    return args

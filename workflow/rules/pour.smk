@@ -33,6 +33,7 @@ rule pour:
         pile("{protocol}", "{seed}", "poured"),
     params:
         sim=sim_params("model", "particles", "pour", "physics"),
+        bookkeeping=sim_bookkeeping(),
         checkpoint=lambda wildcards: pour_checkpoint(wildcards.protocol, wildcards.seed),
     log:
         "logs/pour/{protocol}/seed{seed}.log",
@@ -46,7 +47,7 @@ rule pour:
         "../envs/polypile.yaml"
     shell:
         sim_shell(
-            "pour --params {params.sim:q}"
+            "pour --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
             " --protocol {wildcards.protocol} --seed {wildcards.seed}"
             " --out {output:q} --checkpoint {params.checkpoint:q} > {log:q} 2>&1"
         )

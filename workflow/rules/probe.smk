@@ -14,6 +14,7 @@ rule probe:
         stage=STAGE_PATTERN,
     params:
         sim=sim_params("model", "pour", "relax", "probe"),
+        bookkeeping=sim_bookkeeping(),
         level=lambda wildcards: level_for_stage(wildcards.stage),
     log:
         "logs/probe/{protocol}/seed{seed}_{stage}.log",
@@ -27,7 +28,7 @@ rule probe:
         "../envs/polypile.yaml"
     shell:
         sim_shell(
-            "probe --params {params.sim:q}"
-            " --input {input.state:q} --level {params.level}"
+            "probe --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
+            " --input {input.state:q} --level {params.level:q}"
             " --out {output:q} > {log:q} 2>&1"
         )

@@ -10,6 +10,7 @@ rule relax:
         pile("{protocol}", "{seed}", "relaxed"),
     params:
         sim=sim_params("model", "pour", "relax"),
+        bookkeeping=sim_bookkeeping(),
     log:
         "logs/relax/{protocol}/seed{seed}.log",
     benchmark:
@@ -22,6 +23,6 @@ rule relax:
         "../envs/polypile.yaml"
     shell:
         sim_shell(
-            "relax --params {params.sim:q}"
+            "relax --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
             " --input {input.state:q} --out {output:q} > {log:q} 2>&1"
         )

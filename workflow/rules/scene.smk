@@ -50,6 +50,15 @@ def _check_scene():
             f"physics.support = false with outputs {asked}: the piles are poured onto "
             f"the support; without it the only allowed output is [numerics]"
         )
+    seed = config["analysis"]["convergence"]["seed"]
+    if wants("strain") and seed is not None:
+        for protocol in PROTOCOLS:
+            if seed not in seeds(protocol):
+                problems.append(
+                    f"analysis.convergence.seed = {seed} is not a seed of protocol "
+                    f"{protocol} (seeds {seeds(protocol)}): the convergence study would "
+                    "pour a pile outside the study; give one of its seeds or null (the first)"
+                )
     stage = config["analysis"]["base_pressure"]["stage"]
     if wants("fields") and stage not in ["poured", "relaxed"] + probe_stages():
         problems.append(

@@ -1,0 +1,226 @@
+"""A pour's checkpoint, lock and end: resumed only under the same physics and
+code, set aside when unreadable, never poured twice at once, killed at random
+moments and still bit for bit the uninterrupted pile, and never "done" with
+particles in flight."""
+
+import logging
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from sim import protocols
+from sim.config import SimConfig
+from sim.engine import Simulation
+from sim.io import StateFileError, read_state, save_state
+
+TINY = {"pour": {"n_particles": 12, "rate": 400.0, "checkpoint_interval": 0.02,
+                 "progress_interval": 1e9},
+        "model": {"integrator": "verlet"}}
+VARIABLES = ("x", "y", "theta", "vx", "vy", "omega", "contact_i", "contact_j", "force_x",
+             "force_y", "contact_spring")
+
+
+def tiny(**changes):
+    """The tiny pour's configuration with `changes` ({section: {key: value}})."""
+    data = {section: dict(values) for section, values in TINY.items()}
+    for section, values in changes.items():
+        data.setdefault(section, {}).update(values)
+    return SimConfig.from_dict(data)
+
+
+@pytest.fixture(scope="module")
+def whole(tmp_path_factory):
+    """The tiny pile poured without interruption."""
+    out = tmp_path_factory.mktemp("whole") / "poured.nc"
+    protocols.pour(tiny(), "wedge", 3, out)
+    return out
+
+
+def assert_same_pile(a_path, b_path):
+    """Same steps, time and state, to the bit."""
+    with xr.open_dataset(a_path) as a, xr.open_dataset(b_path) as b:
+        assert a.attrs["step"] == b.attrs["step"]
+        assert a.attrs["time"] == b.attrs["time"]
+        for v in VARIABLES:
+            np.testing.assert_array_equal(a[v].values, b[v].values, err_msg=v)
+
+
+def started_checkpoint(path, cfg, seed=3):
+    """A checkpoint of a pour of `cfg` that has released one particle."""
+    sim = Simulation(protocols.pile_shapes(cfg, seed), cfg.model)
+    sim.place(0, 0.0, 0.05, 0.0, 0.0, -1.0)
+    sim.run(duration=0.002)
+    save_state(sim, path, cfg.to_dict(), stage="checkpoint", next_release=0.0025,
+               protocol="wedge", seed=seed)
+
+
+@pytest.mark.parametrize("what, changes", [
+    ("configuration", {"model": {"friction": 0.3}}),
+    ("configuration", {"pour": {"rate": 300.0}}),
+    ("code version", {}),
+])
+def test_a_checkpoint_of_other_physics_or_code_is_set_aside(tmp_path, caplog, monkeypatch,
+                                                            what, changes):
+    """Resumed under other physics (or other code), a half-poured pile would
+    carry the wrong label: the pour starts afresh and says why."""
+    ckpt = tmp_path / "pour.checkpoint.nc"
+    started_checkpoint(ckpt, tiny())
+    if what == "code version":
+        monkeypatch.setattr(protocols, "code_version", lambda: "edited-code")
+    cfg = tiny(**changes)
+    fresh = tmp_path / "fresh.nc"
+    protocols.pour(cfg, "wedge", 3, fresh)
+    out = tmp_path / "poured.nc"
+    with caplog.at_level(logging.INFO, logger="sim"):
+        protocols.pour(cfg, "wedge", 3, out, checkpoint=ckpt)
+    assert f"was made with another {what}" in caplog.text
+    assert "resuming" not in caplog.text
+    assert len(list(tmp_path.glob("pour.checkpoint.nc.*.unused"))) == 1
+    assert_same_pile(fresh, out)
+
+
+def test_a_checkpoint_is_resumed_when_only_bookkeeping_changed(tmp_path, caplog):
+    ckpt = tmp_path / "pour.checkpoint.nc"
+    started_checkpoint(ckpt, tiny())
+    cfg = tiny(pour={"checkpoint_interval": 7.0, "progress_interval": 3.0})
+    with caplog.at_level(logging.INFO, logger="sim"):
+        protocols.pour(cfg, "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt)
+    assert "resuming wedge seed 3 from checkpoint" in caplog.text
+    assert not list(tmp_path.glob("*.unused"))
+
+
+def test_bookkeeping_comes_apart_and_may_hold_nothing_else():
+    from sim.cli import _params
+    from sim.config import ConfigError
+
+    cfg = _params('{"pour": {"rate": 50.0, "progress_interval": 1.0}}',
+                  '{"pour": {"progress_interval": 2.0, "checkpoint_interval": 3.0}}')
+    assert (cfg.pour.rate, cfg.pour.progress_interval, cfg.pour.checkpoint_interval) == \
+        (50.0, 2.0, 3.0)
+    with pytest.raises(ConfigError, match="change the result"):
+        _params(None, '{"pour": {"rate": 5.0}}')
+
+
+def test_a_truncated_checkpoint_is_set_aside_and_the_pour_restarts(tmp_path, caplog, whole):
+    ckpt = tmp_path / "pour.checkpoint.nc"
+    started_checkpoint(ckpt, tiny())
+    ckpt.write_bytes(ckpt.read_bytes()[:5000])
+    out = tmp_path / "poured.nc"
+    with caplog.at_level(logging.INFO, logger="sim"):
+        protocols.pour(tiny(), "wedge", 3, out, checkpoint=ckpt)
+    assert "is unusable" in caplog.text and str(ckpt) in caplog.text
+    assert len(list(tmp_path.glob("pour.checkpoint.nc.*.unused"))) == 1
+    assert not ckpt.exists()
+    assert_same_pile(whole, out)
+
+
+def test_a_truncated_state_file_is_refused_in_one_line_naming_it(tmp_path, whole, caplog):
+    from sim.cli import main
+
+    bad = tmp_path / "poured.nc"
+    bad.write_bytes(whole.read_bytes()[:4000])
+    with pytest.raises(StateFileError, match=f"state file {bad} cannot be read") as err:
+        read_state(bad)
+    assert "\n" not in str(err.value)
+    assert main(["relax", "--input", str(bad), "--out", str(tmp_path / "relaxed.nc")]) == 2
+    errors = [r.getMessage() for r in caplog.records if r.levelno >= logging.ERROR]
+    assert len(errors) == 1 and str(bad) in errors[0] and "\n" not in errors[0]
+
+
+def dead_pid():
+    """The PID of a process that has ended."""
+    proc = subprocess.Popen(["true"])
+    proc.wait()
+    return proc.pid
+
+
+def test_a_live_lock_refuses_a_second_pour_and_a_dead_one_is_taken_over(tmp_path, caplog):
+    """Snakemake killed, its pour still running, the rerun must not race it."""
+    import socket
+
+    ckpt = tmp_path / "pour.checkpoint.nc"
+    lock = tmp_path / "pour.checkpoint.nc.lock"
+    lock.write_text(f"{socket.gethostname()} {os.getppid()}\n")
+    with pytest.raises(protocols.PourLockedError, match=str(os.getppid())):
+        protocols.pour(tiny(), "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt)
+    assert not (tmp_path / "poured.nc").exists()
+    lock.write_text(f"{socket.gethostname()} {dead_pid()}\n")
+    with caplog.at_level(logging.INFO, logger="sim"):
+        protocols.pour(tiny(), "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt)
+    assert "taking over the lock" in caplog.text
+    assert not lock.exists()     # released when done
+
+
+def test_another_hosts_lock_counts_until_it_is_stale(tmp_path):
+    lock_path = tmp_path / "x.lock"
+    lock_path.write_text("some-other-host 1\n")
+    with pytest.raises(protocols.PourLockedError, match="some-other-host"):
+        with protocols.PourLock(lock_path, stale_after=60.0):
+            pass
+    old = lock_path.stat().st_mtime - 120.0
+    os.utime(lock_path, (old, old))
+    with protocols.PourLock(lock_path, stale_after=60.0):
+        assert lock_path.read_text().split()[1] == str(os.getpid())
+    lock_path.write_text("")     # its writer was killed before writing
+    with protocols.PourLock(lock_path, stale_after=60.0):
+        pass
+
+
+def test_a_pour_with_particles_in_flight_fails_naming_the_cause(tmp_path):
+    """Released at 10 m/s the particles bounce off: no "done" for a cloud."""
+    cfg = tiny(pour={"n_particles": 6, "release_speed": 10.0}, model={"damping": 0.0})
+    with pytest.raises(protocols.LandingError, match="pour.release_speed = 10.0"):
+        protocols.pour(cfg, "wedge", 3, tmp_path / "poured.nc")
+    assert not (tmp_path / "poured.nc").exists()
+
+
+def pour_killed_repeatedly(folder, kills, seed):
+    """Pour the tiny pile into `folder`, forking a pour that is SIGKILLed at a
+    random moment (up to 0.4 s in) `kills` times, each fork resuming from what
+    the last left, then pouring to the end.  Run in a fresh process whose
+    Numba threading layer is fork-safe (workqueue; GNU OpenMP is not)."""
+    logging.basicConfig(level=logging.INFO)
+    out, ckpt = Path(folder) / "poured.nc", Path(folder) / "pour.checkpoint.nc"
+    rng = random.Random(seed)
+    protocols.pour(tiny(), "wedge", 3, out)      # compiles the kernels before the forks
+    out.unlink()
+    done = 0
+    while done < kills:
+        pid = os.fork()
+        if pid == 0:
+            try:
+                protocols.pour(tiny(), "wedge", 3, out, checkpoint=ckpt)
+            finally:
+                os._exit(0)
+        time.sleep(rng.uniform(0.0, 0.4))
+        os.kill(pid, signal.SIGKILL)
+        _, status = os.waitpid(pid, 0)
+        if os.WIFSIGNALED(status):
+            done += 1
+        elif out.exists():       # finished before the kill: pour again from scratch
+            out.unlink()
+    assert ckpt.exists(), "no kill came after the first checkpoint"
+    protocols.pour(tiny(), "wedge", 3, out, checkpoint=ckpt)
+
+
+def test_killed_at_random_moments_the_pour_ends_bit_for_bit_as_uninterrupted(tmp_path,
+                                                                              whole):
+    """SIGKILL at 20 random moments (mid-step, mid-checkpoint, holding the
+    lock), each rerun resuming what the last one left: the pile is the
+    uninterrupted one, and no lock or temporary file is left behind."""
+    env = {**os.environ, "NUMBA_THREADING_LAYER": "workqueue", "NUMBA_NUM_THREADS": "1"}
+    code = f"import test_pour_resume as t; t.pour_killed_repeatedly({str(tmp_path)!r}, 20, 12)"
+    proc = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).parent, env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-5000:]
+    assert proc.stderr.count("resuming wedge seed 3") >= 5     # the kills did interrupt
+    assert_same_pile(whole, tmp_path / "poured.nc")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["poured.nc"]

@@ -1,0 +1,170 @@
+"""The one validator of the workflow configuration, run by the Snakefile
+before any job.
+
+It decides in three passes, each naming the setting, its value and what is
+allowed:
+
+1. :func:`number_problems`: every number is finite, and a setting the schema
+   declares an integer holds an integer, not 3500.0 (JSON schema counts an
+   integer-valued float as an integer; the simulator and the analysis do not).
+2. The JSON schemas (``workflow/schemas``, draft 2020-12), which also fill
+   in the defaults (as ``snakemake.utils.validate`` does).
+3. The simulator's and the analysis' own checks (:class:`sim.config.SimConfig`,
+   :func:`analysis.params.resolve_params`): what a schema cannot express,
+   such as ``relax.hold_time <= relax.max_time`` or an ordered grid.
+
+A job therefore never meets a setting that its program would refuse.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import math
+from pathlib import Path
+
+import yaml
+from jsonschema import Draft202012Validator, validators
+
+from analysis.params import resolve_params
+from sim.config import SimConfig
+
+SCHEMAS = Path(__file__).resolve().parent / "schemas"
+CONFIG_SCHEMA = SCHEMAS / "config.schema.yaml"
+ANALYSIS_SCHEMA = SCHEMAS / "analysis.schema.yaml"
+# The sections of the configuration that the simulator reads.
+SIM_SECTIONS = ("model", "particles", "pour", "relax", "probe", "physics")
+
+
+class ConfigurationError(ValueError):
+    """The configuration holds settings that no job could run with."""
+
+
+@functools.lru_cache(maxsize=None)
+def load_schema(path):
+    """The JSON schema in the YAML file `path` (parsed once)."""
+    return yaml.load(Path(path).read_text(), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+
+
+def _filling_defaults(validator_class):
+    """`validator_class` that also sets every missing property's ``default``."""
+    check_properties = validator_class.VALIDATORS["properties"]
+
+    def properties(validator, props, instance, schema):
+        if isinstance(instance, dict):
+            for name, sub in props.items():
+                if "default" in sub:
+                    instance.setdefault(name, copy.deepcopy(sub["default"]))
+        yield from check_properties(validator, props, instance, schema)
+
+    return validators.extend(validator_class, {"properties": properties})
+
+
+_Validator = _filling_defaults(Draft202012Validator)
+
+
+def schema_problem(value, path, key=""):
+    """The first violation of the schema in `path` by `value`, as text, or None.
+
+    Fills in `value`'s defaults.  The text names the setting (dotted key),
+    its value and the rule it breaks.
+    """
+    error = next(iter(_Validator(load_schema(path)).iter_errors(value)), None)
+    if error is None:
+        return None
+    where = ".".join([key] * bool(key) + [str(p) for p in error.absolute_path]) or "(top level)"
+    return f"{where}: {error.message}"
+
+
+def _resolve(schema, root):
+    """`schema` with a local ``$ref`` (``#/$defs/...``) replaced by its target."""
+    while "$ref" in schema:
+        node = root
+        for part in schema["$ref"].lstrip("#/").split("/"):
+            node = node[part]
+        schema = node
+    return schema
+
+
+def _allowed(schema):
+    """What a numeric schema allows, in words ("a number >= 0 and <= 10")."""
+    kinds = schema.get("type", "number")
+    kind = "an integer" if "integer" in kinds and "number" not in kinds else "a number"
+    bounds = [f"{op} {schema[key]}" for key, op in (
+        ("minimum", ">="), ("exclusiveMinimum", ">"), ("maximum", "<="),
+        ("exclusiveMaximum", "<")) if key in schema]
+    return " ".join([kind] + [" and ".join(bounds)] if bounds else [kind])
+
+
+def number_problems(value, schema, root=None, key=""):
+    """Non-finite numbers and floats given for integers in `value`.
+
+    Parameters
+    ----------
+    value : object
+        A configuration (or part of one) as loaded from YAML.
+    schema : dict
+        Its JSON schema (local ``$ref`` are followed).
+    root : dict, optional
+        The schema holding the ``$defs`` (default: `schema`).
+    key : str
+        Dotted name of `value` in the configuration, for the messages.
+
+    Returns
+    -------
+    list of str
+        One message per bad number, naming its key, value and what is allowed.
+    """
+    root = schema if root is None else root
+    schema = _resolve(schema, root)
+    problems = []
+    if isinstance(value, dict):
+        properties = schema.get("properties", {})
+        for name, sub in value.items():
+            if name in properties:
+                problems += number_problems(sub, properties[name], root,
+                                            f"{key}.{name}" if key else str(name))
+    elif isinstance(value, list) and isinstance(schema.get("items"), dict):
+        for k, item in enumerate(value):
+            problems += number_problems(item, schema["items"], root, f"{key}[{k}]")
+    elif isinstance(value, float):
+        kinds = schema.get("type", [])
+        kinds = [kinds] if isinstance(kinds, str) else kinds
+        if not math.isfinite(value):
+            problems.append(f"{key} = {value!r}: must be finite, {_allowed(schema)}")
+        elif "integer" in kinds and "number" not in kinds:
+            problems.append(f"{key} = {value!r}: must be an integer (write "
+                            f"{int(value) if value.is_integer() else 'a whole number'}), "
+                            f"{_allowed(schema)}")
+    return problems
+
+
+def validate_config(config):
+    """Check `config` (modified in place: defaults filled in) or raise.
+
+    Parameters
+    ----------
+    config : dict
+        The workflow configuration.
+
+    Raises
+    ------
+    ConfigurationError
+        Naming the setting, its value and what is allowed.
+    """
+    problems = number_problems(config, load_schema(CONFIG_SCHEMA))
+    if isinstance(config.get("analysis"), dict):
+        problems += number_problems(config["analysis"], load_schema(ANALYSIS_SCHEMA),
+                                    key="analysis")
+    if problems:
+        raise ConfigurationError("invalid configuration:\n  " + "\n  ".join(problems))
+    for problem in (schema_problem(config, CONFIG_SCHEMA),
+                    schema_problem(config.get("analysis"), ANALYSIS_SCHEMA, "analysis")):
+        if problem:
+            raise ConfigurationError(f"invalid configuration: {problem}")
+    for check in (lambda: SimConfig.from_dict({k: config[k] for k in SIM_SECTIONS}),
+                  lambda: resolve_params(config["analysis"])):
+        try:
+            check()
+        except ValueError as exc:
+            raise ConfigurationError(f"invalid configuration: {exc}") from None
