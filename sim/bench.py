@@ -37,7 +37,7 @@ from .config import ModelParams, ParticleParams, RelaxParams, SimConfig
 from .engine import Simulation
 from .forces import KERNELS_PARALLEL, KERNELS_SERIAL
 from .integrators import INTEGRATORS
-from .io import load_simulation, save_state
+from .io import load_simulation, read_state, save_state
 from .protocols import RelaxationError, relax
 from .shapes import make_shapes
 
@@ -282,7 +282,7 @@ def scene_costs(path, steps=200, repeats=5):
             sim.run(steps=steps)
             times[name].append(time.process_time() - t0)
     study = sims["study"]
-    out = {"n": study.n, "contacts": len(study.contacts()["i"]),
+    out = {"n": study.n, "contacts": read_state(path).sizes["contact"],
            "threads": numba.get_num_threads()}
     for name, t in times.items():
         out[name] = float(np.median(t)) / steps / study.n * 1e9
