@@ -45,8 +45,14 @@ def _cores_used(threads):
 
 @pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="needs 2 CPU cores")
 def test_a_two_thread_job_uses_two_cores():
-    """CPU time / wall time of the steps: about 2 with 2 threads, about 1 with 1 thread."""
+    """CPU time / wall time of the steps: about 2 with 2 threads, about 1 with 1 thread.
+
+    Judged as a ratio, so that other load on a shared machine (which lowers
+    both) does not decide it: with the serial build behind the parallel one
+    the ratio was 1.0; on this 2-core machine, quiet, it is about 2, with one
+    other busy process 1.36 (1.33 / 0.98 cores), with two 1.5 (0.78 / 0.51).
+    """
     one = _cores_used(1)
     two = _cores_used(2)
     assert one < 1.2
-    assert two > 1.6, f"2 threads used {two:.2f} cores (1 thread: {one:.2f})"
+    assert two > 1.25 * one, f"2 threads used {two:.2f} cores (1 thread: {one:.2f})"

@@ -228,10 +228,11 @@ wildcard_constraints:
 # limit asks for twice the time when --retries resubmits it (a pour resumes
 # from its checkpoint, so it needs less; relaxations start again).
 
-# Measured on this project's 2-core machine: a 3500-particle point-source pour
-# (velocity Verlet, 200 particles/s) took 5610 s for 3.80 M steps with 1750
-# particles on average, 0.84 us per particle-step on one thread.
-PARTICLE_STEP_S = 0.9e-6
+# Measured on this project's 2-core machine: the full-size layered pour of the
+# study (3500 particles, velocity Verlet, 100 particles/s, one thread) took
+# 4585 s of CPU for 5.14 M steps and 9.04e9 particle-steps, 0.51 us per
+# particle-step (README, "How long").
+PARTICLE_STEP_S = 0.5e-6
 # Safety factor on the step cost (a slower or busier node).
 RUNTIME_MARGIN = 1.5
 # Python start, loading the compiled kernels, reading and writing state files.
@@ -241,7 +242,8 @@ START_MIN = 2
 # like sqrt(mass / stiffness), i.e. like semi-axis * sqrt(density / Y).
 DT_REFERENCE_S = {"gear": 1.9e-6, "verlet": 6.9e-6}
 # A release waits while its spot is not clear, so pouring takes longer than
-# n_particles / rate: 26.3 s instead of 17.5 s for the pour above.
+# n_particles / rate: 35.6 s (layered) and 41 s (wedge) instead of 35 s for the
+# study's pours (README, "How long").
 POUR_TIME_FACTOR = 1.5
 # Simulated time a relaxation or gravity probe typically needs: a 3500-particle
 # pile relaxed in 0.42-0.83 s (at most relax.max_time, after which the simulator
