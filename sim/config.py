@@ -12,7 +12,6 @@ Young's modulus in N/m, 2D densities in kg/m².
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from dataclasses import dataclass, field
 from typing import Any
