@@ -136,7 +136,9 @@ def particle_pair_index(pi, pj, n):
     -------
     (numpy.ndarray, numpy.ndarray)
         ``offset`` (n + 1) and ``pairs``: the pairs of particle ``p`` are
-        ``pairs[offset[p]:offset[p + 1]]``.
+        ``pairs[offset[p]:offset[p + 1]]``, each as ``q`` where ``p`` is the
+        pair's ``i`` and as ``~q = -q - 1`` where it is its ``j`` (so the
+        force sums need not read the pair list).
     """
     offset = np.zeros(n + 1, np.int64)
     for p in range(pi.shape[0]):
@@ -149,7 +151,7 @@ def particle_pair_index(pi, pj, n):
     for p in range(pi.shape[0]):
         pairs[fill[pi[p]]] = p
         fill[pi[p]] += 1
-        pairs[fill[pj[p]]] = p
+        pairs[fill[pj[p]]] = ~p
         fill[pj[p]] += 1
     return offset, pairs
 

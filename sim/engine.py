@@ -32,8 +32,8 @@ import numpy as np
 
 from .broadphase import candidate_pairs, carry_history, particle_pair_index
 from .config import ModelParams
-from .forces import (GEOMETRY_SIZE, KERNELS_PARALLEL, KERNELS_SERIAL, ROW, ROW_SIZE, Bodies,
-                     Law, Motion, Pairs, Particles, Workspace, advance)
+from .forces import (BLOCK, GEOMETRY_SIZE, KERNELS_PARALLEL, KERNELS_SERIAL, PRED_SIZE, ROW,
+                     ROW_SIZE, Bodies, Law, Motion, Pairs, Particles, Workspace, advance)
 from .geometry import make_scratch
 from .integrators import corrector_coefficients, scale_derivatives, unscale_derivatives
 from .timestep import choose_dt, stability_bound
@@ -144,10 +144,12 @@ class Simulation:
         self.wy = np.zeros_like(shapes.node_y)
         self.box = np.zeros((self.capacity, 4))
         max_corners = int(np.max(shapes.node_count)) if self.capacity else 3
+        n_threads = numba.config.NUMBA_NUM_THREADS
         self.work = Workspace(
-            np.stack([make_scratch(max_corners) for _ in range(numba.config.NUMBA_NUM_THREADS)]),
-            np.zeros((numba.config.NUMBA_NUM_THREADS, GEOMETRY_SIZE)))
-        self.cs = np.zeros((self.capacity if not self.rotate else 0, 2))
+            np.stack([make_scratch(max_corners) for _ in range(n_threads)]),
+            np.zeros((n_threads, GEOMETRY_SIZE)), np.zeros((n_threads, len(self.coeffs))),
+            np.zeros(self.capacity // BLOCK + 1))
+        self.pred = np.zeros((self.capacity, PRED_SIZE))
         self.full_law = False
         self.pi = np.empty(0, np.int64)
         self.pj = np.empty(0, np.int64)
@@ -301,10 +303,8 @@ class Simulation:
         self.axis = carry_history(self.pi, self.pj, self.axis, pi, pj, fill=-1)
         self.cross = carry_history(self.pi, self.pj, self.cross, pi, pj, fill=-1)
         if not self.rotate:
-            # orientations are fixed: no angular velocity, corners placed with cached cos, sin
+            # orientations are fixed: no angular velocity (so θ's prediction is θ)
             self.r[1:, 2, :n] = 0.0
-            self.cs[:n, 0] = np.cos(self.r[0, 2, :n])
-            self.cs[:n, 1] = np.sin(self.r[0, 2, :n])
         self.pi, self.pj = pi, pj
         self.pair_offset, self.pair_index = particle_pair_index(pi, pj, n)
         self.pout = np.zeros((len(pi), ROW_SIZE))
@@ -318,8 +318,9 @@ class Simulation:
         damped, tangential, body_tangential = self._law_flags()
         m = self.model
         sh = self.shapes
-        return (Particles(self.r, sh.node_offset, sh.node_x, sh.node_y, self.wx, self.wy,
-                          self.box, self.cs, sh.mass, self.inv_mass, self.inv_inertia, sh.area),
+        return (Particles(self.r, self.pred, sh.node_offset, sh.node_x, sh.node_y, self.wx,
+                          self.wy, self.box, sh.mass, self.inv_mass,
+                          self.inv_inertia, sh.area),
                 Pairs(self.pi, self.pj, self.spring, self.axis, self.cross, self.pout,
                       self.pforce, self.pair_offset, self.pair_index),
                 Bodies(self.body_p, self.body_m, self.body_friction, self.bspring, self.bout),

@@ -1,18 +1,24 @@
-"""The time step: predictor, contact forces, force gathering and corrector.
+"""The time step: contact forces, then force gathering, corrector and predictor.
 
-A step is three parallel passes without write races:
+A step is two parallel passes without write races:
 
-1. :func:`predict_and_place` (over particles): the integrator's predictor
-   (:func:`sim.integrators.nordsieck_predict`), corners in world coordinates,
-   bounding boxes;
-2. :func:`pair_forces` (over candidate pairs): narrow phase and contact law;
-   each pair writes only its own row of ``Pairs.out``, its spring and its
-   separating-axis cache;
-3. :func:`gather_and_correct` (over particles): sums the rows of the pairs a
+1. :func:`pair_forces` (over candidate pairs): narrow phase and contact law
+   at the predicted positions and velocities; each pair writes only its own
+   row of ``Pairs.out``, its spring and its witness;
+2. :func:`gather_and_correct` (over particles): sums the rows of the pairs a
    particle belongs to (in the fixed order of the broad phase's index, so the
    sum is deterministic), adds its contacts with the fixed bodies (support,
-   walls; their spring history is per particle) and gravity, then applies the
-   integrator's corrector (:func:`sim.integrators.nordsieck_correct`).
+   walls; their spring history is per particle) and gravity, applies the
+   integrator's corrector (:func:`sim.integrators.nordsieck_correct`) and
+   then already the next step's predictor for this particle: its predicted
+   position and velocity (``Particles.pred``), world corners and bounding
+   box, while its data are in cache.
+
+``Particles.r`` always holds the corrected state (what state files save);
+the prediction lives in ``pred`` (:func:`sim.integrators.nordsieck_predicted`,
+bit for bit the values the corrector starts from).  A run of steps
+(:func:`advance`) starts with one :func:`predict_and_place` pass and the last
+step predicts nothing.
 
 The state reaches the kernels bundled in four named tuples, so that a kernel's
 signature says what it uses: :class:`Particles`, :class:`Pairs`,
@@ -36,9 +42,9 @@ inside tests (in contact); only the others are clipped
 Work a scene does not need is skipped, decided per run by flags: without
 damping (γ = 0) no damping force, without friction (μ = 0) no tangential force
 and no spring history (the springs are neither read nor written), and without
-rotation no orientation is predicted or corrected (the corners are placed with
-the cached ``cos θ, sin θ`` of ``Particles.cs``).  Where a flag is off, the
-full law would compute exactly zero for the skipped term.
+rotation no orientation is corrected (its rates stay zero, so its prediction
+is θ itself).  Where a flag is off, the full law would compute exactly zero
+for the skipped term.
 
 Every kernel exists in a serial and a parallel build (:data:`KERNELS_SERIAL`,
 :data:`KERNELS_PARALLEL`): below a few hundred particles starting a parallel
@@ -64,7 +70,7 @@ from numba import njit, prange
 from .contact_law import (characteristic_length, elastic_force, normal_force,
                           reduced_mass, tangential_force, tangential_mass)
 from .geometry import halfplane_overlap_range, polygon_overlap_range
-from .integrators import nordsieck_correct, nordsieck_predict
+from .integrators import nordsieck_correct, nordsieck_predict, nordsieck_predicted
 from .warmstart import axis_separates, find_axis, find_crossings, overlap_from_crossings
 
 ROW = {"area": 0, "c1x": 1, "c1y": 2, "c2x": 3, "c2y": 4, "sx": 5, "sy": 6, "nx": 7,
@@ -72,18 +78,20 @@ ROW = {"area": 0, "c1x": 1, "c1y": 2, "c2x": 3, "c2y": 4, "sx": 5, "sy": 6, "nx"
        "ratio": 14, "active": 15}
 ROW_SIZE = 16
 GEOMETRY_SIZE = 10  # the narrow phase's part of a row (area .. length)
+PRED_SIZE = 6  # x, y, θ, r1x, r1y, r1θ of Particles.pred
 BLOCK = 256  # particles per parallel work item of the predictor and the gather
 PAIR_BLOCK = 128  # pairs per parallel work item of the pair pass
 
-Particles = namedtuple("Particles", "r node_offset node_x node_y wx wy box cs mass inv_mass "
-                                    "inv_inertia area")
+Particles = namedtuple("Particles", "r pred node_offset node_x node_y wx wy box mass "
+                                    "inv_mass inv_inertia area")
 Particles.__doc__ = """The particles' state and shapes (capacity-sized arrays).
 
-r : (n_values, 3, capacity) scaled derivatives of (x, y, θ) (:mod:`sim.integrators`);
-node_offset, node_x, node_y : CSR body-frame corners; wx, wy : world corners;
-box : (capacity, 4) bounding boxes (xmin, xmax, ymin, ymax); cs : (capacity, 2)
-cached ``cos θ, sin θ`` (used when rotation is fixed); mass, inv_mass,
-inv_inertia, area : per particle.
+r : (n_values, 3, capacity) scaled derivatives of (x, y, θ)
+(:mod:`sim.integrators`), corrected; pred : (capacity, PRED_SIZE) the step's
+prediction of ``r_0`` and ``r_1`` (x, y, θ, then their scaled rates:
+velocity × dt); node_offset, node_x, node_y : CSR body-frame corners; wx, wy :
+world corners (of the prediction); box : (capacity, 4) bounding boxes (xmin,
+xmax, ymin, ymax); mass, inv_mass, inv_inertia, area : per particle.
 """
 
 Pairs = namedtuple("Pairs", "i j spring axis cross out force offset index")
@@ -94,7 +102,8 @@ axis : (n_pairs,) separating edge, cross : (n_pairs, 4) crossing edges
 (witnesses of the last step, :mod:`sim.warmstart`); out : (n_pairs, ROW_SIZE)
 rows; force : (n_pairs, 4) the force on i (x, y) and the torques on i and j,
 zero where the pair does not touch (the gather's compact copy of the rows'
-force columns); offset, index : CSR list of the pairs of each particle.
+force columns); offset, index : CSR list of the pairs of each particle
+(:func:`sim.broadphase.particle_pair_index`: ``~p`` where it is the pair's j).
 """
 
 Bodies = namedtuple("Bodies", "point normal friction spring out")
@@ -118,49 +127,55 @@ Motion = namedtuple("Motion", "dt coeffs gravity_x gravity_y drag rotate")
 Motion.__doc__ = """Integrator settings: time step (s), corrector coefficients, gravity
 (m/s²), background drag (1/s, relaxation only) and whether θ is integrated."""
 
-Workspace = namedtuple("Workspace", "scratch out")
-Workspace.__doc__ = """Per-thread work arrays indexed by Numba's thread id: clipping
-scratch (n_threads, 7, cap) (:func:`sim.geometry.make_scratch`) and one
-narrow-phase output row (n_threads, GEOMETRY_SIZE)."""
+Workspace = namedtuple("Workspace", "scratch out sweep block_moved")
+Workspace.__doc__ = """Work arrays: per thread (indexed by Numba's thread id) the
+clipping scratch (n_threads, 7, cap) (:func:`sim.geometry.make_scratch`), one
+narrow-phase output row (n_threads, GEOMETRY_SIZE) and the predictor's sweep
+(n_threads, n_values); per block of BLOCK particles the largest squared
+displacement (n_blocks,)."""
 
 
-def predict_and_place(n, pt, motion):
-    """Integrator predictor, world corners and bounding boxes of the first n particles.
+def predict_and_place(n, pt, motion, work):
+    """Prediction, world corners and bounding boxes of the first n particles.
+
+    Starts a run of steps (:func:`advance`); within it,
+    :func:`gather_and_correct` predicts each particle right after correcting it.
 
     Parameters
     ----------
     n : int
         Active particles.
     pt : Particles
-        ``r`` is replaced by its prediction (θ only with ``motion.rotate``);
-        ``wx, wy, box`` receive the corners and boxes.
+        ``pred, wx, wy, box`` receive the prediction, corners and boxes;
+        ``r`` is not changed.
     motion : Motion
+    work : Workspace
     """
     # fields are unpacked once: taking an array out of a tuple inside the loop
     # would update its reference count at every access
-    r, node_offset, node_x, node_y, wx, wy, box, cs = pt[:8]
-    rotate = motion.rotate
-    n_dof = 3 if rotate else 2
+    r, pred, node_offset, node_x, node_y, wx, wy, box = pt[:8]
+    sweep = work.sweep
     n_blocks = (n + BLOCK - 1) // BLOCK
     for blk in prange(n_blocks):
-        lo = blk * BLOCK
-        hi = min(lo + BLOCK, n)
-        nordsieck_predict(r, lo, hi, n_dof)
-        for i in range(lo, hi):
-            if rotate:
-                c = math.cos(r[0, 2, i])
-                s = math.sin(r[0, 2, i])
-            else:
-                c = cs[i, 0]
-                s = cs[i, 1]
-            _place(r, i, c, s, node_offset, node_x, node_y, wx, wy, box)
+        tmp = sweep[numba.get_thread_id()]
+        for i in range(blk * BLOCK, min(blk * BLOCK + BLOCK, n)):
+            nordsieck_predicted(r, i, pred, tmp)
+            _place(pred, i, node_offset, node_x, node_y, wx, wy, box)
 
 
 @njit(cache=True, inline="always")
-def _place(r, i, c, s, node_offset, node_x, node_y, wx, wy, box):
-    """World corners and bounding box of particle i at orientation ``(cos θ, sin θ) = (c, s)``."""
-    x = r[0, 0, i]
-    y = r[0, 1, i]
+def _place(pred, i, node_offset, node_x, node_y, wx, wy, box):
+    """World corners and bounding box of particle i at its prediction ``pred[i]``.
+
+    Called right after :func:`sim.integrators.nordsieck_predicted`.  Both are
+    called from the kernels' loops themselves: wrapped in one more inlined
+    function, whose array arguments Numba then reference-counts at every
+    call, the prediction cost four times as much.
+    """
+    x = pred[i, 0]
+    y = pred[i, 1]
+    c = math.cos(pred[i, 2])
+    s = math.sin(pred[i, 2])
     x0 = np.inf
     x1 = -np.inf
     y0 = np.inf
@@ -252,11 +267,12 @@ def _clip_pair(wx, wy, a0, a1, b0, b1, xi, yi, xj, yj, eps, geo, S, axis, cross,
     return False
 
 
-def pair_forces(pt, pairs, law, dt, work):
+def pair_forces(pt, pairs, law, dt, work, record):
     """Narrow phase and contact law for every candidate pair.
 
-    Writes row p of ``pairs.out`` (active flag 0 when the pair does not
-    overlap) and its separating-edge cache ``pairs.axis[p]``; with
+    Writes ``pairs.force[p]`` (zero when the pair does not overlap), its
+    witness (``pairs.axis[p]``, ``pairs.cross[p]``) and, with ``record``, row
+    p of ``pairs.out`` (active flag 0 when the pair does not overlap); with
     ``law.tangential`` it updates ``pairs.spring[p]`` (reset to zero when the
     pair does not overlap, so a new contact starts with an unloaded spring).
 
@@ -266,14 +282,17 @@ def pair_forces(pt, pairs, law, dt, work):
     pairs : Pairs
     law : Law
     dt : float
-        Time step, s (velocities are ``r[1] / dt``).
+        Time step, s (velocities are ``pred[:, 3:] / dt``).
     work : Workspace
+    record : bool
+        Whether to write the rows: only the last step of a run does, since
+        only its rows are read (checks, contacts, state files).
     """
     # fields are unpacked once: taking an array out of a tuple inside the loop
     # would update its reference count at every access
-    r, node_offset, _, _, wx, wy, box, _, _, inv_mass, inv_inertia, area = pt
+    _, pred, node_offset, _, _, wx, wy, box, _, inv_mass, inv_inertia, area = pt
     pi, pj, spring, axis, cross, out, force, _, _ = pairs
-    scratch, geo_rows = work
+    scratch, geo_rows = work[:2]
     tangential = law.tangential
     inv_dt = 1.0 / dt
     n_pairs = pi.shape[0]
@@ -285,7 +304,8 @@ def pair_forces(pt, pairs, law, dt, work):
         for p in range(blk * PAIR_BLOCK, min(blk * PAIR_BLOCK + PAIR_BLOCK, n_pairs)):
             i = pi[p]
             j = pj[p]
-            out[p, 15] = 0.0
+            if record:
+                out[p, 15] = 0.0
             for k in range(4):
                 force[p, k] = 0.0
             a0 = node_offset[i]
@@ -298,10 +318,10 @@ def pair_forces(pt, pairs, law, dt, work):
                 if tangential:
                     spring[p] = 0.0
                 continue
-            xi = r[0, 0, i]
-            yi = r[0, 1, i]
-            xj = r[0, 0, j]
-            yj = r[0, 1, j]
+            xi = pred[i, 0]
+            yi = pred[i, 1]
+            xj = pred[j, 0]
+            yj = pred[j, 1]
             if not (overlap_from_crossings(wx, wy, a0, a1, b0, b1, xi, yi, xj, yj, law.eps,
                                            geo, cross, p) or
                     _clip_pair(wx, wy, a0, a1, b0, b1, xi, yi, xj, yj, law.eps, geo, S, axis,
@@ -319,10 +339,10 @@ def pair_forces(pt, pairs, law, dt, work):
             vrx = 0.0
             vry = 0.0
             if law.damped or tangential:
-                wi = r[1, 2, i] * inv_dt
-                wj = r[1, 2, j] * inv_dt
-                vrx = (r[1, 0, i] - r[1, 0, j]) * inv_dt - wi * riy + wj * rjy
-                vry = (r[1, 1, i] - r[1, 1, j]) * inv_dt + wi * rix - wj * rjx
+                wi = pred[i, 5] * inv_dt
+                wj = pred[j, 5] * inv_dt
+                vrx = (pred[i, 3] - pred[j, 3]) * inv_dt - wi * riy + wj * rjy
+                vry = (pred[i, 4] - pred[j, 4]) * inv_dt + wi * rix - wj * rjx
             fx, fy, sp = _contact_force(geo, spring[p] if tangential else 0.0, vrx, vry, l,
                                         inv_mass[i], inv_mass[j], ri, rj, inv_inertia[i],
                                         inv_inertia[j], law, law.friction, dt, tangential)
@@ -330,7 +350,8 @@ def pair_forces(pt, pairs, law, dt, work):
                 spring[p] = sp
             tq_i = rix * fy - riy * fx
             tq_j = -(rjx * fy - rjy * fx)
-            _write_row(out, p, geo, fx, fy, tq_i, tq_j, geo[0] / min(area[i], area[j]))
+            if record:
+                _write_row(out, p, geo, fx, fy, tq_i, tq_j, geo[0] / min(area[i], area[j]))
             force[p, 0] = fx
             force[p, 1] = fy
             force[p, 2] = tq_i
@@ -338,9 +359,10 @@ def pair_forces(pt, pairs, law, dt, work):
 
 
 @njit(cache=True)
-def _body_contact(b, i, r, node_offset, wx, wy, inv_mass, inv_inertia, area, bodies, law,
-                  dt, S, geo):
-    """Force (x, y) and torque on particle i from body b, whose box it reaches.
+def _body_contact(b, i, pred, node_offset, wx, wy, inv_mass, inv_inertia, area, bodies,
+                  law, dt, S, geo, record):
+    """Force (x, y) and torque on particle i (at its prediction ``pred[i]``) from
+    body b, whose box it reaches.
 
     Not inlined: most particles touch no body, and the clipping inlined into
     the gather's loop slowed every particle down.
@@ -350,35 +372,38 @@ def _body_contact(b, i, r, node_offset, wx, wy, inv_mass, inv_inertia, area, bod
     if not halfplane_overlap_range(wx, wy, node_offset[i], node_offset[i + 1], px, py,
                                    bodies.normal[b, 0], bodies.normal[b, 1], law.eps, geo,
                                    S):
-        _clear_body_contact(bodies.out, bodies.spring, b, i, law.body_tangential)
+        _clear_body_contact(bodies.out, bodies.spring, b, i, law.body_tangential, record)
         return 0.0, 0.0, 0.0
-    wi = r[1, 2, i] / dt
-    rix = geo[5] - r[0, 0, i]
-    riy = geo[6] - r[0, 1, i]
+    wi = pred[i, 5] / dt
+    rix = geo[5] - pred[i, 0]
+    riy = geo[6] - pred[i, 1]
     ri = math.sqrt(rix * rix + riy * riy)
     l = max(characteristic_length(ri, np.inf), law.eps)
     fx, fy, s = _contact_force(
         geo, bodies.spring[b, i] if law.body_tangential else 0.0,
-        r[1, 0, i] / dt - wi * riy, r[1, 1, i] / dt + wi * rix, l, inv_mass[i], 0.0, ri,
+        pred[i, 3] / dt - wi * riy, pred[i, 4] / dt + wi * rix, l, inv_mass[i], 0.0, ri,
         0.0, inv_inertia[i], 0.0, law, bodies.friction[b], dt, law.body_tangential)
     if law.body_tangential:
         bodies.spring[b, i] = s
     tq = rix * fy - riy * fx
-    _write_row(bodies.out[b], i, geo, fx, fy, tq, 0.0, geo[0] / area[i])
+    if record:
+        _write_row(bodies.out[b], i, geo, fx, fy, tq, 0.0, geo[0] / area[i])
     return fx, fy, tq
 
 
 @njit(cache=True, inline="always")
-def _clear_body_contact(bout, bspring, b, i, body_tangential):
-    """Mark particle i out of contact with body b (and unload its spring)."""
-    if bout[b, i, 15] != 0.0:
+def _clear_body_contact(bout, bspring, b, i, body_tangential, record):
+    """Unload the spring of particle i with body b, which it does not touch, and
+    with ``record`` mark its row inactive."""
+    if body_tangential:
+        bspring[b, i] = 0.0
+    if record:
         bout[b, i, 15] = 0.0
-        if body_tangential:
-            bspring[b, i] = 0.0
 
 
-def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref):
-    """Total force and torque on each particle, then the corrector (Eq. 1).
+def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, record):
+    """Total force and torque on each particle, the corrector (Eq. 1), and the
+    next step's predictor.
 
     ``motion.drag`` (1/s) adds the background damping ``−drag·m·v`` and
     ``−drag·I·ω`` used only while relaxing (see :mod:`sim.protocols`); it is 0
@@ -392,16 +417,21 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref):
         See the module docstring.
     x_ref, y_ref : numpy.ndarray
         Centres at the last pair-list build.
+    record : bool
+        The last step of a run: write the body rows (``bodies.out``) and do
+        not predict a next step (otherwise: no rows, and the next step's
+        ``pred``, corners and boxes).
 
     Returns
     -------
     float
-        The largest squared displacement of a centre since the last build, m².
+        The largest squared displacement of a corrected centre since the last
+        build, m².
     """
-    r, node_offset, _, _, wx, wy, box, _, mass, inv_mass, inv_inertia, area = pt
-    pi, _, _, _, _, _, force, offset, index = pairs
+    r, pred, node_offset, node_x, node_y, wx, wy, box, mass, inv_mass, inv_inertia, area = pt
+    force, offset, index = pairs[6:]
     point, normal, _, bspring, bout = bodies
-    scratch, geo_rows = work
+    scratch, geo_rows, sweep, block_moved = work
     coeffs = motion.coeffs
     dt = motion.dt
     drag = motion.drag
@@ -411,23 +441,24 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref):
     n_bodies = point.shape[0]
     half_dt2 = 0.5 * dt * dt
     n_blocks = (n + BLOCK - 1) // BLOCK
-    moved = 0.0
     for blk in prange(n_blocks):
         tid = numba.get_thread_id()
         S = scratch[tid]
         geo = geo_rows[tid]
-        block_moved = 0.0
+        tmp = sweep[tid]
+        bm = 0.0
         for i in range(blk * BLOCK, min(blk * BLOCK + BLOCK, n)):
             fx = mass[i] * gx
             fy = mass[i] * gy
             tq = 0.0
             for q in range(offset[i], offset[i + 1]):
                 p = index[q]
-                if pi[p] == i:
+                if p >= 0:  # i is the pair's i
                     fx += force[p, 0]
                     fy += force[p, 1]
                     tq += force[p, 2]
-                else:
+                else:  # i is the pair's j (index ~p)
+                    p = ~p
                     fx -= force[p, 0]
                     fy -= force[p, 1]
                     tq += force[p, 3]
@@ -437,21 +468,31 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref):
                 my = normal[b, 1]
                 if ((box[i, 0] if mx > 0.0 else box[i, 1]) - point[b, 0]) * mx + \
                         ((box[i, 2] if my > 0.0 else box[i, 3]) - point[b, 1]) * my >= 0.0:
-                    _clear_body_contact(bout, bspring, b, i, law.body_tangential)
+                    _clear_body_contact(bout, bspring, b, i, law.body_tangential, record)
                     continue
-                bfx, bfy, btq = _body_contact(b, i, r, node_offset, wx, wy, inv_mass,
-                                              inv_inertia, area, bodies, law, dt, S, geo)
+                bfx, bfy, btq = _body_contact(b, i, pred, node_offset, wx, wy, inv_mass,
+                                              inv_inertia, area, bodies, law, dt, S, geo,
+                                              record)
                 fx += bfx
                 fy += bfy
                 tq += btq
-            nordsieck_correct(r, i, half_dt2 * (fx * inv_mass[i] - drag * r[1, 0, i] / dt),
-                              half_dt2 * (fy * inv_mass[i] - drag * r[1, 1, i] / dt),
-                              half_dt2 * (tq * inv_inertia[i] - drag * r[1, 2, i] / dt),
+            nordsieck_predict(r, i, n_dof)
+            nordsieck_correct(r, i, half_dt2 * (fx * inv_mass[i] - drag * pred[i, 3] / dt),
+                              half_dt2 * (fy * inv_mass[i] - drag * pred[i, 4] / dt),
+                              half_dt2 * (tq * inv_inertia[i] - drag * pred[i, 5] / dt),
                               coeffs, n_dof)
             dx = r[0, 0, i] - x_ref[i]
             dy = r[0, 1, i] - y_ref[i]
-            block_moved = max(block_moved, dx * dx + dy * dy)
-        moved = max(moved, block_moved)
+            bm = max(bm, dx * dx + dy * dy)
+            if not record:
+                nordsieck_predicted(r, i, pred, tmp)
+                _place(pred, i, node_offset, node_x, node_y, wx, wy, box)
+        block_moved[blk] = bm
+    # the blocks' maxima, not a reduction variable of the parallel loop:
+    # reductions need Numba's reference counting, which the kernels go without
+    moved = 0.0
+    for blk in range(n_blocks):
+        moved = max(moved, block_moved[blk])
     return moved
 
 
@@ -469,7 +510,11 @@ def _build(kernel, parallel):
                                kernel.__closure__)
     clone.__qualname__ = f"{kernel.__qualname__}_{tag}"
     clone.__doc__ = kernel.__doc__
-    return njit(cache=True, parallel=parallel)(clone)
+    # No reference counting (Numba's NRT) in the kernels: they allocate
+    # nothing, and Numba counted the references to the arrays handed to
+    # inlined helpers at every pair (atomic operations that the threads of a
+    # parallel pass contend for).  Without it the pair pass took 30 % less.
+    return njit(cache=True, parallel=parallel, _nrt=False)(clone)
 
 
 #: Parallel builds of (predict, pairs, gather), for a few hundred particles and more.
@@ -507,9 +552,10 @@ def advance(kernels, n_steps, n, pt, pairs, bodies, law, motion, work, x_ref, y_
         ``sqrt(rebuild_sq)`` since the last pair-list build.
     """
     predict, pair_pass, gather = kernels
+    predict(n, pt, motion, work)
     for s in range(n_steps):
-        predict(n, pt, motion)
-        pair_pass(pt, pairs, law, motion.dt, work)
-        if gather(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref) > rebuild_sq:
+        last = s + 1 == n_steps
+        pair_pass(pt, pairs, law, motion.dt, work, last)
+        if gather(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, last) > rebuild_sq:
             return s + 1
     return n_steps

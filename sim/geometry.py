@@ -302,26 +302,32 @@ def _min_edge_distance(vx, vy, px, py, p0, p1, ox, oy):
 
 
 @njit(cache=True, inline="always")
-def write_contact(out, area, c1x, c1y, c2x, c2y, nx, ny, ox, oy):
-    """Fill ``out`` from local-frame contact points and a unit normal.
+def contact_geometry(area, c1x, c1y, c2x, c2y, nx, ny, ox, oy):
+    """The contact geometry (the first 10 entries of an output row) from
+    local-frame contact points and a unit normal.
 
     Orders ``c1, c2`` so that ``c2 - c1`` points along ``t = (-n_y, n_x)``.
+
+    Returns
+    -------
+    tuple of 10 float
+        area, c1 (x, y), c2 (x, y), force point s (x, y), n (x, y) and the
+        contact-line length, in world coordinates (``o`` is the frame's origin).
     """
     if (c2x - c1x) * (-ny) + (c2y - c1y) * nx < 0.0:
         c1x, c2x = c2x, c1x
         c1y, c2y = c2y, c1y
     dx = c2x - c1x
     dy = c2y - c1y
-    out[0] = area
-    out[1] = c1x + ox
-    out[2] = c1y + oy
-    out[3] = c2x + ox
-    out[4] = c2y + oy
-    out[5] = 0.5 * (c1x + c2x) + ox
-    out[6] = 0.5 * (c1y + c2y) + oy
-    out[7] = nx
-    out[8] = ny
-    out[9] = np.sqrt(dx * dx + dy * dy)
+    return (area, c1x + ox, c1y + oy, c2x + ox, c2y + oy, 0.5 * (c1x + c2x) + ox,
+            0.5 * (c1y + c2y) + oy, nx, ny, np.sqrt(dx * dx + dy * dy))
+
+
+@njit(cache=True, inline="always")
+def write_contact(out, area, c1x, c1y, c2x, c2y, nx, ny, ox, oy):
+    """Fill ``out[:10]`` with :func:`contact_geometry`."""
+    (out[0], out[1], out[2], out[3], out[4], out[5], out[6], out[7], out[8],
+     out[9]) = contact_geometry(area, c1x, c1y, c2x, c2y, nx, ny, ox, oy)
 
 
 # ---------------------------------------------------------------------------

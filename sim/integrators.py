@@ -45,28 +45,51 @@ FLUSH_BELOW = 1e-200
 
 
 @njit(cache=True, inline="always")
-def nordsieck_predict(r, lo, hi, n_dof):
-    """Predictor ``r ← P r`` (Pascal triangle) for particles ``lo .. hi - 1``.
+def nordsieck_predict(r, i, n_dof):
+    """Predictor ``r ← P r`` (Pascal triangle) of particle i, in place.
 
-    Applied as repeated in-place sweeps ``r_k += r_{k+1}`` with particles
-    innermost, so the loop vectorises.  Serves both integrators (Gear: six
-    values, velocity Verlet: three).
+    Applied as repeated in-place sweeps ``r_k += r_{k+1}``; serves both
+    integrators (Gear: six values, velocity Verlet: three).
 
     Parameters
     ----------
     r : numpy.ndarray, shape (n_values, 3, capacity)
-        Scaled derivatives; replaced by their prediction.
-    lo, hi : int
-        Particle range.
+        Scaled derivatives; particle i's are replaced by their prediction.
+    i : int
+        Particle.
     n_dof : int
-        Degrees of freedom updated: 2 (x, y) or 3 (x, y, θ).
+        Degrees of freedom predicted: 2 (x, y) or 3 (x, y, θ).
     """
     nv = r.shape[0]
     for d in range(n_dof):
         for top in range(nv - 1, 0, -1):
             for k in range(top - 1, nv - 1):
-                for i in range(lo, hi):
-                    r[k, d, i] += r[k + 1, d, i]
+                r[k, d, i] += r[k + 1, d, i]
+
+
+@njit(cache=True, inline="always")
+def nordsieck_predicted(r, i, pred, tmp):
+    """The predicted values and scaled rates of particle i, leaving ``r`` as it is.
+
+    Writes ``pred[i] = (x, y, θ, r_1x, r_1y, r_1θ)``: ``r_0`` and ``r_1`` of the
+    prediction, by the same sweeps as :func:`nordsieck_predict` (on the copy
+    ``tmp``, length >= n_values; written out for velocity Verlet), so they are
+    bit for bit the values the corrector will start from.
+    """
+    nv = r.shape[0]
+    for d in range(3):
+        if nv == 3:
+            r1 = r[1, d, i] + r[2, d, i]
+            pred[i, d] = r[0, d, i] + r1
+            pred[i, 3 + d] = r1 + r[2, d, i]
+        else:
+            for k in range(nv):
+                tmp[k] = r[k, d, i]
+            for top in range(nv - 1, 0, -1):
+                for k in range(top - 1, nv - 1):
+                    tmp[k] += tmp[k + 1]
+            pred[i, d] = tmp[0]
+            pred[i, 3 + d] = tmp[1]
 
 
 @njit(cache=True, inline="always")

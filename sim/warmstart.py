@@ -7,7 +7,7 @@ last narrow phase and tests it before doing the general work of
 
 * a **separating edge** for a pair that did not overlap: while every corner of
   one polygon lies strictly outside that edge's line of the other polygon, the
-  convex polygons do not overlap (:func:`edge_separates`);
+  convex polygons do not overlap (:func:`axis_separates`);
 * the **crossing edges** of a pair that overlapped: the edge of ``a`` and the
   edge of ``b`` that cross where ``a``'s boundary enters ``b`` (the contact
   point ``c1`` or ``c2``), and the two that cross where it leaves.  From them
@@ -26,6 +26,14 @@ follow as in the general kernel (same conventions, same ``eps`` rules, see
 past a corner, more than two crossings, a contact line shorter than ``eps``)
 is left to the general kernel, after which the witness is found anew.
 
+The kernels that call these are compiled without Numba's reference counting
+(:func:`sim.forces._build`); with it, every array handed to an inlined
+helper was counted at every call (an atomic increment and decrement per
+array, which the threads of a parallel pass also contend for).
+:func:`overlap_from_crossings` has a single exit with every value defined
+on every path (a value defined on some paths only gave wrong results in the
+parallel pass).
+
 Edges are numbered from 0 within each polygon (edge k runs from corner k to
 corner k + 1); a separating edge is stored as ``2 k`` (edge k of ``b``) or
 ``2 k + 1`` (edge k of ``a``), the crossings as ``(a_in, b_in, a_out,
@@ -37,24 +45,29 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .geometry import write_contact
+from .geometry import contact_geometry
 
 
 
 @njit(cache=True, inline="always")
-def edge_separates(x, y, e0, e1, k, v0, v1):
-    """Whether edge k of the polygon ``[e0, e1)`` has every corner of ``[v0, v1)``
-    strictly outside its line (then the two convex polygons do not overlap).
+def axis_separates(x, y, a0, a1, b0, b1, axis):
+    """Whether the separating edge ``axis`` (module docstring) still separates ``a`` and ``b``.
 
-    Uses the clipping's sign convention: a cross product ``>= 0`` is inside the
-    edge's closed half-plane.
+    It does while every corner of the one polygon lies strictly outside the
+    line of that edge of the other (then the two convex polygons do not
+    overlap).  Uses the clipping's sign convention: a cross product ``>= 0``
+    is inside the edge's closed half-plane.
     """
-    a = e0 + k
-    b = a + 1 if a + 1 < e1 else e0
-    px = x[a]
-    py = y[a]
-    ex = x[b] - px
-    ey = y[b] - py
+    if axis & 1:  # edge of a, corners of b
+        e0, e1, v0, v1 = a0, a1, b0, b1
+    else:
+        e0, e1, v0, v1 = b0, b1, a0, a1
+    e = e0 + (axis >> 1)
+    f = e + 1 if e + 1 < e1 else e0
+    px = x[e]
+    py = y[e]
+    ex = x[f] - px
+    ey = y[f] - py
     for q in range(v0, v1):
         if ex * (y[q] - py) - ey * (x[q] - px) >= 0.0:
             return False
@@ -62,48 +75,36 @@ def edge_separates(x, y, e0, e1, k, v0, v1):
 
 
 @njit(cache=True, inline="always")
-def axis_separates(x, y, a0, a1, b0, b1, axis):
-    """Whether the separating edge ``axis`` (module docstring) still separates ``a`` and ``b``."""
-    k = axis >> 1
-    if axis & 1:
-        return edge_separates(x, y, a0, a1, k, b0, b1)
-    return edge_separates(x, y, b0, b1, k, a0, a1)
-
-
-@njit(cache=True, inline="always")
 def find_axis(x, y, a0, a1, b0, b1):
     """A separating edge of two polygons that do not overlap, or -1 (touching)."""
     for k in range(b1 - b0):
-        if edge_separates(x, y, b0, b1, k, a0, a1):
+        if axis_separates(x, y, a0, a1, b0, b1, 2 * k):
             return 2 * k
     for k in range(a1 - a0):
-        if edge_separates(x, y, a0, a1, k, b0, b1):
+        if axis_separates(x, y, a0, a1, b0, b1, 2 * k + 1):
             return 2 * k + 1
     return -1
 
 
 @njit(cache=True, inline="always")
-def _crossing(x, y, a0, a1, ka, b0, b1, kb, entering):
-    """Where edge ka of ``a`` crosses edge kb of ``b``, with ``a`` entering ``b`` or leaving it.
+def _crossing(ax0, ay0, ax1, ay1, bx0, by0, bx1, by1, entering):
+    """Where the edge ``a0 → a1`` crosses the edge ``b0 → b1``, with ``a``
+    entering ``b`` or leaving it.
 
     Returns ``(found, t, un, den)``: ``found`` when the two edges (closed
     segments) cross with ``a``'s boundary running into ``b`` (``entering``)
-    or out of it; the crossing is ``a_ka + t (a_ka+1 − a_ka) = b_kb + u
-    (b_kb+1 − b_kb)`` with ``u = un / (d_a × d_b)``, returned as the numerator
-    ``un`` and ``den = |d_a × d_b|`` (u is rarely needed; no division).  The
-    cross product ``d_a × d_b`` is negative where ``a`` enters ``b`` (CCW
+    or out of it; the crossing is ``a0 + t (a1 − a0) = b0 + u (b1 − b0)``
+    with ``u = un / (d_a × d_b)``, returned as the numerator ``un`` and
+    ``den = |d_a × d_b|`` (u is rarely needed; no division).  The cross
+    product ``d_a × d_b`` is negative where ``a`` enters ``b`` (CCW
     polygons), positive where it leaves.
     """
-    i = a0 + ka
-    i1 = i + 1 if i + 1 < a1 else a0
-    j = b0 + kb
-    j1 = j + 1 if j + 1 < b1 else b0
-    dx = x[i1] - x[i]
-    dy = y[i1] - y[i]
-    ex = x[j1] - x[j]
-    ey = y[j1] - y[j]
-    wx = x[j] - x[i]
-    wy = y[j] - y[i]
+    dx = ax1 - ax0
+    dy = ay1 - ay0
+    ex = bx1 - bx0
+    ey = by1 - by0
+    wx = bx0 - ax0
+    wy = by0 - ay0
     den = dx * ey - dy * ex
     tn = wx * ey - wy * ex
     un = wx * dy - wy * dx
@@ -117,46 +118,25 @@ def _crossing(x, y, a0, a1, ka, b0, b1, kb, entering):
 
 
 @njit(cache=True, inline="always")
-def _inside(x, y, p0, p1, vx, vy):
-    """Whether the world point ``v`` lies in the closed CCW polygon ``[p0, p1)``."""
-    px = x[p1 - 1]
-    py = y[p1 - 1]
-    for k in range(p0, p1):
-        qx = x[k]
-        qy = y[k]
-        if (qx - px) * (vy - py) - (qy - py) * (vx - px) < 0.0:
-            return False
-        px = qx
-        py = qy
-    return True
-
-
-@njit(cache=True, inline="always")
-def _arc(x, y, p0, n, k_from, k_to, q0, q1, ox, oy, x1, y1, a2, qx, qy):
-    """Walk the corners ``k_from + 1 .. k_to`` of polygon ``p`` (``n`` corners from
-    ``p0``), each of which must lie in polygon ``[q0, q1)``, adding their
-    shoelace terms to ``a2`` (coordinates relative to the local point ``(x1,
-    y1)`` of the frame at the world point ``o``; ``(qx, qy)`` the previous
-    corner).
+def _edge_crossing(x, y, a0, a1, ka, b0, b1, kb, entering, ox, oy):
+    """:func:`_crossing` of edge ka of ``a = [a0, a1)`` and edge kb of ``b = [b0, b1)``.
 
     Returns
     -------
-    (bool, float, float, float)
-        Whether every corner lies inside, the sum, the last corner.
+    (bool, float, float, float, float, float)
+        ``found, t, un, den`` as from :func:`_crossing`, then the crossing
+        point relative to ``(ox, oy)`` (as in the general kernel; 0 when not
+        found).
     """
-    k = k_from
-    while k != k_to:
-        k = k + 1 if k + 1 < n else 0
-        vx = x[p0 + k]
-        vy = y[p0 + k]
-        if not _inside(x, y, q0, q1, vx, vy):
-            return False, a2, qx, qy
-        vx = (vx - ox) - x1
-        vy = (vy - oy) - y1
-        a2 += qx * vy - vx * qy
-        qx = vx
-        qy = vy
-    return True, a2, qx, qy
+    i = a0 + ka
+    i1 = i + 1 if i + 1 < a1 else a0
+    j = b0 + kb
+    j1 = j + 1 if j + 1 < b1 else b0
+    found, t, un, den = _crossing(x[i], y[i], x[i1], y[i1], x[j], y[j], x[j1], y[j1],
+                                  entering)
+    if not found:
+        return False, t, un, den, 0.0, 0.0
+    return True, t, un, den, (x[i] - ox) + t * (x[i1] - x[i]), (y[i] - oy) + t * (y[i1] - y[i])
 
 
 @njit(cache=True, inline="always")
@@ -189,65 +169,83 @@ def overlap_from_crossings(x, y, a0, a1, b0, b1, cax, cay, cbx, cby, eps, out, c
         apply, or when the normal's orientation needs the general kernel's
         tie-break (``|n · (cb − ca)| <= eps``).  ``out`` is then untouched.
     """
+    # one exit (module docstring)
     ka_in = cross[p, 0]
-    if ka_in < 0:
-        return False
     kb_in = cross[p, 1]
     ka_out = cross[p, 2]
     kb_out = cross[p, 3]
     na = a1 - a0
     nb = b1 - b0
-    if ka_in >= na or ka_out >= na or kb_in >= nb or kb_out >= nb:
-        return False
-    found, t1, un1, den1 = _crossing(x, y, a0, a1, ka_in, b0, b1, kb_in, True)
-    if not found:
-        return False
-    found, t2, un2, den2 = _crossing(x, y, a0, a1, ka_out, b0, b1, kb_out, False)
-    if not found:
-        return False
-    # within one edge the entry must come before the exit (else the arc wraps
-    # around); along b's edge the exit comes first: u2 < u1, u = un / den
-    if (ka_in == ka_out and not t1 < t2) or \
-            (kb_in == kb_out and not un2 / den2 < -un1 / den1):
-        return False
-    # crossing points relative to a's first corner, as in the general kernel
+    ok = 0 <= ka_in < na and ka_out < na and kb_in < nb and kb_out < nb
+    # every value defined on every path (the parallel pass needs it)
+    t1 = un1 = t2 = un2 = x1 = y1 = x2 = y2 = tx = ty = a2 = d2 = nx = ny = 0.0
+    den1 = den2 = 1.0
     ox = x[a0]
     oy = y[a0]
-    i = a0 + ka_in
-    i1 = i + 1 if i + 1 < a1 else a0
-    x1 = (x[i] - ox) + t1 * (x[i1] - x[i])
-    y1 = (y[i] - oy) + t1 * (y[i1] - y[i])
-    i = a0 + ka_out
-    i1 = i + 1 if i + 1 < a1 else a0
-    x2 = (x[i] - ox) + t2 * (x[i1] - x[i])
-    y2 = (y[i] - oy) + t2 * (y[i1] - y[i])
-    # shoelace over X1, a's corners inside b, X2, b's corners inside a (relative to X1)
-    ok, a2, qx, qy = _arc(x, y, a0, na, ka_in, ka_out, b0, b1, ox, oy, x1, y1, 0.0, 0.0,
-                          0.0)
-    if not ok:
-        return False
-    tx = x2 - x1
-    ty = y2 - y1
-    a2 += qx * ty - tx * qy
-    ok, a2, qx, qy = _arc(x, y, b0, nb, kb_out, kb_in, a0, a1, ox, oy, x1, y1, a2, tx, ty)
-    if not ok:
-        return False
-    d2 = tx * tx + ty * ty
-    if not (0.5 * a2 > eps * eps and d2 > eps * eps):
-        return False
-    ln = np.sqrt(d2)
-    inv_ln = 1.0 / ln
-    nx = ty * inv_ln
-    ny = -tx * inv_ln
-    # orient along cb − ca; the near-perpendicular case takes the general tie-break
-    dot = nx * (cbx - cax) + ny * (cby - cay)
-    if dot < -eps:
-        nx = -nx
-        ny = -ny
-    elif not dot > eps:
-        return False
-    write_contact(out, 0.5 * a2, x1, y1, x2, y2, nx, ny, ox, oy)
-    return True
+    if ok:
+        ok, t1, un1, den1, x1, y1 = _edge_crossing(x, y, a0, a1, ka_in, b0, b1, kb_in, True,
+                                                   ox, oy)
+    if ok:
+        ok, t2, un2, den2, x2, y2 = _edge_crossing(x, y, a0, a1, ka_out, b0, b1, kb_out,
+                                                   False, ox, oy)
+    # within one edge the entry must come before the exit (else the arc wraps
+    # around); along b's edge the exit comes first: u2 < u1, u = un / den
+    if ok and ((ka_in == ka_out and not t1 < t2) or
+               (kb_in == kb_out and not un2 / den2 < -un1 / den1)):
+        ok = False
+    if ok:
+        tx = x2 - x1
+        ty = y2 - y1
+        # shoelace over X1, a's corners inside b, X2, b's corners inside a
+        # (relative to X1): the two arcs in turn, each corner tested against
+        # the other polygon
+        a2 = 0.0
+        qx = 0.0
+        qy = 0.0
+        for side in range(2):
+            if side == 0:
+                p0, n, k, k_to, q0, q1 = a0, na, ka_in, ka_out, b0, b1
+            else:
+                p0, n, k, k_to, q0, q1 = b0, nb, kb_out, kb_in, a0, a1
+            while ok and k != k_to:
+                k = k + 1 if k + 1 < n else 0
+                vx = x[p0 + k]
+                vy = y[p0 + k]
+                ex = x[q1 - 1]
+                ey = y[q1 - 1]
+                for m in range(q0, q1):
+                    if (x[m] - ex) * (vy - ey) - (y[m] - ey) * (vx - ex) < 0.0:
+                        ok = False
+                        break
+                    ex = x[m]
+                    ey = y[m]
+                vx = (vx - ox) - x1
+                vy = (vy - oy) - y1
+                a2 += qx * vy - vx * qy
+                qx = vx
+                qy = vy
+            if side == 0:
+                a2 += qx * ty - tx * qy
+                qx = tx
+                qy = ty
+        d2 = tx * tx + ty * ty
+        ok = ok and 0.5 * a2 > eps * eps and d2 > eps * eps
+    if ok:
+        ln = np.sqrt(d2)
+        inv_ln = 1.0 / ln
+        nx = ty * inv_ln
+        ny = -tx * inv_ln
+        # orient along cb − ca; the near-perpendicular case takes the general tie-break
+        dot = nx * (cbx - cax) + ny * (cby - cay)
+        if dot < -eps:
+            nx = -nx
+            ny = -ny
+        elif not dot > eps:
+            ok = False
+    if ok:
+        (out[0], out[1], out[2], out[3], out[4], out[5], out[6], out[7], out[8],
+         out[9]) = contact_geometry(0.5 * a2, x1, y1, x2, y2, nx, ny, ox, oy)
+    return ok
 
 
 @njit(cache=True, inline="always")
@@ -288,7 +286,7 @@ def find_crossings(x, y, a0, a1, b0, b1, out, cross, p):
     kb1 = _edge_through(x, y, b0, b1, out[1], out[2])
     ka2 = _edge_through(x, y, a0, a1, out[3], out[4])
     kb2 = _edge_through(x, y, b0, b1, out[3], out[4])
-    if _crossing(x, y, a0, a1, ka1, b0, b1, kb1, True)[0]:
+    if _edge_crossing(x, y, a0, a1, ka1, b0, b1, kb1, True, 0.0, 0.0)[0]:
         cross[p, 0] = ka1
         cross[p, 1] = kb1
         cross[p, 2] = ka2
