@@ -1,4 +1,4 @@
-"""Command line: ``python -m sim {pour,relax,probe,warmup,bench,draw,numerics} ...``.
+"""Command line: ``python -m sim {pour,relax,probe,warmup,bench,summary,draw,numerics} ...``.
 
 Run parameters come as ``--params`` (JSON text, or ``@file`` with JSON or YAML)
 holding any of the sections ``model``, ``particles``, ``pour``, ``relax``,
@@ -123,6 +123,10 @@ def _parser():
                    help="instead: time the pile of this state file under each scene "
                         "variant (friction 0, damping 0, no rotation, no support)")
 
+    p = sub.add_parser("summary", help="one JSON line per state file: particles, height, "
+                       "width, flank angles, coordination, support reaction against weight")
+    p.add_argument("states", nargs="+", help="state files (.nc)")
+
     sub.add_parser("draw", help="picture of a pile state (PNG); "
                    "see python -m sim draw --help", add_help=False)
     sub.add_parser("numerics", help="numerical checks: " + " | ".join(NUMERICS) +
@@ -177,6 +181,18 @@ def main(argv=None):
                            tuple(args.integrators.split(",")),
                            _int_list("--threads", args.threads), Path(args.cache),
                            args.state)
+            return 0
+        if args.command == "summary":
+            from .io import load_simulation
+            from .measure import pile_summary
+            for path in args.states:
+                sim, ds = load_simulation(path)
+                n = sim.n
+                row = pile_summary(sim.position, sim.shapes.radius[:n], sim.shapes.mass[:n],
+                                   sim.gravity[1], ds["contact_i"].values,
+                                   ds["contact_j"].values, ds["force_y"].values)
+                print(json.dumps({"state": str(path), "stage": ds.attrs.get("stage", ""),
+                                  **row}), flush=True)
             return 0
         cfg = _params(args.params, args.bookkeeping)
         from . import protocols

@@ -36,21 +36,22 @@ def surface_profile(x, y, radius, bin_width):
     return lo + (np.arange(nb) + 0.5) * bin_width, top
 
 
-def angle_of_repose(x, y, radius, bin_width=None, band=(0.15, 0.75)):
-    """Mean slope angle of the two flanks of a pile, in degrees.
+def flank_angles(x, y, radius, bin_width=None, band=(0.15, 0.75)):
+    """Slope angles of the left and the right flank of a pile, in degrees.
 
     The surface profile (:func:`surface_profile`) is cut to heights between
     ``band[0]`` and ``band[1]`` of the pile height (leaving out the rounded
-    tip and the foot), a straight line is fitted to each flank (left of the
-    highest bin, right of it) and the mean of the two angles is returned.
+    tip and the foot), and a straight line is fitted to each flank (left of
+    the highest bin, right of it).
 
     Returns
     -------
-    float
-        Angle in degrees, or NaN when a flank has fewer than 3 bins.
+    (float, float)
+        Left and right angle in degrees; NaN where a flank has fewer than 3
+        bins (or the pile fewer than 10 particles).
     """
     if len(x) < 10:
-        return float("nan")
+        return float("nan"), float("nan")
     bin_width = bin_width or 2.0 * float(np.mean(radius))
     xc, top = surface_profile(x, y, radius, bin_width)
     ok = np.isfinite(top)
@@ -62,10 +63,16 @@ def angle_of_repose(x, y, radius, bin_width=None, band=(0.15, 0.75)):
         xs, ts = xc[side], top[side]
         sel = (ts > band[0] * h) & (ts < band[1] * h)
         if sel.sum() < 3:
-            return float("nan")
+            angles.append(float("nan"))
+            continue
         slope = np.polyfit(xs[sel], ts[sel], 1)[0]
-        angles.append(np.degrees(np.arctan(abs(slope))))
-    return float(np.mean(angles))
+        angles.append(float(np.degrees(np.arctan(abs(slope)))))
+    return angles[0], angles[1]
+
+
+def angle_of_repose(x, y, radius, bin_width=None, band=(0.15, 0.75)):
+    """Mean of the two :func:`flank_angles` of a pile, in degrees (NaN if either is)."""
+    return float(np.mean(flank_angles(x, y, radius, bin_width, band)))
 
 
 def mean_coordination(contact_i, contact_j, n):
@@ -74,3 +81,46 @@ def mean_coordination(contact_i, contact_j, n):
     if n == 0:
         return float("nan")
     return 2.0 * float(np.count_nonzero(pair)) / n
+
+
+def pile_summary(position, radius, mass, gravity_y, contact_i, contact_j, contact_fy):
+    """The shape of a pile and how its support carries it.
+
+    Parameters
+    ----------
+    position : numpy.ndarray, shape (n, 2)
+        Centres, m.
+    radius, mass : numpy.ndarray, shape (n,)
+        Circumradii (m) and masses (kg/m).
+    gravity_y : float
+        Vertical gravity, m/s² (negative).
+    contact_i, contact_j, contact_fy : numpy.ndarray
+        The contacts of the state (CONTRACT.md §1): ``j = -1`` is the support,
+        ``fy`` the vertical force on i.
+
+    Returns
+    -------
+    dict
+        ``particles``; ``height`` (m, the highest ``y + R``); ``width`` (m, the
+        extent ``x ± R`` of the particles that touch the support);
+        ``flank_left_deg``, ``flank_right_deg`` (:func:`flank_angles`);
+        ``mean_coordination``; ``support_reaction_over_weight_minus_1``: the
+        support's vertical force on the pile over its weight, minus 1 (0 in
+        static balance).
+    """
+    n = len(radius)
+    x, y = position[:, 0], position[:, 1]
+    base = contact_i[contact_j == -1]
+    left, right = flank_angles(x, y, radius)
+    weight = float(np.sum(mass)) * abs(gravity_y)
+    return {
+        "particles": int(n),
+        "height": float(np.max(y + radius)),
+        "width": (float(np.max(x[base] + radius[base]) - np.min(x[base] - radius[base]))
+                  if len(base) else float("nan")),
+        "flank_left_deg": left,
+        "flank_right_deg": right,
+        "mean_coordination": mean_coordination(contact_i, contact_j, n),
+        "support_reaction_over_weight_minus_1":
+            float(np.sum(contact_fy[contact_j == -1])) / weight - 1.0,
+    }

@@ -54,3 +54,31 @@ def test_coordination_counts_particle_pairs_twice_and_ignores_bodies():
     j = np.array([1, 2, 2, -1, -2])
     assert mean_coordination(i, j, 4) == pytest.approx(2 * 3 / 4)
     assert np.isnan(mean_coordination(i[:0], j[:0], 0))
+
+
+def test_pile_summary_of_a_lattice_triangle():
+    """A triangle of discs with 25° flanks on a support that carries its weight."""
+    from sim.measure import pile_summary
+    r = 1e-3
+    slope = np.radians(25.0)
+    xs, ys = [], []
+    for row in range(40):
+        y = r + row * r * np.sqrt(3.0)
+        half = (0.2 - y) / np.tan(slope)
+        x = np.arange(-half, half + 1e-12, 2 * r)
+        xs.append(x)
+        ys.append(np.full(len(x), y))
+    pos = np.column_stack([np.concatenate(xs), np.concatenate(ys)])
+    n = len(pos)
+    radius = np.full(n, r)
+    mass = np.full(n, 2e-3)
+    base = np.flatnonzero(pos[:, 1] < 1.5 * r)
+    fy = np.full(len(base), mass.sum() * 9.81 / len(base))
+    out = pile_summary(pos, radius, mass, -9.81, base, np.full(len(base), -1), fy)
+    assert out["particles"] == n
+    assert out["height"] == pytest.approx(pos[:, 1].max() + r)
+    assert out["width"] == pytest.approx(np.ptp(pos[base, 0]) + 2 * r)
+    assert out["flank_left_deg"] == pytest.approx(25.0, abs=1.5)
+    assert out["flank_right_deg"] == pytest.approx(25.0, abs=1.5)
+    assert out["support_reaction_over_weight_minus_1"] == pytest.approx(0.0, abs=1e-12)
+    assert out["mean_coordination"] == 0.0
