@@ -4,8 +4,9 @@ A step is two parallel passes without write races:
 
 1. :func:`pair_forces` (over candidate pairs): narrow phase and contact law
    at the predicted positions and velocities; each pair writes only its own
-   row of ``Pairs.out``, its spring and its witness;
-2. :func:`gather_and_correct` (over particles): sums the rows of the pairs a
+   force row, spring and witness (and on a run's last step its full row of
+   ``Pairs.out``, which the checks and state files read);
+2. :func:`gather_and_correct` (over particles): sums the forces of the pairs a
    particle belongs to (in the fixed order of the broad phase's index, so the
    sum is deterministic), adds its contacts with the fixed bodies (support,
    walls; their spring history is per particle) and gravity, applies the
