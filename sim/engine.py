@@ -32,7 +32,7 @@ import numpy as np
 
 from .broadphase import candidate_pairs, carry_history, particle_pair_index
 from .config import ModelParams
-from .forces import (BLOCK, GEOMETRY_SIZE, KERNELS_PARALLEL, KERNELS_SERIAL, PRED_SIZE, ROW,
+from .forces import (BLOCK, KERNELS_PARALLEL, KERNELS_SERIAL, PRED_SIZE, ROW,
                      ROW_SIZE, Bodies, Law, Motion, Pairs, Particles, Workspace, advance)
 from .geometry import make_scratch
 from .integrators import corrector_coefficients, scale_derivatives, unscale_derivatives
@@ -41,6 +41,11 @@ from .timestep import choose_dt, stability_bound
 log = logging.getLogger(__name__)
 
 BODY_SUPPORT, BODY_LEFT, BODY_RIGHT = -1, -2, -3
+
+#: Length of each thread's narrow-phase output row (it needs GEOMETRY_SIZE):
+#: 512 bytes, so that no two threads write into one cache line (with rows of
+#: 10 values they did, at every contact).
+THREAD_ROW = 64
 
 #: How much :meth:`Simulation.elastic_energy` can underestimate the stored
 #: energy, as a fraction of itself.  For an overlap of area ``A ∝ d^p`` at
@@ -147,7 +152,7 @@ class Simulation:
         n_threads = numba.config.NUMBA_NUM_THREADS
         self.work = Workspace(
             np.stack([make_scratch(max_corners) for _ in range(n_threads)]),
-            np.zeros((n_threads, GEOMETRY_SIZE)), np.zeros((n_threads, len(self.coeffs))),
+            np.zeros((n_threads, THREAD_ROW)),
             np.zeros(self.capacity // BLOCK + 1))
         self.pred = np.zeros((self.capacity, PRED_SIZE))
         self.full_law = False

@@ -128,12 +128,12 @@ Motion = namedtuple("Motion", "dt coeffs gravity_x gravity_y drag rotate")
 Motion.__doc__ = """Integrator settings: time step (s), corrector coefficients, gravity
 (m/s²), background drag (1/s, relaxation only) and whether θ is integrated."""
 
-Workspace = namedtuple("Workspace", "scratch out sweep block_moved")
+Workspace = namedtuple("Workspace", "scratch out block_moved")
 Workspace.__doc__ = """Work arrays: per thread (indexed by Numba's thread id) the
-clipping scratch (n_threads, 7, cap) (:func:`sim.geometry.make_scratch`), one
-narrow-phase output row (n_threads, GEOMETRY_SIZE) and the predictor's sweep
-(n_threads, n_values); per block of BLOCK particles the largest squared
-displacement (n_blocks,)."""
+clipping scratch (n_threads, 7, cap) (:func:`sim.geometry.make_scratch`) and a
+narrow-phase output row (n_threads, >= GEOMETRY_SIZE; rows of 512 bytes, so
+that two threads never write one cache line); per block of BLOCK particles
+the largest squared displacement (n_blocks,)."""
 
 
 def predict_and_place(n, pt, motion, work):
@@ -155,12 +155,10 @@ def predict_and_place(n, pt, motion, work):
     # fields are unpacked once: taking an array out of a tuple inside the loop
     # would update its reference count at every access
     r, pred, node_offset, node_x, node_y, wx, wy, box = pt[:8]
-    sweep = work.sweep
     n_blocks = (n + BLOCK - 1) // BLOCK
     for blk in prange(n_blocks):
-        tmp = sweep[numba.get_thread_id()]
         for i in range(blk * BLOCK, min(blk * BLOCK + BLOCK, n)):
-            nordsieck_predicted(r, i, pred, tmp)
+            nordsieck_predicted(r, i, pred)
             _place(pred, i, node_offset, node_x, node_y, wx, wy, box)
 
 
@@ -432,7 +430,7 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
     r, pred, node_offset, node_x, node_y, wx, wy, box, mass, inv_mass, inv_inertia, area = pt
     force, offset, index = pairs[6:]
     point, normal, _, bspring, bout = bodies
-    scratch, geo_rows, sweep, block_moved = work
+    scratch, geo_rows, block_moved = work
     coeffs = motion.coeffs
     dt = motion.dt
     drag = motion.drag
@@ -446,7 +444,6 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
         tid = numba.get_thread_id()
         S = scratch[tid]
         geo = geo_rows[tid]
-        tmp = sweep[tid]
         bm = 0.0
         for i in range(blk * BLOCK, min(blk * BLOCK + BLOCK, n)):
             fx = mass[i] * gx
@@ -486,7 +483,7 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
             dy = r[0, 1, i] - y_ref[i]
             bm = max(bm, dx * dx + dy * dy)
             if not record:
-                nordsieck_predicted(r, i, pred, tmp)
+                nordsieck_predicted(r, i, pred)
                 _place(pred, i, node_offset, node_x, node_y, wx, wy, box)
         block_moved[blk] = bm
     # the blocks' maxima, not a reduction variable of the parallel loop:
@@ -511,11 +508,13 @@ def _build(kernel, parallel):
                                kernel.__closure__)
     clone.__qualname__ = f"{kernel.__qualname__}_{tag}"
     clone.__doc__ = kernel.__doc__
-    # No reference counting (Numba's NRT) in the kernels: they allocate
-    # nothing, and Numba counted the references to the arrays handed to
-    # inlined helpers at every pair (atomic operations that the threads of a
-    # parallel pass contend for).  Without it the pair pass took 30 % less.
-    return njit(cache=True, parallel=parallel, _nrt=False)(clone)
+    # The serial builds go without Numba's reference counting (NRT): they
+    # allocate nothing, and with it every array handed to an inlined helper
+    # was counted at every pair (atomic operations; the pair pass took about
+    # 30 % longer).  The parallel builds keep it: without it they ran no
+    # faster than the serial ones on 2 threads in paired timings (reason not
+    # found; left for the next person).
+    return njit(cache=True, parallel=parallel, _nrt=parallel)(clone)
 
 
 #: Parallel builds of (predict, pairs, gather), for a few hundred particles and more.

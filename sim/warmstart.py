@@ -26,11 +26,10 @@ follow as in the general kernel (same conventions, same ``eps`` rules, see
 past a corner, more than two crossings, a contact line shorter than ``eps``)
 is left to the general kernel, after which the witness is found anew.
 
-The kernels that call these are compiled without Numba's reference counting
-(:func:`sim.forces._build`); with it, every array handed to an inlined
-helper was counted at every call (an atomic increment and decrement per
-array, which the threads of a parallel pass also contend for).
-:func:`overlap_from_crossings` has a single exit with every value defined
+The serial kernels that call these are compiled without Numba's reference
+counting (:func:`sim.forces._build`); with it, every array handed to an
+inlined helper is counted at every call (an atomic increment and decrement
+per array).  :func:`overlap_from_crossings` has a single exit with every value defined
 on every path (a value defined on some paths only gave wrong results in the
 parallel pass).
 
