@@ -102,7 +102,9 @@ def pile_summary(position, radius, mass, gravity_y, contact_i, contact_j, contac
     -------
     dict
         ``particles``; ``height`` (m, the highest ``y + R``); ``width`` (m, the
-        extent ``x ± R`` of the particles that touch the support);
+        extent of the pile's surface profile (:func:`surface_profile`, bins
+        of one mean diameter) without gaps around its top: particles that
+        rolled away over the bare support are not counted);
         ``flank_left_deg``, ``flank_right_deg`` (:func:`flank_angles`);
         ``mean_coordination``; ``support_reaction_over_weight_minus_1``: the
         support's vertical force on the pile over its weight, minus 1 (0 in
@@ -110,14 +112,19 @@ def pile_summary(position, radius, mass, gravity_y, contact_i, contact_j, contac
     """
     n = len(radius)
     x, y = position[:, 0], position[:, 1]
-    base = contact_i[contact_j == -1]
+    bin_width = 2.0 * float(np.mean(radius))
+    xc, top = surface_profile(x, y, radius, bin_width)
+    lo = hi = int(np.nanargmax(top))
+    while lo > 0 and np.isfinite(top[lo - 1]):
+        lo -= 1
+    while hi < len(top) - 1 and np.isfinite(top[hi + 1]):
+        hi += 1
     left, right = flank_angles(x, y, radius)
     weight = float(np.sum(mass)) * abs(gravity_y)
     return {
         "particles": int(n),
         "height": float(np.max(y + radius)),
-        "width": (float(np.max(x[base] + radius[base]) - np.min(x[base] - radius[base]))
-                  if len(base) else float("nan")),
+        "width": float(xc[hi] - xc[lo]) + bin_width,
         "flank_left_deg": left,
         "flank_right_deg": right,
         "mean_coordination": mean_coordination(contact_i, contact_j, n),
