@@ -511,9 +511,9 @@ def _build(kernel, parallel):
     # The serial builds go without Numba's reference counting (NRT): they
     # allocate nothing, and with it every array handed to an inlined helper
     # was counted at every pair (atomic operations; the pair pass took about
-    # 30 % longer).  The parallel builds keep it: without it they ran no
-    # faster than the serial ones on 2 threads in paired timings (reason not
-    # found; left for the next person).
+    # 30 % longer).  The parallel builds keep it: without it they were
+    # slower than the old code's parallel builds in 3 of 6 paired timings,
+    # with it faster in 2 of 2 (reason not found; left for the next person).
     return njit(cache=True, parallel=parallel, _nrt=parallel)(clone)
 
 
