@@ -63,7 +63,7 @@ def cmd_params(args, params) -> None:
 
 
 def cmd_fields(args, params) -> None:
-    from .balance import balance_report, enforce
+    from .balance import balance_report, enforce, increment_report
     from .fields import check_quantities, compute_fields
     from .netcdf import write_dataset, write_json
     from .states import check_same_particles, load_state
@@ -75,20 +75,22 @@ def cmd_fields(args, params) -> None:
         states["reduced"] = load_state(args.reduced)
         check_same_particles(states["relaxed"], states["reduced"])
     reports = {stage: balance_report(state, params["checks"]) for stage, state in states.items()}
-    passed = all(r["passed"] for r in reports.values())
+    increment = ({"increment": increment_report(states["relaxed"], states["reduced"], params["checks"])}
+                 if "reduced" in states else {})
+    passed = all(r["passed"] for r in [*reports.values(), *increment.values()])
     if args.checks:
-        write_json({"passed": passed, "tolerances": params["checks"], "stages": reports,
+        write_json({"passed": passed, "tolerances": params["checks"], "stages": reports, **increment,
                     "source": f"analysis {__version__}"}, args.checks)
-    for stage, r in reports.items():
+    for stage, r in {**reports, **increment}.items():
         _log(f"checks {stage}: support reaction rel. error {r.get('support_reaction_rel_error', float('nan')):.3g}, "
-             f"Love yy rel. error {r.get('love_rel_error_yy', float('nan')):.3g}, "
-             f"max net force / weight {r.get('net_force_ratio_max', float('nan')):.3g}")
+             f"Love yy rel. error {r.get('love_rel_error_yy', float('nan')):.3g}"
+             + (f", max net force / weight {r['net_force_ratio_max']:.3g}" if "net_force_ratio_max" in r else ""))
     if params["checks"]["enforce"]:
-        enforce(list(reports.values()))
+        enforce([*reports.values(), *increment.values()])
     relaxed = states["relaxed"]
     ds = compute_fields(relaxed, states.get("reduced"), params, quantities)
     ds.attrs["balance_checks_passed"] = int(passed)
-    for stage, r in reports.items():
+    for stage, r in {**reports, **increment}.items():
         for k in ("support_reaction_rel_error", "love_rel_error_yy", "net_force_ratio_max"):
             if k in r:
                 ds.attrs[f"{k}_{stage}"] = r[k]

@@ -210,8 +210,16 @@ class RelaxParams:
         ``m g d`` (mean mass, gravity, mean diameter).
     max_speed : float
         No particle may move faster than this, m/s.
+    unbalanced_force : float
+        The unbalanced force, the sum over particles of the magnitude of
+        contact force plus gravity, must fall below this fraction of the
+        weight.  It bounds the error of every balance law of the state (the
+        support reaction against the weight, Love's sum rule), which kinetic
+        energy alone does not: a pile can pass the energy criterion while
+        still ringing.  After a gravity probe all three criteria apply to the
+        change of load (:func:`sim.protocols.relax`).
     hold_time : float
-        Both criteria must hold for this long, s.
+        The criteria must hold for this long, s.
     max_time : float
         Simulated time after which relaxation fails loudly, s.
     drag : float
@@ -241,6 +249,7 @@ class RelaxParams:
 
     kinetic_energy_fraction: float = 1.0e-6
     max_speed: float = 1.0e-3
+    unbalanced_force: float = 1.0e-6
     hold_time: float = 0.05
     max_time: float = 10.0
     drag: float = 20.0
@@ -252,6 +261,7 @@ class RelaxParams:
         _check_number(s, "kinetic_energy_fraction", self.kinetic_energy_fraction, lo=0,
                       lo_open=True)
         _check_number(s, "max_speed", self.max_speed, lo=0, lo_open=True)
+        _check_number(s, "unbalanced_force", self.unbalanced_force, lo=0, lo_open=True)
         _check_number(s, "hold_time", self.hold_time, lo=0)
         _check_number(s, "max_time", self.max_time, lo=0, lo_open=True)
         _check_number(s, "drag", self.drag, lo=0, hi=1e4)

@@ -457,68 +457,112 @@ def _summary(sim, what, wall):
              angle, mean_coordination(c["i"], c["j"], sim.n))
 
 
-def _rest_measures(sim):
-    """Mean kinetic energy per particle over ``m g d``, and the largest speed."""
+def _rest_measures(sim, load):
+    """What the rest criterion compares, for the load ``load`` (N) a stage settles.
+
+    Returns
+    -------
+    ke : float
+        Mean kinetic energy per particle over ``m g d`` (mean mass, gravity,
+        mean diameter).
+    vmax : float
+        The largest particle speed, m/s.
+    unbalanced : float
+        The unbalanced force, ``sum_p |F_p + m_p g|`` (contact forces and
+        gravity, drag excluded), over ``load``; 0 when ``load`` is 0.
+    """
     n = sim.n
     if n == 0:
-        return 0.0, 0.0
+        return 0.0, 0.0, 0.0
     g = max(float(np.hypot(*sim.gravity)), 1e-12)
     m = float(np.mean(sim.shapes.mass[:n]))
     d = 2.0 * float(np.mean(sim.shapes.radius[:n]))
-    return sim.kinetic_energy() / n / (m * g * d), float(np.max(np.hypot(*sim.velocity.T)))
+    ke = sim.kinetic_energy() / n / (m * g * d)
+    vmax = float(np.max(np.hypot(*sim.velocity.T)))
+    unbalanced = float(np.hypot(*sim.net_forces().T).sum()) / load if load > 0 else 0.0
+    return ke, vmax, unbalanced
 
 
-def relax(sim: Simulation, cfg: SimConfig, what="relax"):
+def relax(sim: Simulation, cfg: SimConfig, what="relax", load=None):
     """Run until at rest (criterion held for ``hold_time``) or fail after ``max_time``.
+
+    The criterion applies to the load that the stage settles: with ``s`` that
+    load over the pile's weight, the pile is at rest once the kinetic energy
+    per particle is below ``relax.kinetic_energy_fraction · s² · m g d``,
+    every speed below ``relax.max_speed · s`` and the unbalanced force below
+    ``relax.unbalanced_force · load``, all for ``relax.hold_time``.  After
+    pouring the load is the weight (``s = 1``); after a gravity probe it is
+    the change of weight, whose motion, speeds and out-of-balance forces are
+    that much smaller, so that the increment is at rest to the same relative
+    degree as the relaxed pile.
 
     The background drag ``relax.drag`` acts while this runs (and during a
     gravity ramp), never while pouring; once the kinetic-energy criterion
     holds, or after ``relax.drag_time``, it becomes ``relax.rocking_drag``.
+
+    Parameters
+    ----------
+    sim : Simulation
+    cfg : SimConfig
+    what : str
+        Name of the stage in log lines and errors.
+    load : float, optional
+        The load the stage settles, N; default: the weight under the current
+        gravity.
 
     Raises
     ------
     RelaxationError
         If the pile is not at rest after ``relax.max_time`` of simulated time.
     """
-    r = cfg.relax
+    weight = float(np.sum(sim.shapes.mass[:sim.n])) * float(np.hypot(*sim.gravity))
+    load = weight if load is None else float(load)
+    scale = load / weight if weight > 0 else 1.0
     t0 = sim.time
-    sim.drag = r.drag
+    sim.drag = cfg.relax.drag
     try:
-        return _relax_loop(sim, cfg, what, t0)
+        return _relax_loop(sim, cfg, what, t0, load, scale)
     finally:
         sim.drag = 0.0
 
 
-def _relax_loop(sim, cfg, what, t0):
+def _relax_loop(sim, cfg, what, t0, load, scale):
     r = cfg.relax
+    ke_max = r.kinetic_energy_fraction * scale ** 2
+    speed_max = r.max_speed * scale
     chunk = max(min(1e-3, r.hold_time / 5.0), sim.dt)
     rest_since = None
     progress = Progress(cfg.pour.progress_interval, r.max_time)
     while True:
         sim.run(duration=chunk)
-        ke, vmax = _rest_measures(sim)
-        calm = ke < r.kinetic_energy_fraction
+        ke, vmax, unbalanced = _rest_measures(sim, load)
+        calm = ke < ke_max
         if (calm or sim.time - t0 >= r.drag_time) and sim.drag != r.rocking_drag:
             log.info("%s: %s after %.4f s (KE per particle %.3g m g d, max speed %.3g m/s);"
                      " drag %g -> %g 1/s", what, "calm" if calm else "relax.drag_time over",
                      sim.time - t0, ke, vmax, sim.drag, r.rocking_drag)
             sim.drag = r.rocking_drag
-        if ke < r.kinetic_energy_fraction and vmax < r.max_speed:
+        if calm and vmax < speed_max and unbalanced < r.unbalanced_force:
             rest_since = sim.time if rest_since is None else rest_since
             if sim.time - rest_since >= r.hold_time:
-                log.info("%s: at rest after %.4f s (KE per particle %.3g J/m, max speed "
-                         "%.3g m/s)", what, sim.time - t0, sim.kinetic_energy() / sim.n, vmax)
+                log.info("%s: at rest after %.4f s (KE per particle %.3g m g d, max speed "
+                         "%.3g m/s, unbalanced force %.3g of %.4g N)", what, sim.time - t0, ke,
+                         vmax, unbalanced, load)
                 return sim
         else:
             rest_since = None
         if sim.time - t0 > r.max_time:
             raise RelaxationError(
                 f"{what}: not at rest after relax.max_time = {r.max_time} s of simulated "
-                f"time (KE per particle {sim.kinetic_energy() / sim.n:.3g} J/m, max speed "
-                f"{float(np.max(np.hypot(*sim.velocity.T))):.3g} m/s; criteria: "
-                f"kinetic_energy_fraction = {r.kinetic_energy_fraction}, max_speed = "
-                f"{r.max_speed} m/s); raise relax.max_time or the damping")
-        progress(sim, what, detail=f"KE per particle {ke:.2g} m g d, max speed {vmax:.2g} m/s")
+                f"time (KE per particle {ke:.3g} m g d, max speed {vmax:.3g} m/s, "
+                f"unbalanced force {unbalanced:.3g} of the {load:.4g} N load; criteria for "
+                f"this stage: KE < {ke_max:.3g} m g d, speed < {speed_max:.3g} m/s from "
+                f"relax.kinetic_energy_fraction = {r.kinetic_energy_fraction} and "
+                f"relax.max_speed = {r.max_speed} scaled by the load, unbalanced force < "
+                f"relax.unbalanced_force = {r.unbalanced_force}); raise relax.max_time or "
+                "the damping")
+        progress(sim, what, detail=f"KE per particle {ke:.2g} m g d, max speed {vmax:.2g} "
+                 f"m/s, unbalanced force {unbalanced:.2g} of the load")
 
 
 def relax_file(cfg: SimConfig, input_path, out):
@@ -540,7 +584,9 @@ def probe_file(cfg: SimConfig, input_path, level, out, stage="reduced"):
     """Lower gravity by ``level`` (Δ) from a relaxed state, relax again and save.
 
     With ``probe.mode = "ramp"`` gravity decreases linearly over
-    ``probe.ramp_time`` in 50 equal steps; with ``"step"`` at once.
+    ``probe.ramp_time`` in 50 equal steps; with ``"step"`` at once.  The
+    pile then relaxes to the rest criterion of the increment: :func:`relax`
+    with the change of weight, ``Δ M g``, as the load.
     """
     if not 0.0 < level < 1.0:
         raise ValueError(f"level = {level!r}: the gravity reduction must be in (0, 1)")
@@ -555,7 +601,8 @@ def probe_file(cfg: SimConfig, input_path, level, out, stage="reduced"):
                 sim.set_gravity(f * gx0, f * gy0)
                 sim.run(duration=cfg.probe.ramp_time / 50.0)
         sim.set_gravity((1.0 - level) * gx0, (1.0 - level) * gy0)
-        relax(sim, cfg, f"probe {level:g}")
+        weight0 = float(np.sum(sim.shapes.mass[:sim.n])) * float(np.hypot(gx0, gy0))
+        relax(sim, cfg, f"probe {level:g}", load=level * weight0)
     except BlowUpError as exc:
         _keep_last_good(sim, out, cfg, exc)
         raise

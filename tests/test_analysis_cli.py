@@ -83,8 +83,13 @@ def test_fields_and_checks_outputs(tmp_path, states):
     rep = json.loads(chk.read_text())
     assert rep["passed"] and set(rep["stages"]) == {"relaxed", "reduced"}
     assert abs(rep["stages"]["relaxed"]["support_reaction_rel_error"]) < 1e-12
+    # both synthetic stages balance exactly, so their difference does too
+    inc = rep["increment"]
+    assert inc["passed"] and inc["weight_change"] < 0
+    assert abs(inc["support_reaction_rel_error"]) < 1e-9 and abs(inc["love_rel_error_yy"]) < 1e-9
     with xr.open_dataset(out) as ds:
         assert ds.attrs["balance_checks_passed"] == 1
+        assert ds.attrs["support_reaction_rel_error_increment"] == inc["support_reaction_rel_error"]
         assert ds["stress"].dims == ("y", "x", "i", "j")
 
 
@@ -117,7 +122,8 @@ def test_stress_only_fields_and_their_ensemble(tmp_path, states, capsys):
     out, chk = tmp_path / "f.nc", tmp_path / "f.checks.json"
     assert main(["fields", "--relaxed", relaxed, "--quantities", "--out", str(out), "--checks", str(chk),
                  "--params", SMALL]) == 0
-    assert set(json.loads(chk.read_text())["stages"]) == {"relaxed"}
+    rep = json.loads(chk.read_text())
+    assert set(rep["stages"]) == {"relaxed"} and "increment" not in rep
     with xr.open_dataset(out) as ds:
         assert "stress" in ds and "stress_orientation" in ds
         assert not {"stress_increment", "fabric", "strain_increment", "displacement_gradient"} & set(ds.variables)
