@@ -40,6 +40,7 @@ include: "workflow/rules/analysis_common.smk"
 include: "workflow/rules/analysis.smk"
 include: "workflow/rules/numerics.smk"
 include: "workflow/rules/numerics_piles.smk"
+include: "workflow/rules/reproduction.smk"
 
 
 rule all:

@@ -132,15 +132,18 @@ def cmd_moduli(args, params) -> None:
 
 
 def cmd_base_pressure(args, params) -> None:
-    from .base_pressure import base_pressure_dataset
+    from .base_pressure import base_pressure_dataset, combine_base_pressure
     from .netcdf import write_dataset
     from .states import load_state
 
-    states = [load_state(p) for p in args.states]
-    out = base_pressure_dataset(states, params)
+    if args.states:
+        out = base_pressure_dataset([load_state(p) for p in args.states], params)
+    else:
+        out = combine_base_pressure([_read(p) for p in args.piles], list(args.piles), params)
+    n = out.attrs["n_seeds"]
     write_dataset(out, args.out, title=f"forces on the support, protocol {out.attrs.get('protocol', '')}, "
-                  f"{len(states)} piles", params=params)
-    _log(f"base pressure of {len(states)} piles -> {args.out}")
+                  f"{n} piles", params=params)
+    _log(f"base pressure of {n} piles -> {args.out}")
 
 
 def cmd_invariants(args, params) -> None:
@@ -233,7 +236,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--fields", nargs="*", default=[], help="per-pile fields files (for the uncertainties)")
     sp.add_argument("--out", required=True)
     sp = add("base-pressure", "forces per unit length on the support (base_pressure.nc)", cmd_base_pressure)
-    sp.add_argument("--states", nargs="+", required=True, help="state files (one per seed)")
+    src = sp.add_mutually_exclusive_group(required=True)
+    src.add_argument("--states", nargs="+", help="state files (one per seed)")
+    src.add_argument("--piles", nargs="+", help="base_pressure.nc files to combine (e.g. one per pile)")
     sp.add_argument("--out", required=True)
     sp = add("invariants", "trace of stress vs trace of strain, bulk modulus vs depth (invariants.nc)",
              cmd_invariants)

@@ -10,7 +10,10 @@ Per x bin (``analysis.base_pressure``; contacts binned by ``contact_x``):
   pile exerts on the support, positive towards +x (on the right flank of a
   spreading pile positive, on the left negative).
 
-Means and standard errors are over the seeds of one protocol.
+Means and standard errors are over the seeds of one protocol.  A file may
+hold one pile (the workflow writes one per pile, next to its fields) or an
+ensemble; :func:`combine_base_pressure` stacks the piles of several files, so
+the ensemble is built from per-pile files without the state files.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import numpy as np
 import xarray as xr
 
 from .ensemble import nan_mean_sem
+from .errors import InputError
 from .netcdf import var
 from .states import State
 
@@ -47,12 +51,43 @@ def base_pressure_dataset(states: list[State], params: dict[str, Any]) -> xr.Dat
     """Mean and standard error over seeds of the support force densities."""
     edges = bin_edges(params["base_pressure"])
     per = [support_force_density(s, edges) for s in states]
-    normal = np.stack([p[0] for p in per])
-    shear = np.stack([p[1] for p in per])
+    return _dataset(edges, np.stack([p[0] for p in per]), np.stack([p[1] for p in per]),
+                    [str(s.attrs.get("seed", k)) for k, s in enumerate(states)],
+                    np.array([s.mass.sum() * s.gravity for s in states]),
+                    str(states[0].attrs.get("protocol", "")) if states else "", params)
+
+
+def combine_base_pressure(datasets: list[xr.Dataset], names: list[str], params: dict[str, Any]) -> xr.Dataset:
+    """The ensemble over the piles of several ``base_pressure.nc`` files (each of
+    one pile or more; ``names`` name them in errors): their per-seed profiles
+    stacked, mean and standard error recomputed.
+
+    Raises
+    ------
+    InputError
+        If a file's bins or stage differ from ``analysis.base_pressure``.
+    """
+    edges = bin_edges(params["base_pressure"])
+    for ds, name in zip(datasets, names):
+        got = ds["x_bounds"].values
+        if got.shape != (edges.size - 1, 2) or not np.allclose(got, np.column_stack([edges[:-1], edges[1:]])):
+            raise InputError(f"{name}: its x bins differ from "
+                             f"analysis.base_pressure (x_min {params['base_pressure']['x_min']}, x_max "
+                             f"{params['base_pressure']['x_max']}, bin_width {params['base_pressure']['bin_width']})")
+        if ds.attrs.get("stage") != params["base_pressure"]["stage"]:
+            raise InputError(f"{name}: stage {ds.attrs.get('stage')!r}, "
+                             f"but analysis.base_pressure.stage = {params['base_pressure']['stage']!r}")
+    cat = xr.concat([ds[["normal_force_density_per_seed", "shear_force_density_per_seed", "weight"]]
+                     for ds in datasets], dim="seed")
+    return _dataset(edges, cat["normal_force_density_per_seed"].values, cat["shear_force_density_per_seed"].values,
+                    [str(v) for v in cat["seed"].values], cat["weight"].values,
+                    str(datasets[0].attrs.get("protocol", "")) if datasets else "", params)
+
+
+def _dataset(edges, normal, shear, seeds, weight, protocol, params) -> xr.Dataset:
     mn, sn, _ = nan_mean_sem(normal)
     ms, ssh, _ = nan_mean_sem(shear)
     centres = 0.5 * (edges[:-1] + edges[1:])
-    seeds = [str(s.attrs.get("seed", k)) for k, s in enumerate(states)]
     ds = xr.Dataset(coords={
         "x": var("x", centres, "centre of the x bin on the support (0 at the pouring axis)", "m", axis="X",
                  bounds="x_bounds"),
@@ -67,9 +102,9 @@ def base_pressure_dataset(states: list[State], params: dict[str, Any]) -> xr.Dat
     ds["shear_force_density_sem"] = var("x", ssh, "standard error over seeds of shear_force_density", "N m-1")
     ds["normal_force_density_per_seed"] = var(("seed", "x"), normal, "normal_force_density of each pile", "N m-1")
     ds["shear_force_density_per_seed"] = var(("seed", "x"), shear, "shear_force_density of each pile", "N m-1")
-    ds["weight"] = var("seed", np.array([s.mass.sum() * s.gravity for s in states]), "weight M g of each pile", "N")
-    ds.attrs["n_seeds"] = len(states)
+    ds["weight"] = var("seed", np.asarray(weight, dtype=float), "weight M g of each pile", "N")
+    ds.attrs["n_seeds"] = len(seeds)
     ds.attrs["stage"] = params["base_pressure"]["stage"]
-    ds.attrs["protocol"] = str(states[0].attrs.get("protocol", "")) if states else ""
+    ds.attrs["protocol"] = protocol
     ds.attrs["bin_width"] = params["base_pressure"]["bin_width"]
     return ds

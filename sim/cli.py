@@ -192,7 +192,8 @@ def main(argv=None):
                                    sim.gravity[1], ds["contact_i"].values,
                                    ds["contact_j"].values, ds["force_y"].values)
                 print(json.dumps({"state": str(path), "stage": ds.attrs.get("stage", ""),
-                                  **row}), flush=True)
+                                  "code_version": ds.attrs.get("code_version", ""), **row}),
+                      flush=True)
             return 0
         cfg = _params(args.params, args.bookkeeping)
         from . import protocols

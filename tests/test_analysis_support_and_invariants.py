@@ -5,7 +5,8 @@ import pytest
 import xarray as xr
 from synthetic_states import as_state, displaced, make_state, square_nodes, step_pyramid
 
-from analysis.base_pressure import base_pressure_dataset, support_force_density
+from analysis.base_pressure import base_pressure_dataset, combine_base_pressure, support_force_density
+from analysis.errors import InputError
 from analysis.convergence import convergence_dataset
 from analysis.figures import fig_base_pressure, fig_convergence
 from analysis.invariants import invariants_dataset
@@ -34,6 +35,30 @@ def test_support_forces_integrate_to_the_weight_and_sign_of_shear():
     assert n[0] * A == pytest.approx(h0 * st.mass[0] * 9.81)
     # identical piles: zero standard error
     assert np.allclose(ds["normal_force_density_sem"].values, 0)
+
+
+def test_ensemble_of_per_pile_files_equals_the_ensemble_of_their_states():
+    """The workflow keeps one base_pressure file per pile and combines them; the
+    result must be the ensemble computed from the states themselves: mean and
+    standard error over the piles, each pile still integrating to its weight."""
+    params = resolve_params({"base_pressure": {"x_min": -0.3, "x_max": 0.3, "bin_width": 0.012}})
+    states = []
+    for seed, (n, slope) in enumerate([(41, 0.6), (51, 0.5), (61, 0.7)]):
+        s = step_pyramid(n, A, slope=slope)
+        s["attrs"]["seed"] = seed
+        states.append(as_state(s))
+    piles = [base_pressure_dataset([st], params) for st in states]
+    combined = combine_base_pressure(piles, ["a", "b", "c"], params)
+    direct = base_pressure_dataset(states, params)
+    for v in direct.data_vars:
+        np.testing.assert_array_equal(combined[v].values, direct[v].values, err_msg=v)
+    assert combined.attrs["n_seeds"] == 3
+    w = params["base_pressure"]["bin_width"]
+    per_pile = combined["normal_force_density_per_seed"].sum("x").values * w
+    np.testing.assert_allclose(per_pile, [st.mass.sum() * 9.81 for st in states], rtol=1e-12)
+    other = resolve_params({"base_pressure": {"x_min": -0.3, "x_max": 0.3, "bin_width": 0.02}})
+    with pytest.raises(InputError, match="b: its x bins differ"):
+        combine_base_pressure([piles[0], base_pressure_dataset([states[1]], other)], ["a", "b"], params)
 
 
 def _ens(ts, tu, depth):

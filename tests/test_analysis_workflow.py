@@ -27,10 +27,15 @@ def _project(tmp_path, analysis_cfg=None):
     (tmp_path / "config.yaml").write_text(yaml.safe_dump(cfg))
     (tmp_path / "Snakefile").write_text(textwrap.dedent(f"""
         import sys, glob
+        from pathlib import Path
         from snakemake.utils import validate
         configfile: "config.yaml"
         validate(config["analysis"], "{REPO}/workflow/schemas/analysis.schema.yaml")
+        config.setdefault("committed", None)
+        REPO = Path(workflow.basedir)
         PROTOCOLS = ["wedge", "layered"]
+        def pile(protocol, seed, stage):
+            return f"results/piles/{{protocol}}/seed{{seed}}/{{stage}}.nc"
         def seeds(protocol):
             return [1, 2]
         ANALYSIS_CODE = sorted(glob.glob("{REPO}/analysis/*.py"))
@@ -94,8 +99,12 @@ def test_full_run_produces_every_output(tmp_path):
     r = _snakemake(p, timeout=600)
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     for proto in ("wedge", "layered"):
-        for name in ("fields.nc", "moduli.nc", "base_pressure.nc", "invariants.nc", "convergence.nc"):
+        for name in ("fields.nc", "moduli.nc", "base_pressure.nc", "invariants.nc"):
             assert (p / "results" / "ensemble" / proto / name).exists()
+        for seed in (1, 2):
+            assert (p / "results" / "fields" / proto / f"seed{seed}.base_pressure.nc").exists()
+    # Fig. 1 is drawn from one pile (the first seed of analysis.figures.convergence_protocol)
+    assert (p / "results" / "fields" / "wedge" / "seed1.convergence.nc").exists()
     assert len(glob.glob(str(p / "results" / "figures" / "*.png"))) == 6
     assert len(glob.glob(str(p / "results" / "figures" / "*.pdf"))) == 6
     assert glob.glob(str(p / "benchmarks" / "analysis" / "fields" / "wedge" / "*.tsv"))

@@ -201,7 +201,8 @@ def test_stress_only_scene_runs_no_probe_no_fit_no_figure(workdir):
     n = len(smoke_piles())
     assert job_counts(proc.output) == {
         "compile_kernels": 1, "pour": n, "relax": n, "analysis_fields": n,
-        "analysis_ensemble": 2, "analysis_base_pressure": 2, "all": 1}
+        "analysis_base_pressure_pile": n, "analysis_ensemble": 2, "analysis_base_pressure": 2,
+        "all": 1}
     assert "--reduced" not in proc.output and "reduced.nc" not in proc.output
     assert "--quantities  --params" in proc.output   # the stress only
 
@@ -437,6 +438,53 @@ def test_smoke_study_end_to_end(tmp_path):
     again = snakemake(root, "-n", "--cores", "2", *SMOKE)
     assert again.returncode == 0 and job_counts(again.output) == {}, again.output
     check_stress_only_scene_gives_the_same_values(root)
+    check_reproduction_from_recorded_piles(root)
+
+
+def check_reproduction_from_recorded_piles(root):
+    """Record every finished smoke pile (rule record_pile), delete the states and
+    per-pile results, and rebuild the study from the records alone (make
+    reproduction): no simulation runs, and the ensembles, fits and base
+    pressure are those of the full run, bit for bit."""
+    import xarray as xr
+
+    # the stress-only scene rewrote the fields without strain: the full study first
+    proc = snakemake(root, "--cores", "2", *SMOKE, "--show-failed-logs", timeout=600)
+    assert proc.returncode == 0, proc.output[-20000:]
+    records = [f"docs/reproduction/{p}/seed{s}.summary.json" for p, s in smoke_piles()]
+    proc = snakemake(root, "--cores", "2", *SMOKE, *records, "--show-failed-logs", timeout=600)
+    assert proc.returncode == 0, proc.output[-20000:]
+    # convergence of every recorded pile, base pressure and summary per pile
+    assert job_counts(proc.output)["record_pile"] == len(smoke_piles())
+    full = root / "full_study"
+    shutil.copytree(root / "results" / "ensemble", full)
+    shutil.rmtree(root / "results")
+    committed = ["--config", "committed=docs/reproduction",
+                 "outputs=[fields,strain,fabric,fits,figures]"]
+    proc = snakemake(root, "reproduction", "--cores", "2", *SMOKE, *committed, "--show-failed-logs",
+                     timeout=600)
+    assert proc.returncode == 0, proc.output[-20000:]
+    counts = job_counts(proc.output)
+    assert not set(counts) & {*PILE_RULES, "analysis_fields", "analysis_base_pressure_pile",
+                              "analysis_convergence", "draw_pile"}, counts
+    docs = root / "docs" / "reproduction"
+    assert {f.name for f in (docs / "figures").glob("*.png")} == {
+        "fig1_convergence.png", "fig2_vertical_strain.png", "fig3_fabric.png", "fig4_moduli.png",
+        "fig5_invariants.png", "base_pressure.png"}
+    table = (docs / "piles.md").read_text()
+    for p, s in smoke_piles():
+        assert f"| {p} seed{s} |" in table
+    numbers = (docs / "numbers.md").read_text()
+    assert "## wedge (2 piles)" in numbers and "## layered (2 piles)" in numbers
+    for p in ("wedge", "layered"):
+        for name in ("fields.nc", "moduli.nc", "invariants.nc", "base_pressure.nc"):
+            with xr.open_dataset(root / "results" / "ensemble" / p / name) as again, \
+                    xr.open_dataset(full / p / name) as first:
+                assert set(again.data_vars) == set(first.data_vars)
+                for var in first.data_vars:
+                    if first[var].dtype.kind in "fiu":
+                        np.testing.assert_array_equal(again[var].values, first[var].values,
+                                                      err_msg=f"{p}/{name}: {var}")
 
 
 def check_stress_only_scene_gives_the_same_values(root):

@@ -96,11 +96,32 @@ rule analysis_moduli:
         )
 
 
+rule analysis_base_pressure_pile:
+    input:
+        state=lambda wc: pile(wc.protocol, wc.seed, _analysis_setting("base_pressure", "stage", "relaxed")),
+        code=ANALYSIS_CODE,
+    output:
+        "results/fields/{protocol}/seed{seed}.base_pressure.nc",
+    params:
+        cfg=ANALYSIS_PARAMS,
+    log:
+        "logs/analysis/base_pressure/{protocol}/seed{seed}.log",
+    localrule: True
+    threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        py_shell(
+            "-m analysis base-pressure --states {input.state:q} --params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
+        )
+
+
 rule analysis_base_pressure:
     input:
-        states=lambda wc: expand("results/piles/{protocol}/seed{seed}/{stage}.nc", protocol=wc.protocol,
-                                 seed=seeds(wc.protocol),
-                                 stage=_analysis_setting("base_pressure", "stage", "relaxed")),
+        piles=_analysis_base_pressure_piles,
         code=ANALYSIS_CODE,
     output:
         "results/ensemble/{protocol}/base_pressure.nc",
@@ -117,7 +138,7 @@ rule analysis_base_pressure:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis base-pressure --states {input.states:q} --params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
+            "-m analysis base-pressure --piles {input.piles:q} --params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
         )
 
 
@@ -145,16 +166,18 @@ rule analysis_invariants:
 
 
 rule analysis_convergence:
+    # One pile's fields at fixed points against RVE size (Fig. 1); the scene
+    # asks for it for one seed (analysis.convergence.seed).
     input:
-        relaxed=lambda wc: f"results/piles/{wc.protocol}/seed{_analysis_convergence_seed(wc.protocol)}/relaxed.nc",
-        reduced=lambda wc: f"results/piles/{wc.protocol}/seed{_analysis_convergence_seed(wc.protocol)}/reduced.nc",
+        relaxed=pile("{protocol}", "{seed}", "relaxed"),
+        reduced=pile("{protocol}", "{seed}", "reduced"),
         code=ANALYSIS_CODE,
     output:
-        "results/ensemble/{protocol}/convergence.nc",
+        "results/fields/{protocol}/seed{seed}.convergence.nc",
     params:
         cfg=ANALYSIS_PARAMS,
     log:
-        "logs/analysis/convergence/{protocol}.log",
+        "logs/analysis/convergence/{protocol}/seed{seed}.log",
     localrule: True
     threads: 1
     resources:
@@ -171,7 +194,7 @@ rule analysis_convergence:
 
 rule analysis_figure_convergence:
     input:
-        data=lambda wc: f"results/ensemble/{_analysis_protocol('convergence_protocol')}/convergence.nc",
+        data=_analysis_convergence_file,
         code=ANALYSIS_CODE,
     output:
         png=report("results/figures/fig1_convergence.png", caption="../report/analysis/fig1_convergence.rst",

@@ -9,8 +9,40 @@ ANALYSIS_MEM_MB = 2000
 ANALYSIS_FIGURES = {"fig1_convergence": "strain", "fig2_vertical_strain": "strain", "fig3_fabric": "fabric",
                     "fig4_moduli": "fits", "fig5_invariants": "fits", "base_pressure": "fields"}
 # The ensemble files of each output.
-ANALYSIS_ENSEMBLE = {"fields": ("fields.nc", "base_pressure.nc"), "strain": ("convergence.nc",),
-                     "fits": ("moduli.nc", "invariants.nc")}
+ANALYSIS_ENSEMBLE = {"fields": ("fields.nc", "base_pressure.nc"), "fits": ("moduli.nc", "invariants.nc")}
+# A pile's compact results, by kind: its file under results/fields/ and, under
+# `committed`, under that folder (docs/reproduction/ as committed).
+PILE_RESULTS = {"fields": ("{protocol}/seed{seed}.nc", "{protocol}/seed{seed}.fields.nc"),
+                "checks": ("{protocol}/seed{seed}.checks.json", "{protocol}/seed{seed}.checks.json"),
+                "base_pressure": ("{protocol}/seed{seed}.base_pressure.nc", "{protocol}/seed{seed}.base_pressure.nc"),
+                "convergence": ("{protocol}/seed{seed}.convergence.nc", "{protocol}/seed{seed}.convergence.nc"),
+                "summary": ("{protocol}/seed{seed}.summary.json", "{protocol}/seed{seed}.summary.json")}
+# Folder of committed per-pile results that the analysis reads instead of
+# computing them from state files (config `committed`; None: compute them).
+COMMITTED = REPO / config["committed"] if config["committed"] else None
+
+
+def pile_result(protocol, seed, kind):
+    """The file of one pile's compact result of `kind` (a key of PILE_RESULTS)."""
+    computed, committed = PILE_RESULTS[kind]
+    if COMMITTED is None:
+        return f"results/fields/{computed.format(protocol=protocol, seed=seed)}"
+    return str(COMMITTED / committed.format(protocol=protocol, seed=seed))
+
+
+def analysis_seeds(protocol, kind="fields"):
+    """The seeds whose `kind` result enters the ensembles: all seeds of the
+    study, or under `committed` those of them whose file is there."""
+    if COMMITTED is None:
+        return seeds(protocol)
+    found = [s for s in seeds(protocol) if os.path.exists(pile_result(protocol, s, kind))]
+    if not found:
+        raise ValueError(
+            f"committed = {config['committed']!r}: no pile of protocol {protocol} (seeds "
+            f"{seeds(protocol)}) has its {kind} file there ({PILE_RESULTS[kind][1]}); commit one "
+            "or leave the outputs that need it out"
+        )
+    return found
 
 
 def _analysis_setting(section, key, default):
@@ -25,18 +57,29 @@ def _analysis_protocol(key):
 
 def _analysis_convergence_seed(protocol):
     s = _analysis_setting("convergence", "seed", None)
-    return seeds(protocol)[0] if s is None else s
+    return analysis_seeds(protocol, "convergence")[0] if s is None else s
 
 
 def _analysis_fields(wildcards):
-    return expand("results/fields/{protocol}/seed{seed}.nc", protocol=wildcards.protocol,
-                  seed=seeds(wildcards.protocol))
+    return [pile_result(wildcards.protocol, s, "fields") for s in analysis_seeds(wildcards.protocol)]
+
+
+def _analysis_base_pressure_piles(wildcards):
+    p = wildcards.protocol
+    return [pile_result(p, s, "base_pressure") for s in analysis_seeds(p, "base_pressure")]
+
+
+def _analysis_convergence_file(wildcards):
+    p = _analysis_protocol("convergence_protocol")
+    return pile_result(p, _analysis_convergence_seed(p), "convergence")
 
 
 def analysis_targets():
     """The final outputs of the analysis that the scene asks for (for `rule all`)."""
     names = [name for output, files in ANALYSIS_ENSEMBLE.items() if wants(output) for name in files]
     targets = [f"results/ensemble/{p}/{name}" for p in PROTOCOLS for name in names]
+    if wants("strain"):
+        targets += [_analysis_convergence_file(None)]
     if wants("figures"):
         targets += [f"results/figures/{stem}.{ext}" for stem, output in ANALYSIS_FIGURES.items()
                     if wants(output) for ext in ("png", "pdf")]

@@ -65,6 +65,16 @@ def _check_scene():
             f"analysis.base_pressure.stage = {stage!r} is not a stage of this scene "
             f"(poured, relaxed and the probes {probe_stages()})"
         )
+    if config["committed"]:
+        folder = REPO / config["committed"]
+        if not folder.is_dir():
+            problems.append(f"committed = {config['committed']!r}: no such folder under {REPO}")
+        if OUTPUTS & {"states", "numerics"}:
+            problems.append(
+                f"committed = {config['committed']!r} with outputs {asked}: committed results "
+                "replace the simulation, so states and numerics cannot be asked for; "
+                "leave them out of outputs"
+            )
     if problems:
         raise ValueError("invalid scene:\n  " + "\n  ".join(problems))
 
@@ -74,11 +84,12 @@ _check_scene()
 
 def scene_targets():
     """Everything the scene asks for, the input of `all`. The pile states, the
-    pictures of the relaxed piles, the analysis (analysis_targets()) and the
+    pictures of the relaxed piles (not from committed results: they need the
+    states), the analysis (analysis_targets()) and the
     numerical checks. Called from the Snakefile after every rule file is
     included, so the numerics rules exist."""
     targets = pile_targets() if wants("states") else []
-    if wants("figures") and OUTPUTS & PILE_OUTPUTS:
+    if wants("figures") and OUTPUTS & PILE_OUTPUTS and not config["committed"]:
         targets += pile_figure_targets("relaxed")
     if wants("numerics"):
         targets += list(rules.numerics.input) + numerics_piles_targets()

@@ -1,0 +1,117 @@
+# The study's record: each finished pile's compact results, committed under
+# docs/reproduction/ (rule record_pile), and the ensembles, fits, figures and
+# per-pile table rebuilt from those files alone (`make reproduction`: config
+# `committed`, rule reproduction), without a state file or a simulation.
+# Expects pile(), probe_stages(), PY_SIM, py_shell, REPO (common.smk),
+# pile_result(), analysis_seeds(), PILE_RESULTS, COMMITTED, ANALYSIS_FIGURES and
+# analysis_targets() (analysis_common.smk), wants() (scene.smk).
+
+RECORD = "docs/reproduction"
+# The files of a recorded pile, under RECORD/{protocol}/: PILE_RESULTS' kinds,
+# the run summary and the pour's benchmark.
+RECORD_FILES = {**{kind: committed for kind, (_, committed) in PILE_RESULTS.items()},
+                "pour": "{protocol}/seed{seed}.pour.tsv"}
+
+
+rule pile_summary:
+    # One JSON line per stage: particles, height, width, flank angles,
+    # coordination, support reaction against weight (python -m sim summary).
+    input:
+        states=lambda wc: [pile(wc.protocol, wc.seed, s) for s in ["poured", "relaxed"] + probe_stages()],
+    output:
+        "results/fields/{protocol}/seed{seed}.summary.json",
+    log:
+        "logs/pile_summary/{protocol}/seed{seed}.log",
+    localrule: True
+    threads: 1
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        sim_shell("summary {input.states:q} > {output:q} 2> {log:q}", numba=False)
+
+
+if not config["committed"]:
+
+    rule record_pile:
+        # Copies a finished pile's compact results into docs/reproduction/
+        # (commit them by hand); the fields, balance checks, base pressure,
+        # convergence data, summary and the pour's benchmark.
+        input:
+            **{kind: pile_result("{protocol}", "{seed}", kind) for kind in PILE_RESULTS},
+            pour="benchmarks/pour/{protocol}/seed{seed}.tsv",
+        output:
+            **{kind: f"{RECORD}/{name}" for kind, name in RECORD_FILES.items()},
+        log:
+            "logs/record_pile/{protocol}/seed{seed}.log",
+        localrule: True
+        threads: 1
+        conda:
+            "../envs/polypile.yaml"
+        shell:
+            " && ".join(f"cp -v {{input.{kind}:q}} {{output.{kind}:q}} >> {{log:q}}" for kind in RECORD_FILES)
+
+
+if config["committed"]:
+
+    rule reproduction:
+        # make reproduction: the figures and the per-pile table, from the
+        # committed per-pile results only.
+        input:
+            analysis_targets(),
+            figures=expand(str(COMMITTED / "figures" / "{stem}.png"),
+                           stem=[stem for stem, output in ANALYSIS_FIGURES.items() if wants(output)]),
+            table=str(COMMITTED / "piles.md"),
+            numbers=str(COMMITTED / "numbers.md"),
+        localrule: True
+
+    rule reproduction_figure:
+        input:
+            "results/figures/{stem}.png",
+        output:
+            str(COMMITTED / "figures" / "{stem}.png"),
+        log:
+            "logs/reproduction/{stem}.log",
+        localrule: True
+        conda:
+            "../envs/polypile.yaml"
+        shell:
+            "cp -v {input:q} {output:q} > {log:q}"
+
+    rule reproduction_table:
+        input:
+            summaries=[pile_result(p, s, "summary") for p in PROTOCOLS for s in analysis_seeds(p, "summary")],
+            script="workflow/scripts/piles_table.py",
+        output:
+            str(COMMITTED / "piles.md"),
+        log:
+            "logs/reproduction/piles_table.log",
+        localrule: True
+        conda:
+            "../envs/polypile.yaml"
+        shell:
+            py_shell("{input.script:q} {input.summaries:q} > {output:q} 2> {log:q}")
+
+    rule reproduction_numbers:
+        # The numbers docs/reproduction.md sets against the paper's.
+        input:
+            ensembles=expand("results/ensemble/{protocol}/{name}", protocol=PROTOCOLS,
+                             name=["fields.nc", "base_pressure.nc", "moduli.nc", "invariants.nc"]),
+            convergence=_analysis_convergence_file,
+            checks=[pile_result(p, s, "checks") for p in PROTOCOLS for s in analysis_seeds(p, "checks")],
+            script="workflow/scripts/reproduction_numbers.py",
+        output:
+            str(COMMITTED / "numbers.md"),
+        params:
+            protocols=PROTOCOLS,
+            heights=config["analysis"]["figures"]["heights"],
+        log:
+            "logs/reproduction/numbers.log",
+        localrule: True
+        conda:
+            "../envs/polypile.yaml"
+        shell:
+            py_shell(
+                "{input.script:q} --ensemble results/ensemble --protocols {params.protocols} "
+                "--convergence {input.convergence:q} --checks {input.checks:q} --heights {params.heights} "
+                "> {output:q} 2> {log:q}"
+            )

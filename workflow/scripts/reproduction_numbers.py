@@ -1,0 +1,177 @@
+"""The numbers that docs/reproduction.md sets against the paper's, from the ensembles.
+
+Usage::
+
+    python workflow/scripts/reproduction_numbers.py --ensemble results/ensemble \\
+        --protocols wedge layered --convergence FILE --checks FILE... --heights 0.045 0.09 ...
+
+prints Markdown (``docs/reproduction/numbers.md`` under ``make reproduction``).
+Every value is a mean over the piles of a protocol with its standard error
+over piles (``_sem`` of the ensemble files; "n/a" with a single pile).  The
+measures:
+
+* **Fig. 2, vertical strain dip**: at each height, ``u_yy`` at the centre
+  (mean of the columns with ``|x| <= 1.5`` grid spacings) and the largest
+  ``|u_yy|`` off the centre, with its x.
+* **Base pressure**: the normal force density at the centre (two bins next
+  to x = 0) and its maximum, with the x of the maximum.
+* **Fig. 3, fabric**: range of the trace and of the deviatoric fraction over
+  the valid RVEs; mean orientation of the major axis over ``x < -10 cm`` and
+  ``x > 10 cm`` in the two lowest rows; mean ``|stress_fabric_angle|`` there.
+* **Fig. 4, moduli**: median over valid RVEs of Young's modulus ``E`` of the
+  isotropic fit (m = 1) and of ``E_av`` of the cubic fit (m = 5), both the
+  average of the two fitting methods.
+* **Fig. 5**: ``R²`` of a straight line through ``tr Δσ`` against ``tr ε``,
+  over RVEs with ``|x| <= 10 cm`` and over all RVEs.
+* **Fig. 1**: at each fixed point, ``σ_yy`` at the two largest RVE sizes and
+  the particles in them.
+* **Balance laws**: the largest ``|support reaction / weight − 1|`` over the
+  piles, relaxed, reduced and for the increment.
+"""
+
+import argparse
+import json
+import sys
+
+import numpy as np
+import xarray as xr
+
+
+def _pm(v, s, spec=".3g"):
+    s_txt = "n/a" if not np.isfinite(s) else format(s, ".2g")
+    return f"{format(v, spec)} ± {s_txt}"
+
+
+def _row_index(ds, h):
+    return int(np.argmin(np.abs(ds["y"].values - h)))
+
+
+def strain_dip(ds, heights):
+    """Lines of the Fig. 2 measure for one protocol's ensemble fields."""
+    x = ds["x"].values
+    dx = float(np.median(np.diff(x)))
+    u = ds["strain_increment"].sel(i="y", j="y").values
+    su = ds["strain_increment_sem"].sel(i="y", j="y").values
+    out = []
+    for h in heights:
+        k = _row_index(ds, h)
+        row, srow = u[k], su[k]
+        if not np.isfinite(row).any():
+            continue
+        centre = np.abs(x) <= 1.5 * dx
+        c = float(np.nanmean(row[centre])) if np.isfinite(row[centre]).any() else np.nan
+        sc = float(np.sqrt(np.nansum(srow[centre] ** 2)) / max(np.isfinite(srow[centre]).sum(), 1))
+        off = np.where(~centre & np.isfinite(row), np.abs(row), -np.inf)
+        j = int(np.argmax(off))
+        out.append(f"| {100 * ds['y'].values[k]:.1f} | {_pm(c, sc)} | {_pm(float(row[j]), float(srow[j]))} "
+                   f"at x = {100 * x[j]:.0f} cm |")
+    return out
+
+
+def base_pressure(bp):
+    x = bp["x"].values
+    p, s = bp["normal_force_density"].values, bp["normal_force_density_sem"].values
+    c = np.argsort(np.abs(x))[:2]
+    j = int(np.nanargmax(p))
+    return (f"centre {_pm(float(p[c].mean()), float(np.sqrt((s[c] ** 2).sum()) / 2))} N/m, maximum "
+            f"{_pm(float(p[j]), float(s[j]))} N/m at x = {100 * x[j]:.0f} cm ({int(bp.attrs['n_seeds'])} piles)")
+
+
+def fabric(ds):
+    tr, dev = ds["fabric_trace"].values, ds["fabric_deviatoric_fraction"].values
+    ori, ang = ds["fabric_orientation"].values, ds["stress_fabric_angle"].values
+    x = ds["x"].values
+    low = slice(0, 2)
+    left, right = x < -0.10, x > 0.10
+    return [f"trace {np.nanmin(tr):.3g} – {np.nanmax(tr):.3g}",
+            f"deviatoric fraction {np.nanmin(dev):.3g} – {np.nanmax(dev):.3g} (median {np.nanmedian(dev):.3g})",
+            f"orientation of the major axis, two lowest rows: {_mean_deg(ori[low][:, left])} for x < −10 cm, "
+            f"{_mean_deg(ori[low][:, right])} for x > 10 cm",
+            f"mean |angle between stress and fabric axes| there: {_mean_deg(np.abs(ang[low]))}"]
+
+
+def _mean_deg(a):
+    return f"{np.nanmean(a):.1f}°" if np.isfinite(a).any() else "no valid RVE"
+
+
+def moduli(md):
+    e1 = md["youngs_modulus"].sel(fit="average", points=1).values
+    e5 = md["E_av"].sel(fit="average", points=5).values
+    return (f"E (isotropic, m = 1): median {np.nanmedian(e1):.3g} N/m over {np.isfinite(e1).sum()} RVEs; "
+            f"E_av (cubic, m = 5): median {np.nanmedian(e5):.3g} N/m over {np.isfinite(e5).sum()} RVEs")
+
+
+def invariants(inv):
+    ts, te = inv["trace_stress_increment"].values, inv["trace_strain_increment"].values
+    x = np.broadcast_to(inv["x"].values, ts.shape)
+    out = []
+    for label, sel in (("|x| <= 10 cm", np.abs(x) <= 0.10), ("all RVEs", np.ones_like(x, bool))):
+        ok = sel & np.isfinite(ts) & np.isfinite(te)
+        if ok.sum() < 3:
+            out.append(f"{label}: fewer than 3 RVEs")
+            continue
+        r = np.corrcoef(te[ok], ts[ok])[0, 1]
+        out.append(f"{label}: R² = {r * r:.3f} over {int(ok.sum())} RVEs")
+    return out
+
+
+def convergence(cv):
+    lines = []
+    sizes = cv["rve_size"].values
+    for p in range(cv.sizes["point"]):
+        s = cv["stress"].sel(i="y", j="y").values[:, p]
+        n = cv["n_particles"].values[:, p]
+        lines.append(f"point ({100 * float(cv['point_x'][p]):.1f}, {100 * float(cv['point_y'][p]):.1f}) cm: "
+                     + ", ".join(f"σ_yy = {s[k]:.4g} N/m with {int(n[k])} particles at {100 * sizes[k]:.0f} cm"
+                                 for k in range(max(len(sizes) - 2, 0), len(sizes))))
+    return lines
+
+
+def balance(paths):
+    worst = {"relaxed": 0.0, "reduced": 0.0, "increment": None}
+    for path in paths:
+        rep = json.load(open(path))
+        for stage in ("relaxed", "reduced"):
+            e = rep["stages"].get(stage, {}).get("support_reaction_rel_error")
+            if e is not None:
+                worst[stage] = max(worst[stage], abs(e))
+        inc = rep.get("increment", {}).get("support_reaction_rel_error")
+        if inc is not None:
+            worst["increment"] = max(worst["increment"] or 0.0, abs(inc))
+    inc = "not recorded" if worst["increment"] is None else f"{worst['increment']:.2g}"
+    return (f"largest |support reaction / weight − 1| over {len(paths)} piles: relaxed "
+            f"{worst['relaxed']:.2g}, reduced {worst['reduced']:.2g}; increment {inc}")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--ensemble", required=True, help="folder of results/ensemble/{protocol}/")
+    ap.add_argument("--protocols", nargs="+", required=True)
+    ap.add_argument("--convergence", required=True, help="the convergence file of Fig. 1's pile")
+    ap.add_argument("--checks", nargs="+", required=True, help="checks.json of every pile")
+    ap.add_argument("--heights", nargs="+", type=float, required=True, help="rows of Fig. 2, m")
+    args = ap.parse_args(argv)
+    out = ["# Numbers of the reproduction", "",
+           "Made by `workflow/scripts/reproduction_numbers.py` from the ensembles (`make reproduction`); "
+           "mean ± standard error over piles.", ""]
+    for p in args.protocols:
+        with xr.open_dataset(f"{args.ensemble}/{p}/fields.nc") as ds:
+            n = int(ds.attrs.get("n_seeds", 0))
+            out += [f"## {p} ({n} piles)", "", "Vertical strain increment u_yy (Fig. 2):", "",
+                    "| y (cm) | centre | largest off the centre |", "|---|---|---|", *strain_dip(ds, args.heights),
+                    "", "Fabric (Fig. 3): " + "; ".join(fabric(ds)) + "."]
+        with xr.open_dataset(f"{args.ensemble}/{p}/base_pressure.nc") as bp:
+            out += ["", f"Base pressure: {base_pressure(bp)}."]
+        with xr.open_dataset(f"{args.ensemble}/{p}/moduli.nc") as md:
+            out += ["", f"Moduli (Fig. 4): {moduli(md)}."]
+        with xr.open_dataset(f"{args.ensemble}/{p}/invariants.nc") as inv:
+            out += ["", "tr Δσ against tr ε (Fig. 5): " + "; ".join(invariants(inv)) + ".", ""]
+    with xr.open_dataset(args.convergence) as cv:
+        out += [f"## RVE convergence (Fig. 1; {cv.attrs.get('protocol', '')} seed {cv.attrs.get('seed', '')})", "",
+                *[f"- {line}" for line in convergence(cv)], ""]
+    out += ["## Balance laws", "", balance(args.checks) + ".", ""]
+    sys.stdout.write("\n".join(out))
+
+
+if __name__ == "__main__":
+    main()
