@@ -111,7 +111,7 @@ if config["committed"]:
             "../envs/polypile.yaml"
         shell:
             py_shell(
-                "{input.script:q} --ensemble results/ensemble --protocols {params.protocols} "
-                "--convergence {input.convergence:q} --checks {input.checks:q} --heights {params.heights} "
+                "{input.script:q} --ensemble results/ensemble --protocols {params.protocols:q} "
+                "--convergence {input.convergence:q} --checks {input.checks:q} --heights {params.heights:q} "
                 "> {output:q} 2> {log:q}"
             )
