@@ -60,7 +60,8 @@ def strain_dip(ds, heights):
             continue
         centre = np.abs(x) <= 1.5 * dx
         c = float(np.nanmean(row[centre])) if np.isfinite(row[centre]).any() else np.nan
-        sc = float(np.sqrt(np.nansum(srow[centre] ** 2)) / max(np.isfinite(srow[centre]).sum(), 1))
+        ok = np.isfinite(srow[centre])
+        sc = float(np.sqrt(np.sum(srow[centre][ok] ** 2)) / ok.sum()) if ok.any() else np.nan
         off = np.where(~centre & np.isfinite(row), np.abs(row), -np.inf)
         j = int(np.argmax(off))
         out.append(f"| {100 * ds['y'].values[k]:.1f} | {_pm(c, sc)} | {_pm(float(row[j]), float(srow[j]))} "
@@ -74,7 +75,11 @@ def base_pressure(bp):
     c = np.argsort(np.abs(x))[:2]
     j = int(np.nanargmax(p))
     return (f"centre {_pm(float(p[c].mean()), float(np.sqrt((s[c] ** 2).sum()) / 2))} N/m, maximum "
-            f"{_pm(float(p[j]), float(s[j]))} N/m at x = {100 * x[j]:.0f} cm ({int(bp.attrs['n_seeds'])} piles)")
+            f"{_pm(float(p[j]), float(s[j]))} N/m at x = {100 * x[j]:.0f} cm ({_piles(int(bp.attrs['n_seeds']))})")
+
+
+def _piles(n):
+    return f"{n} pile{'s' if n != 1 else ''}"
 
 
 def fabric(ds):
@@ -157,7 +162,7 @@ def main(argv=None):
     for p in args.protocols:
         with xr.open_dataset(f"{args.ensemble}/{p}/fields.nc") as ds:
             n = int(ds.attrs.get("n_seeds", 0))
-            out += [f"## {p} ({n} piles)", "", "Vertical strain increment u_yy (Fig. 2):", "",
+            out += [f"## {p} ({_piles(n)})", "", "Vertical strain increment u_yy (Fig. 2):", "",
                     "| y (cm) | centre | largest off the centre |", "|---|---|---|", *strain_dip(ds, args.heights),
                     "", "Fabric (Fig. 3): " + "; ".join(fabric(ds)) + "."]
         with xr.open_dataset(f"{args.ensemble}/{p}/base_pressure.nc") as bp:
