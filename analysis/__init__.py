@@ -18,7 +18,17 @@ and never imports the simulator. Modules, one concern each:
 ``balance``       balance-law checks
 ``convergence``   RVE-size convergence (Fig. 1)
 ``figures``       Figs 1–5 and the base pressure
+``draw``          pictures of particle states (polygons by Eq. 2 pressure, force network)
 ``netcdf``        CF attributes and atomic writes
+
+Numerics of whole piles (the workflow's target ``numerics_piles``):
+
+``pile_precision``   error of pile observables against run time
+``ensemble_cost``    standard error of the headline results against compute time
+``piles_report``     their Markdown tables
+``numerics_figures`` their figures
+``run_times``        Snakemake benchmark files and bash ``times`` output
+``numerics_cli``     their ``data`` / ``figure`` command lines
 Command line: ``python -m analysis --help``.
 """
 

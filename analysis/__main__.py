@@ -15,7 +15,7 @@ import sys
 import time
 from typing import Any
 
-from . import __version__
+from . import __version__, draw
 from .errors import AnalysisError, InputError, ParamError
 from .fields import QUANTITIES
 from .params import parse_params
@@ -248,6 +248,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--relaxed", required=True)
     sp.add_argument("--reduced", required=True)
     sp.add_argument("--out", required=True)
+    sp = add("draw", "picture of one particle state: polygons coloured by their Eq. 2 pressure, and the "
+             "contact-force network (PNG/PDF/SVG by extension)", draw.cmd_draw)
+    draw.add_arguments(sp)
     sp = add("figure", "draw one figure (PNG/PDF by extension)", cmd_figure)
     sp.add_argument("name", choices=["convergence", "vertical-strain", "fabric", "moduli", "invariants",
                                      "base-pressure"])

@@ -16,7 +16,7 @@ import scipy.sparse as sp
 from .orientation import principal_values
 from .rve import rve_sum
 from .states import State
-from .stress import _scatter_tensor, contact_ends
+from .stress import contact_ends, scatter_tensor
 
 
 def particle_fabric(state: State) -> np.ndarray:
@@ -39,7 +39,7 @@ def particle_fabric(state: State) -> np.ndarray:
     norm = np.hypot(branch[:, 0], branch[:, 1])
     ok = norm > 0
     n = branch[ok] / norm[ok, None]
-    return _scatter_tensor(part[ok], n, n, state.n_particles)
+    return scatter_tensor(part[ok], n, n, state.n_particles)
 
 
 def rve_fabric(W: sp.csr_matrix, fabric: np.ndarray, area: np.ndarray) -> np.ndarray:

@@ -7,7 +7,7 @@ centres (used for the grid and for the convergence study);
 adds the invariants and orientations computed from the tensors (and is
 reused on ensemble means).
 
-A scene may ask for less (README, "Scenes"): the stress always, the fabric
+A scene may ask for less (docs/workflow.md, "Scenes"): the stress always, the fabric
 and the strain only when asked; without a reduced state there is no stress
 increment and no strain. Every variable computed is the same, value for
 value, whatever else is computed alongside.

@@ -17,6 +17,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
+from .netcdf import atomic_path  # noqa: E402
+
 COMPONENTS = (("x", "x", "xx"), ("y", "y", "yy"), ("x", "y", "xy"))
 
 
@@ -24,15 +26,8 @@ def save(fig, outputs: list[str], dpi: int = 150) -> None:
     """Write ``fig`` to every path in ``outputs`` (format from the extension), atomically."""
     for path in outputs:
         ext = os.path.splitext(path)[1].lstrip(".").lower() or "png"
-        os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-        d, b = os.path.split(os.path.abspath(path))
-        tmp = os.path.join(d, f".{b}.{os.getpid()}.tmp")
-        try:
+        with atomic_path(path) as tmp:
             fig.savefig(tmp, format=ext, dpi=dpi, bbox_inches="tight")
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.remove(tmp)
     plt.close(fig)
 
 

@@ -10,11 +10,12 @@ complete-looking file.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import json
 import os
 import sys
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 import xarray as xr
@@ -57,18 +58,32 @@ def finalize(ds: xr.Dataset, title: str, params: dict[str, Any] | None, command:
     return ds
 
 
-def _tmp_name(path: str) -> str:
+@contextlib.contextmanager
+def atomic_path(path: str) -> Iterator[str]:
+    """A temporary path next to ``path`` that becomes ``path`` when the block ends.
+
+    The folder is created; the temporary file (a hidden name with the process
+    id and the same extension, so that writers that go by the extension still
+    see it) is renamed onto ``path`` only when the block ends without an
+    exception, and removed in any case, so that a killed or failed writer
+    never leaves a complete-looking file.
+    """
     d, b = os.path.split(os.path.abspath(path))
-    stem = b[:-3] if b.endswith(".nc") else b
-    return os.path.join(d, f".{stem}.{os.getpid()}.tmp.nc")
+    os.makedirs(d, exist_ok=True)
+    stem, ext = os.path.splitext(b)
+    tmp = os.path.join(d, f".{stem}.{os.getpid()}.tmp{ext}")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
 
 
 def write_dataset(ds: xr.Dataset, path: str, *, title: str, params: dict[str, Any] | None,
                   command: str | None = None) -> None:
     """Finalise ``ds`` and write it to ``path`` atomically (temporary name, then rename)."""
     finalize(ds, title, params, command)
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    tmp = _tmp_name(path)
     encoding = {}
     for name, v in ds.variables.items():
         if v.dtype.kind == "f":
@@ -79,27 +94,21 @@ def write_dataset(ds: xr.Dataset, path: str, *, title: str, params: dict[str, An
                 encoding[name]["_FillValue"] = None
         elif v.dtype.kind in "iu":
             encoding[name] = {"zlib": True, "complevel": 4, "_FillValue": None}
-    try:
+    with atomic_path(path) as tmp:
         ds.to_netcdf(tmp, format="NETCDF4", engine="netcdf4", encoding=encoding)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
 
 
 def write_json(obj: Any, path: str) -> None:
     """Write ``obj`` as JSON atomically."""
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    d, b = os.path.split(os.path.abspath(path))
-    tmp = os.path.join(d, f".{b}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            json.dump(obj, fh, indent=2, sort_keys=True, default=_json_default)
-            fh.write("\n")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
+        json.dump(obj, fh, indent=2, sort_keys=True, default=_json_default)
+        fh.write("\n")
+
+
+def write_text(text: str, path: str) -> None:
+    """Write ``text`` to ``path`` atomically."""
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
+        fh.write(text)
 
 
 def _json_default(o: Any) -> Any:

@@ -1,8 +1,16 @@
 """The ``analysis`` section of the configuration: defaults and validation.
 
-The same keys, defaults and ranges are written as a JSON schema in
-``workflow/schemas/analysis.schema.yaml`` (Snakemake validates against it
-before anything runs); ``tests/test_analysis_params.py`` checks that both agree.
+The keys, defaults and ranges are those of the JSON schema
+``workflow/schemas/analysis.schema.yaml`` (:data:`SCHEMA_FILE`), read when this
+module is imported: the workflow validates against that schema before anything
+runs, and :data:`DEFAULTS` and the checks here are built from it, so both agree
+by construction (tests/test_settings_single_source.py probes it).  The schema
+is a file of the repository, not of the package: ``analysis`` works from a
+checkout or an editable install (``pip install -e .``).  What a schema cannot
+express (an ordered grid, a grid of at most 10^6 points, the raster pixel
+against the RVE size, the bins inside the base-pressure range) is checked in
+:func:`resolve_params`.
+
 The command line receives the section as JSON text (``--params``); it is
 validated here before any long computation, and every error names the
 setting, the offending value and what is allowed.
@@ -14,131 +22,72 @@ import copy
 import json
 import math
 import re
+from pathlib import Path
 from typing import Any
+
+import yaml
 
 from .errors import ParamError
 
+#: The JSON schema (YAML) of the ``analysis`` section: the source of every
+#: key, default and bound below.
+SCHEMA_FILE = Path(__file__).resolve().parent.parent / "workflow" / "schemas" / "analysis.schema.yaml"
+
+
+# a file of the repository: a checkout or an editable install (pip install -e .) has it
+_SCHEMA = yaml.safe_load(SCHEMA_FILE.read_text(encoding="utf-8"))
+
+#: Every setting's default, ``{section: {key: value}}`` (the schema's ``default``).
 DEFAULTS: dict[str, Any] = {
-    "grid": {
-        "x_min": -0.6,
-        "x_max": 0.6,
-        "y_min": 0.015,
-        "y_max": 0.36,
-        "spacing": 0.015,
-    },
-    "rve": {
-        "shape": "square",
-        "size": 0.08,
-        "min_particles": 50,
-        "min_solid_fraction": 0.6,
-        "raster_pixel": 0.0005,
-    },
-    "strain": {
-        "min_contacts": 20,
-        "max_condition": 25.0,
-    },
-    "surface": {
-        "window": 0.02,
-    },
-    "checks": {
-        "support_reaction_rtol": 0.01,
-        "love_rtol": 0.02,
-        "max_net_force_ratio": 0.05,
-        "enforce": True,
-    },
-    "base_pressure": {
-        "x_min": -0.6,
-        "x_max": 0.6,
-        "bin_width": 0.02,
-        "stage": "relaxed",
-    },
-    "moduli": {
-        "min_points": 3,
-        "uncertainty": "pile_fits",
-        "bootstrap_samples": 200,
-        "bootstrap_seed": 0,
-        "degenerate_rtol": 1e-12,
-    },
-    "invariants": {
-        "depth_bin": 0.02,
-    },
-    "convergence": {
-        "points": [[0.0, 0.09], [0.1, 0.06], [-0.1, 0.06]],
-        "sizes": [0.01, 0.015, 0.02, 0.03, 0.04, 0.05, 0.06, 0.08, 0.1, 0.12, 0.14, 0.16],
-        "seed": None,
-    },
-    "figures": {
-        "heights": [0.045, 0.09, 0.135, 0.18, 0.225, 0.27],
-        "fabric_protocol": "wedge",
-        "moduli_protocol": "wedge",
-        "invariants_protocol": "wedge",
-        "convergence_protocol": "wedge",
-        "dpi": 150,
-    },
+    section: {key: copy.deepcopy(prop["default"]) for key, prop in sub["properties"].items()}
+    for section, sub in _SCHEMA["properties"].items()
 }
 
-# (type, minimum, maximum, exclusive minimum?, choices)
 _NUM = "number"
 _INT = "integer"
 _BOOL = "boolean"
 _STR = "string"
+
+
+def _spec(name: str, prop: dict[str, Any]) -> dict[str, Any]:
+    """What :func:`_check_value` checks for the setting ``name`` with the schema ``prop``:
+    ``type`` (number, integer, boolean, string, or ``points`` / ``sizes`` for the two
+    kinds of list), ``nullable``, ``min`` / ``max`` with ``exclusive`` /
+    ``max_exclusive``, ``choices`` (an enum) and ``pattern``."""
+    kinds = [prop["type"]] if isinstance(prop["type"], str) else list(prop["type"])
+    spec: dict[str, Any] = {}
+    if "null" in kinds:
+        kinds.remove("null")
+        spec["nullable"] = True
+    (kind,) = kinds
+    if kind == "array":  # the two kinds of list the checks know, exactly as the schema has them
+        items = prop["items"]
+        if items.get("type") == "array" and items.get("minItems") == items.get("maxItems") == 2 \
+                and items["items"] == {"type": "number"} and prop.get("minItems") == 1:
+            kind = "points"
+        elif items == {"type": "number", "exclusiveMinimum": 0} and prop.get("minItems") == 1:
+            kind = "sizes"
+        else:
+            raise ValueError(f"analysis.{name}: no check for the list schema {prop}")
+    spec["type"] = kind
+    if "minimum" in prop:
+        spec["min"] = prop["minimum"]
+    if "exclusiveMinimum" in prop:
+        spec["min"], spec["exclusive"] = prop["exclusiveMinimum"], True
+    if "maximum" in prop:
+        spec["max"] = prop["maximum"]
+    if "exclusiveMaximum" in prop:
+        spec["max"], spec["max_exclusive"] = prop["exclusiveMaximum"], True
+    if "enum" in prop:
+        spec["choices"] = list(prop["enum"])
+    if "pattern" in prop:
+        spec["pattern"] = prop["pattern"]
+    return spec
+
+
 _SPEC: dict[str, dict[str, dict[str, Any]]] = {
-    "grid": {
-        "x_min": {"type": _NUM},
-        "x_max": {"type": _NUM},
-        "y_min": {"type": _NUM, "min": 0.0},
-        "y_max": {"type": _NUM, "min": 0.0},
-        "spacing": {"type": _NUM, "min": 0.0, "exclusive": True},
-    },
-    "rve": {
-        "shape": {"type": _STR, "choices": ["square", "circle"]},
-        "size": {"type": _NUM, "min": 0.0, "exclusive": True},
-        "min_particles": {"type": _INT, "min": 1},
-        "min_solid_fraction": {"type": _NUM, "min": 0.0, "max": 1.0},
-        "raster_pixel": {"type": _NUM, "min": 0.0, "exclusive": True},
-    },
-    "strain": {
-        "min_contacts": {"type": _INT, "min": 2},
-        "max_condition": {"type": _NUM, "min": 1.0},
-    },
-    "surface": {
-        "window": {"type": _NUM, "min": 0.0, "exclusive": True},
-    },
-    "checks": {
-        "support_reaction_rtol": {"type": _NUM, "min": 0.0, "exclusive": True},
-        "love_rtol": {"type": _NUM, "min": 0.0, "exclusive": True},
-        "max_net_force_ratio": {"type": _NUM, "min": 0.0, "exclusive": True},
-        "enforce": {"type": _BOOL},
-    },
-    "base_pressure": {
-        "x_min": {"type": _NUM},
-        "x_max": {"type": _NUM},
-        "bin_width": {"type": _NUM, "min": 0.0, "exclusive": True},
-        "stage": {"type": _STR, "pattern": r"poured|relaxed|reduced|reduced[0-9][0-9]"},
-    },
-    "moduli": {
-        "min_points": {"type": _INT, "min": 1, "max": 5},
-        "uncertainty": {"type": _STR, "choices": ["pile_fits", "bootstrap"]},
-        "bootstrap_samples": {"type": _INT, "min": 2},
-        "bootstrap_seed": {"type": _INT, "min": 0},
-        "degenerate_rtol": {"type": _NUM, "min": 0.0},
-    },
-    "invariants": {
-        "depth_bin": {"type": _NUM, "min": 0.0, "exclusive": True},
-    },
-    "convergence": {
-        "points": {"type": "points"},
-        "sizes": {"type": "sizes"},
-        "seed": {"type": _INT, "nullable": True, "min": 0},
-    },
-    "figures": {
-        "heights": {"type": "sizes"},
-        "fabric_protocol": {"type": _STR},
-        "moduli_protocol": {"type": _STR},
-        "invariants_protocol": {"type": _STR},
-        "convergence_protocol": {"type": _STR},
-        "dpi": {"type": _INT, "min": 10, "max": 1200},
-    },
+    section: {key: _spec(f"{section}.{key}", prop) for key, prop in sub["properties"].items()}
+    for section, sub in _SCHEMA["properties"].items()
 }
 
 
@@ -187,8 +136,11 @@ def _check_value(name: str, value: Any, spec: dict[str, Any]) -> None:
             raise ParamError(f"analysis.{name} = {value!r} must be > {lo}")
         if not spec.get("exclusive") and not value >= lo:
             raise ParamError(f"analysis.{name} = {value!r} must be >= {lo}")
-    if hi is not None and not value <= hi:
-        raise ParamError(f"analysis.{name} = {value!r} must be <= {hi}")
+    if hi is not None:
+        if spec.get("max_exclusive") and not value < hi:
+            raise ParamError(f"analysis.{name} = {value!r} must be < {hi}")
+        if not spec.get("max_exclusive") and not value <= hi:
+            raise ParamError(f"analysis.{name} = {value!r} must be <= {hi}")
 
 
 def resolve_params(user: dict[str, Any] | None) -> dict[str, Any]:

@@ -33,7 +33,7 @@ from .rve import rve_sum
 from .states import State
 
 
-def _scatter_tensor(index: np.ndarray, a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+def scatter_tensor(index: np.ndarray, a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
     """Sum of the outer products ``a ⊗ b`` (rows of (k, 2) arrays) per ``index``: ``(n, 2, 2)``."""
     out = np.empty((n, 2, 2))
     for r in range(2):
@@ -75,7 +75,7 @@ def particle_stress_moment(state: State) -> np.ndarray:
         contacts count for their particle.
     """
     part, branch, force = contact_ends(state)
-    return _scatter_tensor(part, branch, force, state.n_particles)
+    return scatter_tensor(part, branch, force, state.n_particles)
 
 
 def particle_stress(state: State) -> np.ndarray:

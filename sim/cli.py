@@ -1,4 +1,4 @@
-"""Command line: ``python -m sim {pour,relax,probe,warmup,bench,summary,draw,numerics} ...``.
+"""Command line: ``python -m sim {pour,relax,probe,warmup,bench,summary,numerics} ...``.
 
 Run parameters come as ``--params`` (JSON text, or ``@file`` with JSON or YAML)
 holding any of the sections ``model``, ``particles``, ``pour``, ``relax``,
@@ -127,15 +127,13 @@ def _parser():
                        "width, flank angles, coordination, support reaction against weight")
     p.add_argument("states", nargs="+", help="state files (.nc)")
 
-    sub.add_parser("draw", help="picture of a pile state (PNG); "
-                   "see python -m sim draw --help", add_help=False)
     sub.add_parser("numerics", help="numerical checks: " + " | ".join(NUMERICS) +
                    "; see python -m sim numerics WHAT --help", add_help=False)
     return ap
 
 
 # python -m sim numerics WHAT ...: module of sim.numerics whose main(argv) runs WHAT
-NUMERICS = {"collisions": "work_precision", "stability": "stability"}
+NUMERICS = {"collisions": "collisions", "stability": "stability"}
 
 
 def _numerics(argv):
@@ -158,9 +156,6 @@ def _numerics(argv):
 def main(argv=None):
     """Run the command line; returns the exit status."""
     argv = sys.argv[1:] if argv is None else list(argv)
-    if argv[:1] == ["draw"]:
-        from .draw import main as draw_main
-        return draw_main(argv[1:])
     if argv[:1] == ["numerics"]:
         return _numerics(argv[1:])
     args = _parser().parse_args(argv)

@@ -2,8 +2,18 @@
 
 Every parameter that changes between runs lives here and is passed to the
 kernels as an argument; nothing is a module global that Numba could freeze into
-compiled code.  The defaults equal those of ``workflow/schemas/config.schema.yaml``
-(a test checks this), so the command line and the workflow agree.
+compiled code.
+
+The defaults and the allowed values (bounds, integers, choices) are not
+written here: they are read, when this module is imported, from the one place
+that holds them, the sections ``model``, ``particles``, ``pour``, ``relax``,
+``probe`` and ``physics`` of ``workflow/schemas/config.schema.yaml``
+(:data:`SCHEMA_FILE`), so the command line and the workflow agree by
+construction (tests/test_settings_single_source.py probes it).  What a schema
+cannot express (``corners_max >= corners_min``, ``hold_time <= max_time``, the
+walls' order and spacing) is checked in the dataclasses below.  The schema is
+a file of the repository, not of the package: ``sim`` works from a checkout
+or an editable install (``pip install -e .``).
 
 Units are SI in two dimensions: lengths in m, masses in kg, the particle
 Young's modulus in N/m, 2D densities in kg/m².
@@ -14,7 +24,10 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
+
+import yaml
 
 
 class ConfigError(ValueError):
@@ -26,8 +39,72 @@ class ConfigError(ValueError):
 #: passes them outside the rule params so that changing them re-runs nothing.
 BOOKKEEPING = {"pour": ("checkpoint_interval", "progress_interval")}
 
+#: The JSON schema (YAML) of the workflow configuration: the source of every
+#: default and bound of the simulator's settings.
+SCHEMA_FILE = Path(__file__).resolve().parent.parent / "workflow" / "schemas" / "config.schema.yaml"
 
-def _check_number(section: str, name: str, value: Any, lo=None, hi=None,
+
+# a file of the repository: a checkout or an editable install (pip install -e .) has it
+_SCHEMA = yaml.safe_load(SCHEMA_FILE.read_text(encoding="utf-8"))
+
+
+def setting_schema(section: str, name: str) -> dict:
+    """The schema of the setting ``section.name`` (type, bounds, default, ...).
+
+    Parameters
+    ----------
+    section, name : str
+        E.g. ``"particles"``, ``"corners_max"``.
+
+    Returns
+    -------
+    dict
+        The setting's entry of :data:`SCHEMA_FILE` (do not modify it).
+    """
+    try:
+        return _SCHEMA["properties"][section]["properties"][name]
+    except KeyError:
+        raise KeyError(f"{section}.{name} is not a setting of {SCHEMA_FILE}") from None
+
+
+def _types(schema: dict) -> list:
+    kinds = schema.get("type", [])
+    return [kinds] if isinstance(kinds, str) else list(kinds)
+
+
+def setting_bounds(schema: dict) -> dict:
+    """The bounds of a numeric schema as keyword arguments of :func:`check_number`.
+
+    Parameters
+    ----------
+    schema : dict
+        A numeric setting's schema (e.g. from :func:`setting_schema`).
+
+    Returns
+    -------
+    dict
+        ``lo``, ``hi`` (None when unbounded), ``lo_open``, ``hi_open`` and
+        ``integer`` (the schema allows integers only).
+    """
+    for a, b in (("minimum", "exclusiveMinimum"), ("maximum", "exclusiveMaximum")):
+        if a in schema and b in schema:
+            raise ValueError(f"a setting's schema gives both {a} and {b}: {schema}")
+    kinds = _types(schema)
+    return {"lo": schema.get("minimum", schema.get("exclusiveMinimum")),
+            "hi": schema.get("maximum", schema.get("exclusiveMaximum")),
+            "lo_open": "exclusiveMinimum" in schema,
+            "hi_open": "exclusiveMaximum" in schema,
+            "integer": "integer" in kinds and "number" not in kinds}
+
+
+def _default(section: str, name: str) -> Any:
+    """The schema default of ``section.name`` (a list as a tuple: dataclass defaults are
+    immutable)."""
+    value = setting_schema(section, name)["default"]
+    return tuple(value) if isinstance(value, list) else value
+
+
+def check_number(section: str, name: str, value: Any, lo=None, hi=None,
                   lo_open=False, hi_open=False, integer=False) -> None:
     """Raise :class:`ConfigError` unless ``value`` is a finite number in range."""
     key = f"{section}.{name}"
@@ -44,6 +121,37 @@ def _check_number(section: str, name: str, value: Any, lo=None, hi=None,
         raise ConfigError(f"{key} = {value!r}: must be {allowed}")
     if hi is not None and (value > hi or (hi_open and value == hi)):
         raise ConfigError(f"{key} = {value!r}: must be {allowed}")
+
+
+def _check_value(section: str, name: str, value: Any, schema: dict) -> None:
+    """Raise :class:`ConfigError` unless ``value`` is a scalar that ``schema`` allows
+    (null, one of an ``enum``, a boolean, a number or integer within its bounds)."""
+    kinds = _types(schema)
+    if value is None and "null" in kinds:
+        return
+    if "enum" in schema:
+        if isinstance(value, bool) or value not in schema["enum"]:
+            raise ConfigError(f"{section}.{name} = {value!r}: must be one of "
+                              + ", ".join(repr(c) for c in schema["enum"]))
+    elif "boolean" in kinds:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{section}.{name} = {value!r}: must be true or false")
+    elif "number" in kinds or "integer" in kinds:
+        check_number(section, name, value, **setting_bounds(schema))
+    elif "string" in kinds:
+        if not isinstance(value, str):
+            raise ConfigError(f"{section}.{name} = {value!r}: must be a string")
+    else:
+        raise TypeError(f"{section}.{name}: no check for the schema {schema}")
+
+
+def _check_fields(params: Any, section: str) -> None:
+    """Check every scalar field of the dataclass ``params`` against the schema of
+    ``section`` (lists are checked by their dataclass)."""
+    for f in dataclasses.fields(params):
+        schema = setting_schema(section, f.name)
+        if "array" not in _types(schema):
+            _check_value(section, f.name, getattr(params, f.name), schema)
 
 
 @dataclass(frozen=True)
@@ -75,31 +183,18 @@ class ModelParams:
         particle's area stops the run.
     """
 
-    youngs_modulus: float = 1.0e7
-    damping: float = 0.1
-    friction: float = 0.5
-    support_friction: float = 0.5
-    density: float = 2500.0
-    integrator: str = "gear"
-    dt: float | None = None
-    dt_safety: float = 0.5
-    max_overlap_fraction: float = 0.2
+    youngs_modulus: float = _default("model", "youngs_modulus")
+    damping: float = _default("model", "damping")
+    friction: float = _default("model", "friction")
+    support_friction: float = _default("model", "support_friction")
+    density: float = _default("model", "density")
+    integrator: str = _default("model", "integrator")
+    dt: float | None = _default("model", "dt")
+    dt_safety: float = _default("model", "dt_safety")
+    max_overlap_fraction: float = _default("model", "max_overlap_fraction")
 
     def __post_init__(self):
-        s = "model"
-        _check_number(s, "youngs_modulus", self.youngs_modulus, lo=0, lo_open=True)
-        _check_number(s, "damping", self.damping, lo=0, hi=10)
-        _check_number(s, "friction", self.friction, lo=0, hi=10)
-        _check_number(s, "support_friction", self.support_friction, lo=0, hi=10)
-        _check_number(s, "density", self.density, lo=0, lo_open=True)
-        if self.integrator not in ("gear", "verlet"):
-            raise ConfigError(f"model.integrator = {self.integrator!r}: must be one of "
-                              "'gear', 'verlet'")
-        if self.dt is not None:
-            _check_number(s, "dt", self.dt, lo=0, lo_open=True)
-        _check_number(s, "dt_safety", self.dt_safety, lo=0, hi=1, lo_open=True)
-        _check_number(s, "max_overlap_fraction", self.max_overlap_fraction,
-                      lo=0, hi=1, lo_open=True, hi_open=True)
+        _check_fields(self, "model")
 
 
 @dataclass(frozen=True)
@@ -120,26 +215,18 @@ class ParticleParams:
         Interior angles must lie in ``[min_angle_deg, 180 - min_angle_deg]``.
     """
 
-    corners_min: int = 6
-    corners_max: int = 8
-    semi_axis_mean: float = 3.4e-3
-    semi_axis_spread: float = 0.3
-    min_edge_fraction: float = 0.1
-    min_angle_deg: float = 15.0
+    corners_min: int = _default("particles", "corners_min")
+    corners_max: int = _default("particles", "corners_max")
+    semi_axis_mean: float = _default("particles", "semi_axis_mean")
+    semi_axis_spread: float = _default("particles", "semi_axis_spread")
+    min_edge_fraction: float = _default("particles", "min_edge_fraction")
+    min_angle_deg: float = _default("particles", "min_angle_deg")
 
     def __post_init__(self):
-        s = "particles"
-        _check_number(s, "corners_min", self.corners_min, lo=3, hi=32, integer=True)
-        _check_number(s, "corners_max", self.corners_max, lo=3, hi=32, integer=True)
+        _check_fields(self, "particles")
         if self.corners_max < self.corners_min:
             raise ConfigError(f"particles.corners_max = {self.corners_max}: must be >= "
                               f"particles.corners_min = {self.corners_min}")
-        _check_number(s, "semi_axis_mean", self.semi_axis_mean, lo=0, lo_open=True)
-        _check_number(s, "semi_axis_spread", self.semi_axis_spread, lo=0, hi=0.9)
-        _check_number(s, "min_edge_fraction", self.min_edge_fraction, lo=0, hi=0.5,
-                      lo_open=True)
-        _check_number(s, "min_angle_deg", self.min_angle_deg, lo=0, hi=60,
-                      lo_open=True, hi_open=True)
 
 
 @dataclass(frozen=True)
@@ -172,31 +259,19 @@ class PourParams:
         Wall-clock seconds between progress lines.
     """
 
-    n_particles: int = 3500
-    rate: float = 100.0
-    release_height: float = 0.02
-    release_speed: float = 1.0
-    jitter: float = 1.0e-3
-    line_margin: float = 0.0
-    top_band: float = 0.01
-    layered_slope_deg: float = 20.0
-    checkpoint_interval: float = 120.0
-    progress_interval: float = 10.0
+    n_particles: int = _default("pour", "n_particles")
+    rate: float = _default("pour", "rate")
+    release_height: float = _default("pour", "release_height")
+    release_speed: float = _default("pour", "release_speed")
+    jitter: float = _default("pour", "jitter")
+    line_margin: float = _default("pour", "line_margin")
+    top_band: float = _default("pour", "top_band")
+    layered_slope_deg: float = _default("pour", "layered_slope_deg")
+    checkpoint_interval: float = _default("pour", "checkpoint_interval")
+    progress_interval: float = _default("pour", "progress_interval")
 
     def __post_init__(self):
-        s = "pour"
-        _check_number(s, "n_particles", self.n_particles, lo=1, integer=True)
-        _check_number(s, "rate", self.rate, lo=0, lo_open=True)
-        _check_number(s, "release_height", self.release_height, lo=0, lo_open=True)
-        _check_number(s, "release_speed", self.release_speed, lo=0)
-        _check_number(s, "jitter", self.jitter, lo=0)
-        _check_number(s, "line_margin", self.line_margin, lo=0)
-        _check_number(s, "top_band", self.top_band, lo=0, lo_open=True)
-        _check_number(s, "layered_slope_deg", self.layered_slope_deg, lo=0, hi=60,
-                      lo_open=True)
-        _check_number(s, "checkpoint_interval", self.checkpoint_interval, lo=0,
-                      lo_open=True)
-        _check_number(s, "progress_interval", self.progress_interval, lo=0, lo_open=True)
+        _check_fields(self, "pour")
 
 
 @dataclass(frozen=True)
@@ -247,26 +322,17 @@ class RelaxParams:
         criterion, so without this cap the switch would never come.
     """
 
-    kinetic_energy_fraction: float = 1.0e-6
-    max_speed: float = 1.0e-3
-    unbalanced_force: float = 1.0e-6
-    hold_time: float = 0.05
-    max_time: float = 10.0
-    drag: float = 20.0
-    rocking_drag: float = 100.0
-    drag_time: float = 0.5
+    kinetic_energy_fraction: float = _default("relax", "kinetic_energy_fraction")
+    max_speed: float = _default("relax", "max_speed")
+    unbalanced_force: float = _default("relax", "unbalanced_force")
+    hold_time: float = _default("relax", "hold_time")
+    max_time: float = _default("relax", "max_time")
+    drag: float = _default("relax", "drag")
+    rocking_drag: float = _default("relax", "rocking_drag")
+    drag_time: float = _default("relax", "drag_time")
 
     def __post_init__(self):
-        s = "relax"
-        _check_number(s, "kinetic_energy_fraction", self.kinetic_energy_fraction, lo=0,
-                      lo_open=True)
-        _check_number(s, "max_speed", self.max_speed, lo=0, lo_open=True)
-        _check_number(s, "unbalanced_force", self.unbalanced_force, lo=0, lo_open=True)
-        _check_number(s, "hold_time", self.hold_time, lo=0)
-        _check_number(s, "max_time", self.max_time, lo=0, lo_open=True)
-        _check_number(s, "drag", self.drag, lo=0, hi=1e4)
-        _check_number(s, "rocking_drag", self.rocking_drag, lo=0, hi=1e4)
-        _check_number(s, "drag_time", self.drag_time, lo=0)
+        _check_fields(self, "relax")
         if self.hold_time > self.max_time:
             raise ConfigError(f"relax.hold_time = {self.hold_time!r}: must be <= "
                               f"relax.max_time = {self.max_time!r} (the rest criteria "
@@ -288,22 +354,21 @@ class ProbeParams:
         Duration of the ramp, s.
     """
 
-    levels: tuple = (0.10,)
-    mode: str = "step"
-    ramp_time: float = 0.1
+    levels: tuple = _default("probe", "levels")
+    mode: str = _default("probe", "mode")
+    ramp_time: float = _default("probe", "ramp_time")
 
     def __post_init__(self):
+        schema = setting_schema("probe", "levels")
         if not isinstance(self.levels, (list, tuple)):
             raise ConfigError(f"probe.levels = {self.levels!r}: must be a list of numbers "
                               "in (0, 1) (empty: no gravity probe)")
         for lev in self.levels:
-            _check_number("probe", "levels[]", lev, lo=0, hi=1, lo_open=True, hi_open=True)
-        if len(set(self.levels)) != len(self.levels):
+            _check_value("probe", "levels[]", lev, schema["items"])
+        if schema.get("uniqueItems") and len(set(self.levels)) != len(self.levels):
             raise ConfigError(f"probe.levels = {list(self.levels)!r}: must be unique")
         object.__setattr__(self, "levels", tuple(float(v) for v in self.levels))
-        if self.mode not in ("step", "ramp"):
-            raise ConfigError(f"probe.mode = {self.mode!r}: must be one of 'step', 'ramp'")
-        _check_number("probe", "ramp_time", self.ramp_time, lo=0, lo_open=True)
+        _check_fields(self, "probe")
 
 
 @dataclass(frozen=True)
@@ -322,21 +387,20 @@ class PhysicsParams:
         at the one it was released with.
     """
 
-    support: bool = True
-    walls: tuple | None = None
-    rotation: bool = True
+    support: bool = _default("physics", "support")
+    walls: tuple | None = _default("physics", "walls")
+    rotation: bool = _default("physics", "rotation")
 
     def __post_init__(self):
-        for name in ("support", "rotation"):
-            if not isinstance(getattr(self, name), bool):
-                raise ConfigError(f"physics.{name} = {getattr(self, name)!r}: must be true "
-                                  "or false")
+        _check_fields(self, "physics")
         if self.walls is not None:
-            if not isinstance(self.walls, (list, tuple)) or len(self.walls) != 2:
+            schema = setting_schema("physics", "walls")
+            if not isinstance(self.walls, (list, tuple)) or not (
+                    schema["minItems"] <= len(self.walls) <= schema["maxItems"]):
                 raise ConfigError(f"physics.walls = {self.walls!r}: must be null or "
                                   "[x_left, x_right] in m")
             for w in self.walls:
-                _check_number("physics", "walls[]", w)
+                _check_value("physics", "walls[]", w, schema["items"])
             if not self.walls[0] < self.walls[1]:
                 raise ConfigError(f"physics.walls = {list(self.walls)!r}: x_left must be "
                                   "< x_right")

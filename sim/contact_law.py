@@ -34,6 +34,20 @@ def characteristic_length(ri, rj):
 
 
 @njit(cache=True, inline="always")
+def tangential_stiffness(youngs_modulus):
+    """Stiffness ``k∥ = (2/7) Y`` of the tangential (Cundall–Strack) spring, N/m.
+
+    The paper's Appendix, (iii): the Cundall–Strack spring (Cundall & Strack,
+    Géotechnique 29, 47–65, 1979) loads as ``F*∥ ← F*∥ + (2/7) Y v∥ Δt`` and
+    its damping is ``D∥ = v∥ sqrt((2/7) Y m∥)``; the factor 2/7 "is adapted to
+    Hertzian stress for spherical particles".  Written ``2.0 / 7.0 * Y`` (the
+    constant 2/7 rounded once, then one product), the same double wherever it
+    is used, in the kernels and in Python.
+    """
+    return 2.0 / 7.0 * youngs_modulus
+
+
+@njit(cache=True, inline="always")
 def reduced_mass(inv_mi, inv_mj):
     """Normal reduced mass ``m⊥ = m_i m_j / (m_i + m_j)`` from inverse masses (Appendix)."""
     return 1.0 / (inv_mi + inv_mj)
@@ -95,7 +109,7 @@ def tangential_force(spring, v_par, f_el, m_par, youngs_modulus, friction, dt):
     (float, float)
         The total tangential force ``T`` and the updated spring.
     """
-    k_t = 2.0 / 7.0 * youngs_modulus
+    k_t = tangential_stiffness(youngs_modulus)
     cap = friction * f_el
     s = spring + k_t * v_par * dt
     if s > cap:

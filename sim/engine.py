@@ -32,6 +32,7 @@ import numpy as np
 
 from .broadphase import candidate_pairs, carry_history, particle_pair_index
 from .config import ModelParams
+from .contact_law import tangential_stiffness
 from .forces import (BLOCK, KERNELS_PARALLEL, KERNELS_SERIAL, PRED_SIZE, ROW,
                      ROW_SIZE, Bodies, Law, Motion, Pairs, Particles, Workspace, advance)
 from .geometry import make_scratch
@@ -261,7 +262,7 @@ class Simulation:
         (``A = L d``, ``F⊥ ∝ d``); tangential: ``F∥*² / (2 k∥)``.
         """
         e = 0.0
-        kt = 2.0 / 7.0 * self.model.youngs_modulus
+        kt = tangential_stiffness(self.model.youngs_modulus)
         for rows, spring in ((self._pair_rows(), self.spring),
                              (self.bout[:, :self.n].reshape(-1, ROW_SIZE),
                               self.bspring[:, :self.n].ravel())):

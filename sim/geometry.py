@@ -804,8 +804,7 @@ def halfplane_overlap(ax, ay, px, py, mx, my, eps, out, scratch=None):
     Raises
     ------
     ValueError
-        If ``out`` or ``scratch`` is too small, the polygon has < 3 corners or
-        its x and y arrays differ in length.
+        As :func:`polygon_overlap`, for the one polygon.
     """
     na = ax.shape[0]
     if ay.shape[0] != na:

@@ -7,10 +7,16 @@ same dt is exact to the bit) and ``contact_spring`` (the Cundall–Strack histor
 each contact); the global attribute ``code_version`` (:func:`code_version`)
 names the simulator code that wrote it.  Files are written to a temporary name and renamed when
 complete, so a killed job never leaves a file that looks whole.
+
+This module also holds what every file that ``sim`` writes shares: the one
+atomic write (:func:`atomic_path`, with :func:`atomic_write` for netCDF,
+:func:`atomic_text` and :func:`atomic_figure`) and the CF global attributes
+(:func:`cf_attributes`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import json
@@ -59,8 +65,8 @@ class StateFileError(ValueError):
 def code_version() -> str:
     """Hash of the simulator's sources, the code version recorded in every state file.
 
-    It covers ``sim/*.py`` except the picture code (``draw.py``): the files
-    the workflow lists as the simulation rules' code inputs.  A pour resumes
+    It covers ``sim/*.py``: the files the workflow lists as the simulation
+    rules' code inputs.  A pour resumes
     a checkpoint only if it was written by the same code.
 
     Returns
@@ -70,28 +76,99 @@ def code_version() -> str:
     """
     digest = hashlib.sha256()
     for path in sorted(Path(__file__).parent.glob("*.py")):
-        if path.name != "draw.py":
-            digest.update(path.name.encode() + b"\0" + path.read_bytes())
+        digest.update(path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()[:16]
 
 
+#: CF version named by the ``Conventions`` attribute of every netCDF file of ``sim``.
+CONVENTIONS = "CF-1.10"
+
+
+def cf_attributes(title: str, config: dict | None, history: str,
+                  source: str | None = None) -> dict:
+    """The global attributes CONTRACT.md asks of every netCDF file.
+
+    Parameters
+    ----------
+    title : str
+    config : dict or None
+        Effective configuration of the run (stored as sorted JSON text).
+    history : str
+        What wrote the file (a command line, a function); it follows the UTC
+        time of writing.
+    source : str, optional
+        Added in parentheses after the package name and version.
+
+    Returns
+    -------
+    dict
+        ``Conventions`` (:data:`CONVENTIONS`), ``title``, ``source``,
+        ``history``, ``config``.
+    """
+    return {
+        "Conventions": CONVENTIONS,
+        "title": title,
+        "source": f"polypile sim {__version__}" + (f" ({source})" if source else ""),
+        "history": f"{_time.strftime('%Y-%m-%dT%H:%M:%SZ', _time.gmtime())} {history}".strip(),
+        "config": json.dumps(config or {}, sort_keys=True),
+    }
+
+
+@contextlib.contextmanager
+def atomic_path(path):
+    """A temporary path beside ``path``, renamed to ``path`` when the block succeeds.
+
+    The temporary file ``.{name}.{pid}.tmp`` lies in the same folder (created
+    if missing), so the rename is atomic: a killed job never leaves a file
+    under ``path`` that looks whole.  If the block raises, the temporary file
+    is removed and ``path`` is left as it was.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Yields
+    ------
+    pathlib.Path
+        The temporary path to write to.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def atomic_write(ds: xr.Dataset, path) -> None:
-    """Write a dataset to ``path`` through a temporary file and a rename.
+    """Write a dataset to ``path`` (netCDF-4) atomically (:func:`atomic_path`).
 
     Parameters
     ----------
     ds : xarray.Dataset
     path : str or Path
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
+    with atomic_path(path) as tmp:
         ds.to_netcdf(tmp, engine="netcdf4")
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+
+
+def atomic_text(text: str, path) -> None:
+    """Write ``text`` to ``path`` atomically (:func:`atomic_path`)."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+
+
+def atomic_figure(fig, path, **kwargs) -> None:
+    """Save a matplotlib figure to ``path`` atomically (:func:`atomic_path`).
+
+    The format is that of ``path``'s suffix (the temporary name ends in
+    ``.tmp``) unless ``format`` is given; ``kwargs`` go to ``fig.savefig``.
+    """
+    kwargs.setdefault("format", Path(path).suffix.lstrip(".") or "png")
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, **kwargs)
 
 
 def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Dataset:
@@ -158,13 +235,9 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
     g = float(np.hypot(*sim.gravity))
     walls = sim.walls if sim.walls is not None else (np.nan, np.nan)
     ds.attrs = {
-        "Conventions": "CF-1.8",
-        "title": "Particle state of a 2D pile of soft convex polygons",
-        "source": f"polypile sim {__version__}",
+        **cf_attributes("Particle state of a 2D pile of soft convex polygons", config,
+                        "written by sim.io.state_dataset"),
         "code_version": code_version(),
-        "history": f"{_time.strftime('%Y-%m-%dT%H:%M:%SZ', _time.gmtime())} written by "
-                   "sim.io.state_dataset",
-        "config": json.dumps(config or {}, sort_keys=True),
         "time": float(sim.time), "step": int(sim.step),
         "gravity": g, "gravity_x": sim.gravity[0], "gravity_y": sim.gravity[1],
         "youngs_modulus": m.youngs_modulus, "damping": m.damping, "friction": m.friction,

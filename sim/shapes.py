@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .config import ModelParams, ParticleParams, setting_bounds, setting_schema
+
 __all__ = [
     "polygon_mass_properties",
     "validate_polygon",
@@ -29,8 +31,24 @@ __all__ = [
     "shapes_from_nodes",
 ]
 
-#: Largest corner count accepted anywhere (the narrow phase is sized for it).
+#: Largest corner count :func:`random_polygon` accepts.  The configuration
+#: (and so :func:`make_shapes`, which takes its settings) allows fewer: the
+#: bounds of ``particles.corners_min`` / ``corners_max`` in
+#: ``workflow/schemas/config.schema.yaml``, up to the largest count that the
+#: stability suite checks.
 MAX_CORNERS = 64
+
+
+def _setting_range(section, name):
+    """``lo, hi, lo_open, hi_open`` of the setting ``section.name`` (from the schema)."""
+    b = setting_bounds(setting_schema(section, name))
+    return b["lo"], b["hi"], b["lo_open"], b["hi_open"]
+
+
+def _int_range(section, name):
+    """Closed ``lo, hi`` of the integer setting ``section.name`` (from the schema)."""
+    lo, hi, lo_open, hi_open = _setting_range(section, name)
+    return (None if lo is None else lo + lo_open), (None if hi is None else hi - hi_open)
 
 
 # ---------------------------------------------------------------------------
@@ -301,8 +319,8 @@ def random_polygon(
     a,
     b,
     jitter=0.5,
-    min_edge_fraction=0.1,
-    min_angle_deg=15.0,
+    min_edge_fraction=ParticleParams.min_edge_fraction,
+    min_angle_deg=ParticleParams.min_angle_deg,
     rotation=None,
     max_tries=1000,
 ):
@@ -331,9 +349,11 @@ def random_polygon(
         ``[0, 1]``; 0 gives corners at equal ellipse angles.
     min_edge_fraction : float, optional
         Shortest allowed edge as a fraction of the minor diameter
-        ``2 min(a, b)``, in ``[0, 0.5)``.
+        ``2 min(a, b)``, in ``[0, 0.5)``; default: that of the configuration
+        (``particles.min_edge_fraction``).
     min_angle_deg : float, optional
-        Allowed interior angles are ``[min_angle_deg, 180 - min_angle_deg]``.
+        Allowed interior angles are ``[min_angle_deg, 180 - min_angle_deg]``,
+        in ``[0, 60)``; default: ``particles.min_angle_deg``.
     rotation : float or None, optional
         Rotation angle in radians; ``None`` draws it uniformly.
     max_tries : int, optional
@@ -498,13 +518,13 @@ def _build(counts, xs, ys, density):
 def make_shapes(
     rng,
     n,
-    corners_min=6,
-    corners_max=8,
-    semi_axis_mean=3.4e-3,
-    semi_axis_spread=0.3,
-    density=2500.0,
-    min_edge_fraction=0.1,
-    min_angle_deg=15.0,
+    corners_min=ParticleParams.corners_min,
+    corners_max=ParticleParams.corners_max,
+    semi_axis_mean=ParticleParams.semi_axis_mean,
+    semi_axis_spread=ParticleParams.semi_axis_spread,
+    density=ModelParams.density,
+    min_edge_fraction=ParticleParams.min_edge_fraction,
+    min_angle_deg=ParticleParams.min_angle_deg,
     jitter=0.5,
 ):
     """Generate ``n`` random particles following the paper's recipe (Section 3.1).
@@ -514,6 +534,10 @@ def make_shapes(
     and uniformly from ``semi_axis_mean * (1 +- semi_axis_spread)``; the
     polygon is then drawn by :func:`random_polygon`.
 
+    The arguments named like settings of the configuration take their
+    defaults and allowed ranges from ``workflow/schemas/config.schema.yaml``
+    (``particles.*`` and ``model.density``, see :mod:`sim.config`).
+
     Parameters
     ----------
     rng : numpy.random.Generator or int
@@ -522,14 +546,19 @@ def make_shapes(
     n : int
         Number of particles, ``>= 0``.
     corners_min, corners_max : int, optional
-        Corner-number range, ``3 <= corners_min <= corners_max <= 64``.
+        Corner-number range, ``corners_min <= corners_max``, each within the
+        bounds of ``particles.corners_min`` / ``corners_max``.
     semi_axis_mean : float, optional
-        Mean semi-axis [m], ``> 0``.
+        Mean semi-axis [m] (``particles.semi_axis_mean``).
     semi_axis_spread : float, optional
-        Relative half-width of the semi-axis distribution, in ``[0, 1)``.
+        Relative half-width of the semi-axis distribution
+        (``particles.semi_axis_spread``).
     density : float, optional
-        Areal mass density [kg/m^2], ``> 0``.
-    min_edge_fraction, min_angle_deg, jitter : float, optional
+        Areal mass density [kg/m^2] (``model.density``).
+    min_edge_fraction, min_angle_deg : float, optional
+        ``particles.min_edge_fraction`` / ``min_angle_deg``, passed to
+        :func:`random_polygon`.
+    jitter : float, optional
         Passed to :func:`random_polygon`.
 
     Returns
@@ -543,13 +572,18 @@ def make_shapes(
         Naming the argument, its value and the allowed range.
     """
     n = _check_int("n", n, 0)
-    corners_min = _check_int("corners_min", corners_min, 3, MAX_CORNERS)
-    corners_max = _check_int("corners_max", corners_max, corners_min, MAX_CORNERS)
-    semi_axis_mean = _check_range("semi_axis_mean", semi_axis_mean, 0.0, None, lo_open=True)
-    semi_axis_spread = _check_range("semi_axis_spread", semi_axis_spread, 0.0, 1.0, hi_open=True)
-    density = _check_range("density", density, 0.0, None, lo_open=True)
-    min_edge_fraction = _check_range("min_edge_fraction", min_edge_fraction, 0.0, 0.5, hi_open=True)
-    min_angle_deg = _check_range("min_angle_deg", min_angle_deg, 0.0, 60.0, hi_open=True)
+    corners_min = _check_int("corners_min", corners_min, *_int_range("particles", "corners_min"))
+    lo, hi = _int_range("particles", "corners_max")
+    corners_max = _check_int("corners_max", corners_max, max(lo, corners_min), hi)
+    semi_axis_mean = _check_range("semi_axis_mean", semi_axis_mean,
+                                  *_setting_range("particles", "semi_axis_mean"))
+    semi_axis_spread = _check_range("semi_axis_spread", semi_axis_spread,
+                                    *_setting_range("particles", "semi_axis_spread"))
+    density = _check_range("density", density, *_setting_range("model", "density"))
+    min_edge_fraction = _check_range("min_edge_fraction", min_edge_fraction,
+                                     *_setting_range("particles", "min_edge_fraction"))
+    min_angle_deg = _check_range("min_angle_deg", min_angle_deg,
+                                 *_setting_range("particles", "min_angle_deg"))
     jitter = _check_range("jitter", jitter, 0.0, 1.0)
     rng = np.random.default_rng(rng)
 

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .contact_law import tangential_stiffness
 from .integrators import stability_limit
 
 
@@ -87,7 +88,7 @@ def stability_bound(youngs_modulus, damping, integrator, mass, inertia, radius,
     l_min = 0.5 * float(np.min(inradius))
     ratio = max_edge / l_min
     k_normal = youngs_modulus * ratio
-    k_tangential = 2.0 / 7.0 * youngs_modulus
+    k_tangential = tangential_stiffness(youngs_modulus)
     omega_n = np.sqrt(k_normal * inv_mass)
     omega_t = np.sqrt(k_tangential * inv_mass)
     zeta_n = 0.5 * damping * np.sqrt(ratio)

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scenes import diamond, rectangle, scene
 
-from sim.numerics.collisions import CollisionCase, measure, reference
-from sim.numerics.collisions import scene as collision_scene
+from sim.numerics.collision_scenes import CollisionCase, measure, reference
+from sim.numerics.collision_scenes import scene as collision_scene
 from sim.numerics.reference import CornerOnFlat, collision_reference
 
 W = 2.0e-3          # half side of the squares, m
@@ -78,7 +78,7 @@ def test_undamped_edge_collision_conserves_momentum_and_energy(integrator):
 @pytest.mark.parametrize("damping", [0.05, 0.3])
 def test_damped_edge_collision_restitution_matches_ode(integrator, damping):
     """A square falling flat onto a plate, head-on, without rotation
-    (sim.numerics.collisions), against its solve_ivp reference."""
+    (sim.numerics.collision_scenes), against its solve_ivp reference."""
     case = CollisionCase("edge", "edge", damping, 0.0, tangential_speed=0.0)
     ref = reference(case)
     dt = 0.1 * collision_scene(case, integrator).bound.dt_limit

@@ -3,6 +3,8 @@ are filled in, and bad configs fail with a message that names the key, the
 value and what is allowed."""
 
 import copy
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -12,14 +14,16 @@ from snakemake.utils import validate
 
 REPO = Path(__file__).resolve().parents[1]
 SCHEMA = str(REPO / "workflow" / "schemas" / "config.schema.yaml")
+# the numerics section's schema, which SCHEMA refers to
+NUMERICS_SCHEMA = str(REPO / "workflow" / "schemas" / "numerics.schema.yaml")
 
 
 def load(name):
     return yaml.safe_load((REPO / "config" / name).read_text())
 
 
-def schema():
-    return yaml.safe_load(Path(SCHEMA).read_text())
+def schema(path=SCHEMA):
+    return yaml.safe_load(Path(path).read_text())
 
 
 @pytest.mark.parametrize("name", ["config.yaml", "smoke.yaml", "numerics_piles.yaml", "numerics_piles_ci.yaml"])
@@ -37,6 +41,17 @@ def test_paper_study():
     assert config["pour"]["n_particles"] == 3500
     assert config["probe"]["levels"] == [0.10]
     assert config["model"]["youngs_modulus"] == 1.0e7
+
+
+def test_the_smoke_runs_the_study_model():
+    """config/smoke.yaml pours smaller piles, with the study's contact law,
+    integrator, particles and physics (the schema fills in what it leaves out)."""
+    study, smoke = load("config.yaml"), load("smoke.yaml")
+    validate(study, SCHEMA)
+    validate(smoke, SCHEMA)
+    for section in ("model", "particles", "physics"):
+        assert smoke[section] == study[section], section
+    assert smoke["pour"]["n_particles"] < study["pour"]["n_particles"]
 
 
 def test_defaults_are_filled_in():
@@ -112,14 +127,16 @@ def _objects(node, path=()):
             yield from _objects(value, path + (key,))
 
 
-def test_every_object_is_closed_and_lists_its_keys():
-    for path, obj in _objects(schema()):
+@pytest.mark.parametrize("file", [SCHEMA, NUMERICS_SCHEMA], ids=["config", "numerics"])
+def test_every_object_is_closed_and_lists_its_keys(file):
+    for path, obj in _objects(schema(file)):
         assert obj.get("additionalProperties") is False, path
         assert obj["propertyNames"]["enum"] == list(obj["properties"]), path
 
 
-def test_every_key_is_documented_and_optional_keys_have_defaults():
-    for path, obj in _objects(schema()):
+@pytest.mark.parametrize("file", [SCHEMA, NUMERICS_SCHEMA], ids=["config", "numerics"])
+def test_every_key_is_documented_and_optional_keys_have_defaults(file):
+    for path, obj in _objects(schema(file)):
         required = set(obj.get("required", []))
         for key, sub in obj["properties"].items():
             where = "/".join(path + (key,))
@@ -135,3 +152,16 @@ def test_defaults_satisfy_the_schema():
     config = {"protocols": {"layered": {"seeds": [0]}}}
     validate(config, SCHEMA)
     validate(copy.deepcopy(config), SCHEMA, set_default=False)
+
+
+def test_the_settings_tables_of_the_docs_are_the_schemas():
+    """docs/parameters.md lists every setting as the schemas define it
+    (workflow/scripts/settings_table.py made it; rerun it after a schema change)."""
+    script = REPO / "workflow" / "scripts" / "settings_table.py"
+    proc = subprocess.run([sys.executable, str(script), "--check", str(REPO / "docs" / "parameters.md")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    page = (REPO / "docs" / "parameters.md").read_text()
+    for section in ("model", "particles", "pour", "relax", "probe", "physics"):
+        for key, spec in schema()["properties"][section]["properties"].items():
+            assert f"| `{section}.{key}` |" in page, (section, key)

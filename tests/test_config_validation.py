@@ -31,10 +31,14 @@ BASE = valid_config()
 
 def numeric_keys(schema, root, path=()):
     """(path, schema) of every number in the configuration; a list item's path
-    holds the index 0."""
+    holds the index 0. A ``$ref`` to another schema file (numerics.schema.yaml)
+    is followed into that file."""
     while "$ref" in schema:
+        file, _, pointer = schema["$ref"].partition("#")
+        if file:
+            root = _schema(Path(CONFIG_SCHEMA).parent / file)
         node = root
-        for part in schema["$ref"].lstrip("#/").split("/"):
+        for part in filter(None, pointer.split("/")):
             node = node[part]
         schema = node
     kinds = schema.get("type", [])

@@ -11,10 +11,10 @@ import yaml
 from snakemake.utils import validate
 
 from sim.config import ConfigError
-from sim.numerics.collisions import CollisionCase, measure, reference, scene
+from sim.numerics.collision_scenes import CollisionCase, measure, reference, scene
+from sim.numerics.collisions import CollisionSettings, main, observed_order, time_to_reach
 from sim.numerics.polygons import rectangle, shapes_of
 from sim.numerics.reference import EdgeOnFlat, collision_reference, linear_spring_half_period
-from sim.numerics.work_precision import CollisionSettings, main, observed_order, time_to_reach
 
 REPO = __import__("pathlib").Path(__file__).resolve().parents[1]
 SCHEMA = str(REPO / "workflow" / "schemas" / "config.schema.yaml")

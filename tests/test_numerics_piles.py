@@ -1,5 +1,5 @@
-"""Numerics of whole piles (sim/numerics/pile_precision.py, ensemble_cost.py,
-piles_report.py, workflow/rules/numerics_piles.smk): the error estimator on
+"""Numerics of whole piles (analysis/pile_precision.py, ensemble_cost.py,
+piles_report.py, run_times.py, numerics_figures.py, workflow/rules/numerics_piles.smk): the error estimator on
 synthetic data with a known dt^p error and seed noise, the 1/sqrt(n) law of
 the standard error, the profile-norm and dip-depth definitions on hand-built
 profiles, the moduli read at the core, CPU-time files, and (slow) the target
@@ -14,10 +14,11 @@ import pytest
 import xarray as xr
 import yaml
 
-from sim.numerics.ensemble_cost import (check_params as check_ensemble_params, core_moduli, dip_depth,
-                                        piles_needed, standard_error_curve)
-from sim.numerics.pile_precision import (RESOLVED, check_params, children_cpu_time, convergence_order,
-                                         profile_edges, profile_error, scalar_error)
+from analysis.ensemble_cost import (check_params as check_ensemble_params, core_moduli, dip_depth,
+                                    piles_needed, standard_error_curve)
+from analysis.pile_precision import (RESOLVED, check_params, convergence_order, profile_edges, profile_error,
+                                     scalar_error)
+from analysis.run_times import children_cpu_time
 from test_workflow import REPO, copy_workflow, job_counts, snakemake
 
 PILES = {"integrators": ["gear", "verlet"], "dt_factors": [1.0, 0.5], "seeds": [1, 2],
@@ -212,7 +213,8 @@ def test_numerics_piles_target_on_tiny_piles(tmp_path):
 
 def test_figures_draw_panels_without_finite_values(tmp_path):
     """Tiny piles give NaN angles and moduli; the figures still come out (a note instead of log axes)."""
-    from sim.numerics import ensemble_cost, pile_precision
+    from analysis import ensemble_cost, pile_precision
+    from analysis.numerics_figures import ensemble_error_figure, pile_error_figure
 
     dims = ("integrator", "dt_factor")
     ds = xr.Dataset(coords={"integrator": ["gear", "verlet"], "dt_factor": [1.0, 0.5], "seed": [1, 2]})
@@ -223,13 +225,13 @@ def test_figures_draw_panels_without_finite_values(tmp_path):
     ds["angle_of_repose_error_bar"][:] = 0.1
     ds["cpu_time_mean"] = (dims, np.array([[10.0, 20.0], [3.0, 6.0]]))
     ds.attrs.update(reference_integrator="gear", reference_dt_factor=0.5, n_particles=12, protocol="wedge")
-    pile_precision.figure(ds, [str(tmp_path / "piles.png")])
+    pile_error_figure(ds, [str(tmp_path / "piles.png")], pile_precision.OBSERVABLES)
     ens = xr.Dataset(coords={"protocol": ["wedge"], "n": [1, 2]})
     for name in ensemble_cost.HEADLINES:
         ens[f"{name}_mean"] = (("protocol", "n"), np.full((1, 2), np.nan))
         ens[f"{name}_se"] = (("protocol", "n"), np.full((1, 2), np.nan))
     ens["cumulative_compute_time"] = (("protocol", "n"), np.array([[5.0, 10.0]]))
     ens.attrs.update(core_x=0.0, core_y=0.01)
-    ensemble_cost.figure(ens, [str(tmp_path / "ensemble.png")])
+    ensemble_error_figure(ens, [str(tmp_path / "ensemble.png")], tuple(ensemble_cost.HEADLINES))
     for png in ("piles.png", "ensemble.png"):
         assert (tmp_path / png).read_bytes()[:4] == b"\x89PNG"

@@ -20,6 +20,8 @@ import numpy as np
 import pytest
 import yaml
 
+from sim.config import SimConfig
+
 REPO = Path(__file__).resolve().parents[1]
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 SMOKE = ["--configfile", "config/smoke.yaml", "--replace-workflow-config"]
@@ -92,16 +94,22 @@ def test_lint_passes(workdir, configfile):
 # --- (b) dry runs ------------------------------------------------------------
 
 @pytest.mark.parametrize("replace", [True, False], ids=["replace", "no-replace"])
-def test_a_configfile_replaces_the_study_config(workdir, replace):
+def test_a_configfile_replaces_the_study_config(tmp_path, replace):
     """With or without --replace-workflow-config, `--configfile smoke.yaml` runs
     the smoke piles with the schema's defaults, never the study's settings:
     cluster jobs receive --configfiles without that flag, and a job that merged
-    config/config.yaml back in would simulate with another integrator."""
+    config/config.yaml back in would simulate with the study's settings. The
+    study's config here carries a friction that neither smoke.yaml nor the
+    schema gives."""
+    root = copy_workflow(tmp_path / "wf")
+    study = root / "config" / "config.yaml"
+    study.write_text(study.read_text().replace("  friction: 0.5 ", "  friction: 0.37"))
+    assert "friction: 0.37" in study.read_text()
     args = SMOKE if replace else SMOKE[:2]
-    proc = snakemake(workdir, "-n", "-p", "--cores", "2", *args)
+    proc = snakemake(root, "-n", "-p", "--cores", "2", *args)
     assert proc.returncode == 0, proc.output
     assert job_counts(proc.output)["pour"] == len(smoke_piles())
-    assert '"integrator": "gear"' in proc.output      # the schema default, not the study's
+    assert '"friction": 0.5' in proc.output and '"friction": 0.37' not in proc.output
 
 
 def test_smoke_dry_run_lists_the_pile_jobs(workdir):
@@ -282,16 +290,31 @@ record = {"cmd": cmd, "args": vars(args),
 Path(args.out).write_text(json.dumps(record))
 '''
 
+# python -m analysis draw, faked: records its command line in the picture.
+FAKE_ANALYSIS_MAIN = '''
+import argparse, json, sys
+from pathlib import Path
+
+cmd, rest = sys.argv[1], sys.argv[2:]
+assert cmd == "draw", cmd
+parser = argparse.ArgumentParser()
+for option in ("--input", "--out"):
+    parser.add_argument(option, required=True)
+args = parser.parse_args(rest)
+assert Path(args.input).exists()
+Path(args.out).write_text(json.dumps({"cmd": cmd, "args": vars(args)}))
+'''
+
 
 @pytest.fixture(scope="module")
 def ran(tmp_path_factory):
-    """A copy with a fake simulator whose pile and picture jobs have all run."""
+    """A copy with a fake simulator and picture code whose pile and picture jobs have all run."""
     root = copy_workflow(tmp_path_factory.mktemp("edits"), with_sim=False)
     (root / "sim").mkdir()
     (root / "sim" / "__init__.py").write_text("")
     (root / "sim" / "__main__.py").write_text(FAKE_SIM_MAIN)
     (root / "sim" / "kernels.py").write_text("# stands for the Numba kernels\n")
-    (root / "sim" / "draw.py").write_text("# stands for the picture code\n")
+    (root / "analysis" / "__main__.py").write_text(FAKE_ANALYSIS_MAIN)
     targets = ["piles"] + [f"results/figures/piles/{p}_seed{s}_relaxed.png"
                            for p, s in smoke_piles()]
     proc = snakemake(root, "--cores", "2", *SMOKE, *targets)
@@ -335,7 +358,8 @@ def test_fake_run_passed_the_expected_command_lines(ran):
     assert pour["env"]["NUMBA_CACHE_DIR"] == str(root / ".numba_cache")
     params = json.loads(pour["args"]["params"])
     assert params["pour"]["n_particles"] == SMOKE_CONFIG["pour"]["n_particles"]
-    assert params["model"]["integrator"] == "gear"  # a default filled in by the schema
+    # smoke.yaml's integrator, every other model setting filled in by the schema
+    assert params["model"] == {**SimConfig().to_dict()["model"], **SMOKE_CONFIG["model"]}
     probe = json.loads((root / "results/piles/layered/seed2/reduced.nc").read_text())
     assert probe["args"]["input"] == "results/piles/layered/seed2/relaxed.nc"
     assert float(probe["args"]["level"]) == 0.1
@@ -366,19 +390,21 @@ def test_editing_simulator_code_reruns_the_piles(ran):
 
 def test_editing_the_picture_code_redraws_only(ran):
     root, targets = ran
-    with edited(root / "sim" / "draw.py"):
+    with edited(root / "analysis" / "draw.py"):
         assert dry_run(root, targets) == {"draw_pile": len(smoke_piles())}
 
 
-@pytest.mark.parametrize("folder", ["analysis", "workflow/report"])
-def test_editing_analysis_code_or_a_caption_leaves_the_piles(ran, folder):
+@pytest.mark.parametrize("folder,rerun", [("analysis", {"draw_pile"}), ("workflow/report", set())])
+def test_editing_analysis_code_or_a_caption_leaves_the_piles(ran, folder, rerun):
+    """Analysis code re-draws the pictures of piles (analysis/draw.py reads
+    the states), never a simulation; a caption re-runs nothing."""
     root, targets = ran
     files = sorted(p for p in (root / folder).rglob("*") if p.is_file())
     assert files
     with contextlib.ExitStack() as stack:
         for path in files:
             stack.enter_context(edited(path))
-        assert dry_run(root, targets) == {}
+        assert dry_run(root, targets) == {rule: len(smoke_piles()) for rule in rerun}
 
 
 @pytest.mark.parametrize("section,change,rerun", [

@@ -8,7 +8,10 @@ allowed:
    declares an integer holds an integer, not 3500.0 (JSON schema counts an
    integer-valued float as an integer; the simulator and the analysis do not).
 2. The JSON schemas (``workflow/schemas``, draft 2020-12), which also fill
-   in the defaults (as ``snakemake.utils.validate`` does).
+   in the defaults (as ``snakemake.utils.validate`` does): config.schema.yaml,
+   which refers to numerics.schema.yaml for the ``numerics`` section (a
+   ``$ref`` to a file beside it), and analysis.schema.yaml for the
+   ``analysis`` section, validated on its own.
 3. The simulator's and the analysis' own checks (:class:`sim.config.SimConfig`,
    :func:`analysis.params.resolve_params`): what a schema cannot express,
    such as ``relax.hold_time <= relax.max_time`` or an ordered grid.
@@ -25,6 +28,7 @@ from pathlib import Path
 
 import yaml
 from jsonschema import Draft202012Validator, validators
+from referencing import Registry, Resource
 
 from analysis.params import resolve_params
 from sim.config import SimConfig
@@ -32,6 +36,7 @@ from sim.config import SimConfig
 SCHEMAS = Path(__file__).resolve().parent / "schemas"
 CONFIG_SCHEMA = SCHEMAS / "config.schema.yaml"
 ANALYSIS_SCHEMA = SCHEMAS / "analysis.schema.yaml"
+NUMERICS_SCHEMA = SCHEMAS / "numerics.schema.yaml"  # config.schema.yaml refers to it
 # The sections of the configuration that the simulator reads.
 SIM_SECTIONS = ("model", "particles", "pour", "relax", "probe", "physics")
 
@@ -63,13 +68,29 @@ def _filling_defaults(validator_class):
 _Validator = _filling_defaults(Draft202012Validator)
 
 
+def _schema_file(ref):
+    """The schema file that the ``$ref`` `ref` (``file.yaml`` or ``file.yaml#/...``)
+    names: a file of workflow/schemas."""
+    path = (SCHEMAS / ref.partition("#")[0]).resolve()
+    if path.parent != SCHEMAS:
+        raise ValueError(f"$ref {ref!r}: only schema files in {SCHEMAS} can be referred to")
+    return path
+
+
+# The schema files that a $ref to another file (config.schema.yaml's numerics)
+# loads: resolved against workflow/schemas, as snakemake.utils.validate resolves
+# them against the referring file's folder.
+_REGISTRY = Registry(retrieve=lambda uri: Resource.from_contents(load_schema(_schema_file(uri))))
+
+
 def schema_problem(value, path, key=""):
     """The first violation of the schema in `path` by `value`, as text, or None.
 
     Fills in `value`'s defaults.  The text names the setting (dotted key),
     its value and the rule it breaks.
     """
-    error = next(iter(_Validator(load_schema(path)).iter_errors(value)), None)
+    error = next(iter(_Validator(load_schema(path), registry=_REGISTRY).iter_errors(value)),
+                 None)
     if error is None:
         return None
     where = ".".join([key] * bool(key) + [str(p) for p in error.absolute_path]) or "(top level)"
@@ -77,13 +98,19 @@ def schema_problem(value, path, key=""):
 
 
 def _resolve(schema, root):
-    """`schema` with a local ``$ref`` (``#/$defs/...``) replaced by its target."""
+    """`schema` with a ``$ref`` replaced by its target, and the schema holding
+    the target's ``$defs``: `root` for a local ``$ref`` (``#/$defs/...``), the
+    file for one to another file of workflow/schemas (``numerics.schema.yaml``,
+    optionally ``#/...`` in it)."""
     while "$ref" in schema:
+        file, _, pointer = schema["$ref"].partition("#")
+        if file:
+            root = load_schema(_schema_file(file))
         node = root
-        for part in schema["$ref"].lstrip("#/").split("/"):
+        for part in filter(None, pointer.split("/")):
             node = node[part]
         schema = node
-    return schema
+    return schema, root
 
 
 def _allowed(schema):
@@ -116,7 +143,7 @@ def number_problems(value, schema, root=None, key=""):
         One message per bad number, naming its key, value and what is allowed.
     """
     root = schema if root is None else root
-    schema = _resolve(schema, root)
+    schema, root = _resolve(schema, root)
     problems = []
     if isinstance(value, dict):
         properties = schema.get("properties", {})

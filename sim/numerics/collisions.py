@@ -1,226 +1,287 @@
-"""Binary collision scenes and what is measured on them.
+"""Error against run time for binary collisions: the time-step sweep.
 
-A particle i (a square lying flat, or a diamond standing on a corner) falls
-onto the top edge of a plate j (a rectangle 8W × 2W) in zero gravity, without
-rotation, with relative normal and tangential speeds.  The centre-of-mass
-frame is at rest.  The observables, measured from the simulator's positions
-and velocities after every step, are compared with the reference of
-:mod:`sim.numerics.reference`:
+For every collision case (:mod:`sim.numerics.collision_scenes`) and integrator the
+step runs from the rule's stability limit ``dt_limit`` of the particle pair
+(:func:`sim.timestep.stability_bound`) down to a hundredth of it.  Each run is
+measured against the solve_ivp reference (:mod:`sim.numerics.reference`) and
+timed: the wall time of ``Simulation.run`` over the steps of the collision
+(placement to separation), the median of ``repeats`` runs after the kernels
+are compiled.  With two particles a step costs a few microseconds, almost all
+of it fixed per-step overhead (three kernel launches, the loop, the periodic
+state check), not contact work, so the times compare integrators at equal
+overhead; in a pile the contact work dominates instead.
 
-* normal and tangential restitution: relative velocities a few steps after
-  separation (Gear's higher derivatives settle over a few steps after the
-  force vanishes; :data:`SETTLE_STEPS`);
-* contact duration: from the exact touch-down time (free flight from a known
-  gap) to the separation time, found by cubic Hermite interpolation of the
-  depth between the two steps around it (error O(dt⁴));
-* maximum overlap: the maximum of the same interpolant on the step interval
-  where the approach velocity changes sign, as an area.
-
-Interpolating avoids an O(dt) error from sampling at step boundaries, so the
-measured errors are the integrators'.
+``python -m sim numerics collisions --params @config/numerics.yaml --nc ... --figure ... --table ...``
+writes the netCDF data, the figure and a Markdown table.
 """
 
 from __future__ import annotations
 
+import logging
 import math
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 
 import numpy as np
+import xarray as xr
 
-from ..config import ModelParams
-from ..engine import Simulation
-from .polygons import diamond, rectangle, shapes_of
-from .reference import CollisionOutcome, CornerOnFlat, EdgeOnFlat, collision_reference
+from ..config import ConfigError, check_number
+from ..integrators import INTEGRATORS
+from .collision_scenes import CONTACTS, OBSERVABLES, CollisionCase, measure, reference, scene
+from .command import run_numerics_check, settings_from_dict
 
-#: Half side of the square (and the plate's half thickness), m.
-HALF_SIDE = 2.0e-3
-#: Steps run after separation before the velocities are read.
-SETTLE_STEPS = 20
-CONTACTS = ("edge", "corner")
-
+log = logging.getLogger("sim.numerics")
 
 @dataclass(frozen=True)
-class CollisionCase:
-    """One binary collision.
+class CollisionSettings:
+    """The ``numerics.collisions`` section of the configuration.
 
     Attributes
     ----------
-    name : str
-    contact : {"edge", "corner"}
-        A square's edge or a diamond's 90° corner onto the plate's edge.
-    damping, friction : float
-        γ and μ of the contact law.
+    integrators : tuple of str
+    youngs_modulus : float
+        Y of every case, N/m.
     normal_speed, tangential_speed : float
         Relative speeds at touch-down, m/s.
-    youngs_modulus : float
-        Y, N/m.
+    largest_fraction, smallest_fraction : float
+        Range of ``dt / dt_limit``.
+    steps_per_decade : int
+        Time steps per decade of ``dt`` (log-spaced).
+    repeats : int
+        Timed repeats per run (the median is kept).
+    target_error : float
+        Accuracy at which the table compares the integrators' cost.
+    cases : tuple of dict
+        ``{name, contact, damping, friction}`` per collision.
     """
 
-    name: str
-    contact: str
-    damping: float
-    friction: float
+    integrators: tuple = ("gear", "verlet")
+    youngs_modulus: float = 1.0e7
     normal_speed: float = 0.1
     tangential_speed: float = 0.1
-    youngs_modulus: float = 1.0e7
+    largest_fraction: float = 1.0
+    smallest_fraction: float = 0.01
+    steps_per_decade: int = 4
+    repeats: int = 5
+    target_error: float = 1.0e-4
+    cases: tuple = field(default_factory=lambda: tuple(DEFAULT_CASES))
 
     def __post_init__(self):
-        if self.contact not in CONTACTS:
-            raise ValueError(f"collision case {self.name!r}: contact = {self.contact!r}: "
-                             f"must be one of {list(CONTACTS)}")
-        if not self.normal_speed > 0:
-            raise ValueError(f"collision case {self.name!r}: normal_speed = "
-                             f"{self.normal_speed!r}: must be > 0")
+        s = "numerics.collisions"
+        for name in self.integrators:
+            if name not in INTEGRATORS:
+                raise ConfigError(f"{s}.integrators: {name!r} is not one of "
+                                  f"{sorted(INTEGRATORS)}")
+        if not self.integrators:
+            raise ConfigError(f"{s}.integrators: must name at least one integrator")
+        check_number(s, "youngs_modulus", self.youngs_modulus, lo=0, lo_open=True)
+        check_number(s, "normal_speed", self.normal_speed, lo=0, lo_open=True)
+        check_number(s, "tangential_speed", self.tangential_speed)
+        check_number(s, "largest_fraction", self.largest_fraction, lo=0, hi=1, lo_open=True)
+        check_number(s, "smallest_fraction", self.smallest_fraction, lo=1e-4,
+                      hi=self.largest_fraction)
+        check_number(s, "steps_per_decade", self.steps_per_decade, lo=1, hi=20, integer=True)
+        check_number(s, "repeats", self.repeats, lo=1, hi=100, integer=True)
+        check_number(s, "target_error", self.target_error, lo=0, hi=1, lo_open=True)
+        if not self.cases:
+            raise ConfigError(f"{s}.cases: must list at least one collision")
+        names = [c.get("name") for c in self.cases]
+        if len(set(names)) != len(names):
+            raise ConfigError(f"{s}.cases: names {names} must be unique")
+        for c in self.cases:
+            unknown = sorted(set(c) - {"name", "contact", "damping", "friction"})
+            if unknown or not {"name", "contact"} <= set(c):
+                raise ConfigError(f"{s}.cases: {c!r} must have name and contact and may "
+                                  f"have damping and friction (unknown: {unknown})")
+            if c["contact"] not in CONTACTS:
+                raise ConfigError(f"{s}.cases[{c['name']}].contact = {c['contact']!r}: "
+                                  f"must be one of {list(CONTACTS)}")
+            check_number(f"{s}.cases[{c['name']}]", "damping", c.get("damping", 0.0),
+                          lo=0, hi=10)
+            check_number(f"{s}.cases[{c['name']}]", "friction", c.get("friction", 0.0),
+                          lo=0, hi=10)
+        object.__setattr__(self, "integrators", tuple(self.integrators))
+        object.__setattr__(self, "cases", tuple(dict(c) for c in self.cases))
+
+    @classmethod
+    def from_dict(cls, data):
+        """Build from the ``collisions`` mapping (missing keys take defaults)."""
+        return settings_from_dict(cls, "collisions", data)
+
+    def collision_cases(self):
+        """The :class:`CollisionCase` of every configured collision."""
+        return [CollisionCase(c["name"], c["contact"], float(c.get("damping", 0.0)),
+                              float(c.get("friction", 0.0)), self.normal_speed,
+                              self.tangential_speed, self.youngs_modulus)
+                for c in self.cases]
+
+    def fractions(self):
+        """``dt / dt_limit`` of the sweep, largest first, log-spaced."""
+        decades = math.log10(self.largest_fraction / self.smallest_fraction)
+        count = max(2, int(round(decades * self.steps_per_decade)) + 1)
+        return np.geomspace(self.largest_fraction, self.smallest_fraction, count)
 
 
-def _polygons(case):
-    """Corners of (i, j): the falling particle and the plate."""
-    w = HALF_SIDE
-    upper = rectangle(2 * w, 2 * w) if case.contact == "edge" else diamond(math.sqrt(2) * w)
-    return upper, rectangle(8 * w, 2 * w)
+DEFAULT_CASES = [
+    {"name": "edge_elastic", "contact": "edge", "damping": 0.0, "friction": 0.0},
+    {"name": "edge_damped", "contact": "edge", "damping": 0.3, "friction": 0.0},
+    {"name": "edge_friction", "contact": "edge", "damping": 0.0, "friction": 0.5},
+    {"name": "edge_damped_friction", "contact": "edge", "damping": 0.3, "friction": 0.5},
+    {"name": "corner_elastic", "contact": "corner", "damping": 0.0, "friction": 0.0},
+    {"name": "corner_damped", "contact": "corner", "damping": 0.3, "friction": 0.0},
+    {"name": "corner_friction", "contact": "corner", "damping": 0.0, "friction": 0.5},
+    {"name": "corner_damped_friction", "contact": "corner", "damping": 0.3, "friction": 0.5},
+]
 
 
-def geometry(case):
-    """The reference geometry (:mod:`sim.numerics.reference`) of a case."""
-    w = HALF_SIDE
-    if case.contact == "edge":
-        return EdgeOnFlat(2 * w, w, w)
-    return CornerOnFlat(math.pi / 4, math.sqrt(2) * w, w)
-
-
-#: Offset of i's centre from j's along the edge at the start, m (off-centre, so
-#: that r_j changes as i slides).
-OFFSET = 0.5 * HALF_SIDE
-#: Gap between the particles at the start, m.
-GAP = 1e-3 * HALF_SIDE
-
-
-def scene(case, integrator, dt=None):
-    """The collision as a :class:`sim.engine.Simulation`, particles placed.
-
-    Parameters
-    ----------
-    case : CollisionCase
-    integrator : {"gear", "verlet"}
-    dt : float or None
-        Time step, s (None: the automatic rule).
-
-    Returns
-    -------
-    Simulation
-    """
-    shapes = shapes_of(*_polygons(case))
-    model = ModelParams(youngs_modulus=case.youngs_modulus, damping=case.damping,
-                        friction=case.friction, integrator=integrator, dt=dt)
-    sim = Simulation(shapes, model, gravity=(0.0, 0.0), support=False, rotate=False)
-    m_i, m_j = shapes.mass
-    v_rel = np.array([case.tangential_speed, -case.normal_speed])
-    v_i = m_j / (m_i + m_j) * v_rel
-    v_j = -m_i / (m_i + m_j) * v_rel
-    sim.place(0, OFFSET, HALF_SIDE + geometry(case).reach + GAP, 0.0, *v_i, 0.0)
-    sim.place(1, 0.0, 0.0, 0.0, *v_j, 0.0)
-    return sim
-
-
-def touch_down_time(case):
-    """Time of first contact: the gap closed at the approach speed (free flight)."""
-    return GAP / case.normal_speed
-
-
-def reference(case, rtol=1e-12):
-    """The reference outcome of a case (:func:`sim.numerics.reference.collision_reference`)."""
-    shapes = shapes_of(*_polygons(case))
-    return collision_reference(
-        geometry(case), shapes.mass[0], shapes.inertia[0], shapes.mass[1], shapes.inertia[1],
-        case.youngs_modulus, case.damping, case.friction, case.normal_speed,
-        case.tangential_speed, OFFSET + case.tangential_speed * touch_down_time(case), rtol)
-
-
-def _depth(sim, case):
-    """Overlap depth d and its rate d' from the particles' positions and velocities."""
-    top = HALF_SIDE + geometry(case).reach
-    d = top - (sim.r[0, 1, 0] - sim.r[0, 1, 1])
-    dd = -(sim.r[1, 1, 0] - sim.r[1, 1, 1]) / sim.dt
-    return d, dd
-
-
-def hermite(t0, t1, y0, y1, v0, v1):
-    """Cubic Hermite interpolant on ``[t0, t1]`` matching values and slopes.
-
-    ``H(s) = (2s³−3s²+1) y0 + (s³−2s²+s) h v0 + (−2s³+3s²) y1 + (s³−s²) h v1``
-    with ``h = t1 − t0``, ``s = (t − t0)/h``; returned as polynomial
-    coefficients in ``s`` (highest first, for :func:`numpy.roots`).
-    """
-    h = t1 - t0
-    return np.array([2 * y0 + h * v0 - 2 * y1 + h * v1,
-                     -3 * y0 - 2 * h * v0 + 3 * y1 - h * v1,
-                     h * v0,
-                     y0])
-
-
-def _root_in_unit(coeffs):
-    """The real root of a polynomial in [0, 1] (the one nearest the middle)."""
-    roots = np.roots(coeffs)
-    real = roots[(abs(roots.imag) < 1e-9) & (roots.real >= -1e-9) & (roots.real <= 1 + 1e-9)]
-    if not len(real):
-        raise RuntimeError("no crossing inside the step interval")
-    return float(real.real[np.argmin(abs(real.real - 0.5))])
-
-
-def _run_until(sim, case, crossed, chunk):
-    """Advance until the step on which ``crossed(before, after)`` first holds.
-
-    Runs in chunks (doubling while nothing happens); a chunk in which the
-    event happened is undone (:meth:`Simulation.restore` retraces the run
-    exactly) and redone in chunks an eighth as long, down to single steps.
-    ``crossed`` must hold over a chunk whenever it holds for one of its steps
-    (true for sign changes of the monotone depth and approach speed).
-
-    Returns
-    -------
-    before, after : tuple
-        ``(t, d, d')`` at the start and end of that step.
-    """
-    before = (sim.time, *_depth(sim, case))
-    while True:
-        start = sim.snapshot()
-        sim.run(steps=chunk)
-        after = (sim.time, *_depth(sim, case))
-        if crossed(before, after):
-            if chunk == 1:
-                return before, after
-            sim.restore(start)
-            chunk = max(1, chunk // 8)
-        else:
-            before = after
-            chunk *= 2
-
-
-def measure(case, integrator, dt):
-    """Run one collision and measure it.
-
-    Returns
-    -------
-    outcome : CollisionOutcome
-    steps : int
-        Steps from the start to the first step after separation (the cost of
-        the collision, timed by :func:`wall_time`).
-    """
+def wall_time(case, integrator, dt, steps, repeats):
+    """Median wall time (s) of ``Simulation.run(steps=steps)`` from the collision's
+    start, over ``repeats`` runs after an untimed one (the first run of a new
+    simulation object pays one-off costs)."""
     sim = scene(case, integrator, dt)
-    v_rel0 = np.array([case.tangential_speed, -case.normal_speed])
-    # the normal force never attracts, so d' only decreases: it changes sign
-    # once, at the deepest point, and d once more, at separation
-    before, after = _run_until(sim, case, lambda b, a: b[2] > 0 >= a[2], 8)
-    c = hermite(before[0], after[0], before[1], after[1], before[2], after[2])
-    deepest = float(np.polyval(c, _root_in_unit(np.polyder(c))))
-    before, after = _run_until(sim, case, lambda b, a: b[1] > 0 >= a[1], 8)
-    c = hermite(before[0], after[0], before[1], after[1], before[2], after[2])
-    t_sep = before[0] + _root_in_unit(c) * (after[0] - before[0])
-    steps = sim.step
-    sim.run(steps=SETTLE_STEPS)
-    v = sim.velocity
-    v_rel = v[0] - v[1]
-    e_t = v_rel[0] / v_rel0[0] if v_rel0[0] != 0 else 1.0
-    return CollisionOutcome(float(-v_rel[1] / v_rel0[1]), float(e_t),
-                            t_sep - touch_down_time(case),
-                            float(geometry(case).contact(deepest, 0.0)[0])), steps
+    start = sim.snapshot()
+    sim.run(steps=steps)
+    times = []
+    for _ in range(repeats):
+        sim.restore(start)
+        t0 = time.perf_counter()
+        sim.run(steps=steps)
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def error(measured, ref, kind):
+    """Error of a measured value: ``|m − r|`` (absolute) or ``|m − r| / |r|`` (relative)."""
+    diff = np.abs(np.asarray(measured) - ref)
+    return diff if kind == "absolute" else diff / abs(ref)
+
+
+def sweep(settings: CollisionSettings) -> xr.Dataset:
+    """Measure and time every case, integrator and time step.
+
+    Returns
+    -------
+    xarray.Dataset
+        Dimensions ``case``, ``integrator``, ``dt_fraction``; see
+        :data:`sim.numerics.collision_scenes.OBSERVABLES` for the measured
+        variables and their errors.
+    """
+    cases = settings.collision_cases()
+    fractions = settings.fractions()
+    shape = (len(cases), len(settings.integrators), len(fractions))
+    out = {name: np.full(shape, np.nan) for name in OBSERVABLES}
+    dt = np.full(shape, np.nan)
+    steps = np.zeros(shape, np.int64)
+    wall = np.full(shape, np.nan)
+    limit = np.full(shape[:2], np.nan)
+    refs = {name: np.full(len(cases), np.nan) for name in OBSERVABLES}
+    t_start = time.monotonic()
+    for c, case in enumerate(cases):
+        ref = reference(case)
+        for name in OBSERVABLES:
+            refs[name][c] = getattr(ref, name)
+        for k, integrator in enumerate(settings.integrators):
+            limit[c, k] = scene(case, integrator).bound.dt_limit
+            for f, fraction in enumerate(fractions):
+                dt[c, k, f] = fraction * limit[c, k]
+                outcome, steps[c, k, f] = measure(case, integrator, dt[c, k, f])
+                for name in OBSERVABLES:
+                    out[name][c, k, f] = getattr(outcome, name)
+                wall[c, k, f] = wall_time(case, integrator, dt[c, k, f], steps[c, k, f],
+                                          settings.repeats)
+            log.info("collisions: %s %s done (%d of %d), %.0f s", case.name, integrator,
+                     c * len(settings.integrators) + k + 1,
+                     len(cases) * len(settings.integrators), time.monotonic() - t_start)
+    dims = ("case", "integrator", "dt_fraction")
+    data = {
+        "contact": (("case",), [c.contact for c in cases],
+                    {"long_name": "edge: a square's edge on the plate; corner: a 90 degree corner"}),
+        "damping": (("case",), [c.damping for c in cases],
+                    {"units": "1", "long_name": "normal damping coefficient gamma"}),
+        "friction": (("case",), [c.friction for c in cases],
+                     {"units": "1", "long_name": "Coulomb friction coefficient mu"}),
+        "dt_limit": (dims[:2], limit, {"units": "s", "long_name":
+                                       "stability limit of the time-step rule for the pair"}),
+        "dt": (dims, dt, {"units": "s", "long_name": "time step"}),
+        "steps": (dims, steps, {"units": "1", "long_name": "steps from start to separation"}),
+        "wall_time": (dims, wall, {"units": "s", "long_name":
+                                   "wall time of Simulation.run per collision (median)"}),
+    }
+    for name, (units, long_name, kind) in OBSERVABLES.items():
+        data[name] = (dims, out[name], {"units": units, "long_name": f"measured {long_name}"})
+        data[f"reference_{name}"] = (("case",), refs[name], {
+            "units": units, "long_name": f"{long_name}, solve_ivp reference (rtol 1e-12)"})
+        data[f"error_{name}"] = (dims, error(out[name], refs[name][:, None, None], kind), {
+            "units": "1", "long_name": f"{kind} error of the {long_name}"})
+    return xr.Dataset(data, coords={
+        "case": ("case", [c.name for c in cases], {"long_name": "collision case"}),
+        "integrator": ("integrator", list(settings.integrators), {"long_name": "integrator"}),
+        "dt_fraction": ("dt_fraction", fractions, {
+            "units": "1", "long_name": "time step over the stability limit dt_limit"}),
+    })
+
+
+def observed_order(dt, err, floor=1e-10):
+    """Least-squares slope of ``log err`` against ``log dt`` over the finer half of the steps.
+
+    Points with ``err <= floor`` (the reference's accuracy) are left out; NaN
+    with fewer than three points.
+    """
+    dt = np.asarray(dt)
+    err = np.asarray(err)
+    order = np.argsort(dt)
+    dt, err = dt[order], err[order]
+    keep = np.arange(len(dt)) < max(3, (len(dt) + 1) // 2)
+    keep &= err > floor
+    if keep.sum() < 3:
+        return math.nan
+    return float(np.polyfit(np.log(dt[keep]), np.log(err[keep]), 1)[0])
+
+
+def time_to_reach(wall, err, target):
+    """Least wall time after which every finer step keeps the error at or below ``target``.
+
+    ``wall`` and ``err`` are ordered from the largest step down; NaN if even
+    the finest step misses the target.
+    """
+    ok = np.asarray(err) <= target
+    if not ok[-1]:
+        return math.nan
+    first = len(ok) - int(np.argmin(ok[::-1])) if not ok.all() else 0
+    return float(np.asarray(wall)[first])
+
+
+def table(ds: xr.Dataset, target: float) -> str:
+    """Markdown table: per case, observable and integrator the error at the
+    stability limit and at the smallest step, the observed order and the wall
+    time per collision needed for an error of ``target``."""
+    lines = [
+        f"| case | observable | integrator | error at dt_limit | error at "
+        f"{float(ds.dt_fraction[-1]):.2g} dt_limit | order | steps at dt_limit | "
+        f"µs per collision for error ≤ {target:.0e} |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for case in ds.case.values:
+        for name in OBSERVABLES:
+            for integrator in ds.integrator.values:
+                sel = ds.sel(case=case, integrator=integrator)
+                err = sel[f"error_{name}"].values
+                t = time_to_reach(sel.wall_time.values, err, target)
+                lines.append(
+                    f"| {case} | {name} | {integrator} | {err[0]:.2e} | {err[-1]:.2e} | "
+                    f"{observed_order(sel.dt.values, err):.2f} | {int(sel.steps[0])} | "
+                    f"{'–' if math.isnan(t) else f'{1e6 * t:.0f}'} |")
+    return "\n".join(lines) + "\n"
+
+
+def _draw(ds, path):
+    from .figures import collision_figure  # matplotlib only when drawing
+    collision_figure(ds, path)
+
+
+def main(argv=None):
+    """``python -m sim numerics collisions``: sweep, then write data, figure and table."""
+    run_numerics_check("collisions", __doc__.split("\n\n")[0], argv, CollisionSettings, sweep,
+                       "Binary collisions: error against wall time", _draw,
+                       lambda ds, settings: table(ds, settings.target_error))
+    return 0

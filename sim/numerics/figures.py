@@ -8,7 +8,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .config_io import atomic_figure  # noqa: E402
+from ..io import atomic_figure  # noqa: E402
+from .collision_scenes import OBSERVABLES  # noqa: E402
 
 COLOURS = {"gear": "tab:blue", "verlet": "tab:orange"}
 
@@ -21,8 +22,6 @@ def collision_figure(ds, path):
     line marks its wall time.  Errors that are exactly zero (no tangential
     force without friction) are not drawn.
     """
-    from .work_precision import OBSERVABLES
-
     names = list(OBSERVABLES)
     cases = list(ds.case.values)
     fig, axes = plt.subplots(len(names), len(cases), figsize=(2.6 * len(cases) + 1, 2.4 * len(names)),

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from ..contact_law import tangential_stiffness
+
 
 @dataclass(frozen=True)
 class EdgeOnFlat:
@@ -196,7 +198,7 @@ def collision_reference(geometry, mass_i, inertia_i, mass_j, inertia_j, youngs_m
     if not normal_speed > 0:
         raise ValueError(f"normal_speed = {normal_speed!r}: must be > 0 (an approach)")
     m_perp = mass_i if np.isinf(mass_j) else mass_i * mass_j / (mass_i + mass_j)
-    k_t = 2.0 / 7.0 * youngs_modulus
+    k_t = tangential_stiffness(youngs_modulus)
 
     def rhs(t, s):
         d, dd, x, dx, f_spring = s

@@ -40,11 +40,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 import xarray as xr
 
-from ..config import ConfigError, ModelParams, _check_number
+from ..config import ConfigError, ModelParams, check_number
 from ..engine import ELASTIC_UNDERESTIMATE, BlowUpError, Simulation
 from ..integrators import INTEGRATORS, stability_limit
 from ..shapes import make_shapes
-from .config_io import run_command, settings_from_dict
+from .command import run_numerics_check, settings_from_dict
 from .polygons import centred, ellipse_polygon, rectangle, regular_polygon, shapes_of
 
 log = logging.getLogger("sim.numerics")
@@ -316,15 +316,15 @@ class StabilitySettings:
         if not self.stiffness:
             raise ConfigError(f"{s}.stiffness: must list at least one Young's modulus")
         for y in self.stiffness:
-            _check_number(s, "stiffness[]", y, lo=1e3, hi=1e12)
+            check_number(s, "stiffness[]", y, lo=1e3, hi=1e12)
         unknown = sorted(set(self.cases) - set(CASE_NAMES))
         if unknown:
             raise ConfigError(f"{s}.cases: unknown case(s) {unknown}; known: {list(CASE_NAMES)}")
-        _check_number(s, "steps", self.steps, lo=10, integer=True)
-        _check_number(s, "search_steps", self.search_steps, lo=10, integer=True)
-        _check_number(s, "search_resolution", self.search_resolution, lo=1e-4, hi=1,
+        check_number(s, "steps", self.steps, lo=10, integer=True)
+        check_number(s, "search_steps", self.search_steps, lo=10, integer=True)
+        check_number(s, "search_resolution", self.search_resolution, lo=1e-4, hi=1,
                       lo_open=True)
-        _check_number(s, "energy_tolerance", self.energy_tolerance, lo=0, hi=1, lo_open=True)
+        check_number(s, "energy_tolerance", self.energy_tolerance, lo=0, hi=1, lo_open=True)
         for name in ("integrators", "stiffness", "cases"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
 
@@ -577,9 +577,9 @@ def _draw(ds, path):
 def main(argv=None):
     """``python -m sim numerics stability``: suite and step search, then data, figure,
     table; exit status 1 if a case was unstable with the automatic step."""
-    ds = run_command("stability", __doc__.split("\n\n")[0], argv, StabilitySettings,
-                     run_suite, "Stability on stiff and extreme cases", _draw,
-                     lambda ds, settings: table(ds))
+    ds = run_numerics_check("stability", __doc__.split("\n\n")[0], argv, StabilitySettings,
+                            run_suite, "Stability on stiff and extreme cases", _draw,
+                            lambda ds, settings: table(ds))
     unstable = [f"{c} ({i})" for c in ds.case.values for i in ds.integrator.values
                 if ds.status.sel(case=c, integrator=i).item() == "unstable"]
     if unstable:

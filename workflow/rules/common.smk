@@ -33,9 +33,6 @@ def seeds(protocol):
 # analysis/ re-run only the analysis. Absolute, sorted paths.
 SIM_CODE = sorted(str(p) for p in (REPO / "sim").glob("*.py"))
 ANALYSIS_CODE = sorted(str(p) for p in (REPO / "analysis").glob("*.py"))
-# The simulation kernels do not depend on the picture code: editing
-# sim/draw.py re-draws the piles but does not re-pour them.
-SIM_KERNEL_CODE = [p for p in SIM_CODE if Path(p).name != "draw.py"]
 
 # Python that runs the jobs: the interpreter running Snakemake (the project's
 # venv under `make run`), so jobs see the same packages without activating
@@ -52,7 +49,7 @@ NUMBA_ENV = f"NUMBA_NUM_THREADS={{threads}} NUMBA_CACHE_DIR={shlex.quote(str(NUM
 
 # The simulator's command lines: SIM_CMD with the Numba settings (it keeps
 # `{threads}` for Snakemake to fill in), PY_SIM without them for commands that
-# run no kernels (draw).
+# run no kernels (summary).
 PY_SIM = f"{shlex.quote(PY)} -m sim"
 SIM_CMD = f"{NUMBA_ENV} {PY_SIM}"
 
@@ -217,8 +214,7 @@ wildcard_constraints:
 
 # --- Resources for schedulers ----------------------------------------------
 # What a cluster executor requests per job (SLURM: --cpus-per-task = threads,
-# --mem = mem_mb, --time = runtime in minutes; README, "Running on a SLURM
-# cluster"); locally they only matter with --resources limits. The simulation
+# --mem = mem_mb, --time = runtime in minutes; docs/cluster.md); locally they only matter with --resources limits. The simulation
 # runtimes are estimated from the configuration:
 #
 #   minutes = START_MIN + RUNTIME_MARGIN * steps * particles * PARTICLE_STEP_S
@@ -231,19 +227,19 @@ wildcard_constraints:
 # Measured on this project's 2-core machine: the full-size layered pour of the
 # study (3500 particles, velocity Verlet, 100 particles/s, one thread) took
 # 4585 s of CPU for 5.14 M steps and 9.04e9 particle-steps, 0.51 us per
-# particle-step (README, "How long").
+# particle-step (docs/performance.md, "How long").
 PARTICLE_STEP_S = 0.5e-6
 # Safety factor on the step cost (a slower or busier node).
 RUNTIME_MARGIN = 1.5
 # Python start, loading the compiled kernels, reading and writing state files.
 START_MIN = 2
 # Automatic time step of the default particles (semi-axis 3.4 mm, density
-# 2500 kg/m2, Y = 1e7 N/m, dt_safety 0.5; README, time-step rule). It scales
+# 2500 kg/m2, Y = 1e7 N/m, dt_safety 0.5; docs/model.md, time-step rule). It scales
 # like sqrt(mass / stiffness), i.e. like semi-axis * sqrt(density / Y).
 DT_REFERENCE_S = {"gear": 1.9e-6, "verlet": 6.9e-6}
 # A release waits while its spot is not clear, so pouring takes longer than
 # n_particles / rate: 35.6 s (layered) and 41 s (wedge) instead of 35 s for the
-# study's pours (README, "How long").
+# study's pours (docs/performance.md, "How long").
 POUR_TIME_FACTOR = 1.5
 # Simulated time a relaxation or gravity probe typically needs: a 3500-particle
 # pile relaxed in 0.42-0.83 s (at most relax.max_time, after which the simulator

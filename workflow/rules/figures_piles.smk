@@ -5,7 +5,7 @@
 rule draw_pile:
     input:
         state=pile("{protocol}", "{seed}", "{stage}"),
-        code=SIM_CODE,
+        code=ANALYSIS_CODE,
     output:
         report(
             pile_figure("{protocol}", "{seed}", "{stage}"),
@@ -28,7 +28,4 @@ rule draw_pile:
     conda:
         "../envs/polypile.yaml"
     shell:
-        sim_shell(
-            "draw --input {input.state:q} --out {output:q} > {log:q} 2>&1",
-            numba=False,
-        )
+        py_shell("-m analysis draw --input {input.state:q} --out {output:q} > {log:q} 2>&1")

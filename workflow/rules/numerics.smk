@@ -1,13 +1,15 @@
-# Numerical checks of the simulator (README "Numerics: accuracy against run
-# time and stability"); part of `all` only when config `outputs` lists numerics;
+# Numerical checks of the simulator (docs/numerics.md,
+# "Numerics: accuracy against run time and stability"); part of `all` only when config `outputs` lists numerics;
 # otherwise run `snakemake numerics`.
 #   numerics_collisions: error against wall time of binary collisions
+#     (python -m sim numerics collisions: sim/numerics/collisions.py)
 #   numerics_stability: stiff and extreme cases, largest stable time step
+#     (python -m sim numerics stability: sim/numerics/stability.py)
 # Each rule receives only its own section of config["numerics"] (sorted JSON),
 # so changing one re-runs only that rule. Inputs: the kernels and the
 # sim/numerics/ sources (SIM_CODE globs sim/*.py only).
 
-NUMERICS_CODE = SIM_KERNEL_CODE + sorted(
+NUMERICS_CODE = SIM_CODE + sorted(
     str(p) for p in (REPO / "sim" / "numerics").glob("*.py")
 )
 

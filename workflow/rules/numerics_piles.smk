@@ -11,7 +11,7 @@
 # fields and base pressure, and the benchmark files of their simulations.
 #
 # Expects from common.smk: config (validated, defaults filled), PROTOCOLS,
-# seeds(), pile(), probe_stages(), sim_shell(), py_shell(), SIM_KERNEL_CODE,
+# seeds(), pile(), probe_stages(), sim_shell(), py_shell(), SIM_CODE,
 # ANALYSIS_CODE, COMPILED_FLAG, SIM_THREADS, SIM_MEM_MB; from analysis_common.smk:
 # ANALYSIS_PARAMS. Helpers: numerics_piles_common.smk.
 
@@ -25,7 +25,7 @@ wildcard_constraints:
 
 rule numerics_pile_pour:
     input:
-        code=SIM_KERNEL_CODE,
+        code=SIM_CODE,
         compiled=COMPILED_FLAG,
     output:
         state=numerics_pile("{integrator}", "{factor}", "{seed}", "poured"),
@@ -58,7 +58,7 @@ rule numerics_pile_pour:
 rule numerics_pile_relax:
     input:
         state=numerics_pile("{integrator}", "{factor}", "{seed}", "poured"),
-        code=SIM_KERNEL_CODE,
+        code=SIM_CODE,
         compiled=COMPILED_FLAG,
     output:
         state=numerics_pile("{integrator}", "{factor}", "{seed}", "relaxed"),
@@ -84,15 +84,33 @@ rule numerics_pile_relax:
         + "; times > {output.cpu:q}"
 
 
+rule numerics_pile_summary:
+    # Shape of a relaxed small pile (flank angles, coordination) as the
+    # simulator measures it: one JSON line.
+    input:
+        state=numerics_pile("{integrator}", "{factor}", "{seed}", "relaxed"),
+    output:
+        numerics_pile_summary("{integrator}", "{factor}", "{seed}", "relaxed"),
+    log:
+        "logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_summary.log",
+    localrule: True
+    threads: 1
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        sim_shell("summary {input.state:q} > {output:q} 2> {log:q}", numba=False)
+
+
 rule numerics_piles_data:
     # Observables of every small pile and their errors against the reference.
     input:
         states=_numerics_pile_inputs("states"),
+        summaries=_numerics_pile_inputs("summaries"),
         pour=_numerics_pile_inputs("pour"),
         relax=_numerics_pile_inputs("relax"),
         pour_cpu=_numerics_pile_inputs("pour_cpu"),
         relax_cpu=_numerics_pile_inputs("relax_cpu"),
-        code=NUMERICS_CODE + ANALYSIS_CODE,
+        code=ANALYSIS_CODE,
     output:
         f"{NUMERICS_DIR}/piles.nc",
     params:
@@ -107,7 +125,8 @@ rule numerics_piles_data:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m sim.numerics.pile_precision data --params {params.cfg:q} --states {input.states:q}"
+            "-m analysis.pile_precision data --params {params.cfg:q} --states {input.states:q}"
+            " --summaries {input.summaries:q}"
             " --pour-benchmarks {input.pour:q} --relax-benchmarks {input.relax:q}"
             " --pour-cpu {input.pour_cpu:q} --relax-cpu {input.relax_cpu:q} --out {output:q} > {log:q} 2>&1"
         )
@@ -121,7 +140,7 @@ rule numerics_ensemble:
         pour=_numerics_ensemble_inputs("pour"),
         relax=_numerics_ensemble_inputs("relax"),
         probe=_numerics_ensemble_inputs("probe"),
-        code=NUMERICS_CODE + ANALYSIS_CODE,
+        code=ANALYSIS_CODE,
     output:
         f"{NUMERICS_DIR}/ensemble.nc",
     params:
@@ -138,7 +157,7 @@ rule numerics_ensemble:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m sim.numerics.ensemble_cost data --params {params.cfg:q} --analysis-params {params.analysis:q}"
+            "-m analysis.ensemble_cost data --params {params.cfg:q} --analysis-params {params.analysis:q}"
             " {params.protocols:q} --out {output:q} > {log:q} 2>&1"
         )
 
@@ -147,7 +166,7 @@ rule numerics_piles_figures:
     input:
         piles=f"{NUMERICS_DIR}/piles.nc",
         ensemble=f"{NUMERICS_DIR}/ensemble.nc",
-        code=NUMERICS_CODE,
+        code=ANALYSIS_CODE,
     output:
         piles=report(f"{NUMERICS_DIR}/pile_error.png", caption="../report/numerics/pile_error.rst",
                      category="Numerics", subcategory="Piles"),
@@ -165,10 +184,10 @@ rule numerics_piles_figures:
         "../envs/polypile.yaml"
     shell:
         "("
-        + py_shell("-m sim.numerics.pile_precision figure --data {input.piles:q} "
+        + py_shell("-m analysis.pile_precision figure --data {input.piles:q} "
                    "--out {output.piles:q} {output.piles_pdf:q}")
         + " && "
-        + py_shell("-m sim.numerics.ensemble_cost figure --data {input.ensemble:q} "
+        + py_shell("-m analysis.ensemble_cost figure --data {input.ensemble:q} "
                    "--out {output.ensemble:q} {output.ensemble_pdf:q}")
         + ") > {log:q} 2>&1"
 
@@ -178,7 +197,7 @@ rule numerics_piles_table:
     input:
         piles=f"{NUMERICS_DIR}/piles.nc",
         ensemble=f"{NUMERICS_DIR}/ensemble.nc",
-        code=NUMERICS_CODE,
+        code=ANALYSIS_CODE,
     output:
         report(f"{NUMERICS_DIR}/piles.md", caption="../report/numerics/piles_table.rst",
                category="Numerics", subcategory="Tables"),
@@ -194,7 +213,7 @@ rule numerics_piles_table:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m sim.numerics.piles_report --piles {input.piles:q} --ensemble {input.ensemble:q}"
+            "-m analysis.piles_report --piles {input.piles:q} --ensemble {input.ensemble:q}"
             " --model {params.model:q} --out {output:q} > {log:q} 2>&1"
         )
 

@@ -3,7 +3,6 @@
 
 NUMERICS_PILES = config["numerics"]["piles"]
 NUMERICS_ENSEMBLE = config["numerics"]["ensemble"]
-NUMERICS_CODE = sorted(str(p) for p in (REPO / "sim" / "numerics").glob("*.py"))
 NUMERICS_DIR = "results/numerics"
 
 
@@ -15,6 +14,11 @@ def _numerics_factor_label(factor):
 def numerics_pile(integrator, factor_label, seed, stage):
     """State file of a small pile of the accuracy study."""
     return f"{NUMERICS_DIR}/piles/{integrator}/dt_factor{factor_label}/seed{seed}/{stage}.nc"
+
+
+def numerics_pile_summary(integrator, factor_label, seed, stage):
+    """Summary line (python -m sim summary) of one state of a small pile."""
+    return f"{NUMERICS_DIR}/piles/{integrator}/dt_factor{factor_label}/seed{seed}/{stage}.summary.json"
 
 
 def numerics_pile_benchmark(integrator, factor_label, seed, step):
@@ -58,6 +62,8 @@ def _numerics_pile_inputs(kind):
     runs = numerics_pile_runs()
     if kind == "states":
         return [numerics_pile(i, f, s, "relaxed") for i, f, s in runs]
+    if kind == "summaries":
+        return [numerics_pile_summary(i, f, s, "relaxed") for i, f, s in runs]
     if kind.endswith("_cpu"):
         return [numerics_pile_cpu(i, f, s, kind[:-4]) for i, f, s in runs]
     return [numerics_pile_benchmark(i, f, s, kind) for i, f, s in runs]

@@ -6,7 +6,7 @@ rule compile_kernels:
     # Compile (and cache in .numba_cache) every Numba kernel once, before the
     # simulation jobs fan out, so that parallel jobs do not race on the cache.
     input:
-        code=SIM_KERNEL_CODE,
+        code=SIM_CODE,
     output:
         touch(COMPILED_FLAG),
     log:
@@ -27,7 +27,7 @@ rule compile_kernels:
 
 rule pour:
     input:
-        code=SIM_KERNEL_CODE,
+        code=SIM_CODE,
         compiled=COMPILED_FLAG,
     output:
         pile("{protocol}", "{seed}", "poured"),

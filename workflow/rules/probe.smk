@@ -6,7 +6,7 @@
 rule probe:
     input:
         state=pile("{protocol}", "{seed}", "relaxed"),
-        code=SIM_KERNEL_CODE,
+        code=SIM_CODE,
         compiled=COMPILED_FLAG,
     output:
         pile("{protocol}", "{seed}", "{stage}"),

@@ -4,7 +4,7 @@
 rule relax:
     input:
         state=pile("{protocol}", "{seed}", "poured"),
-        code=SIM_KERNEL_CODE,
+        code=SIM_CODE,
         compiled=COMPILED_FLAG,
     output:
         pile("{protocol}", "{seed}", "relaxed"),

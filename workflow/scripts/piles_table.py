@@ -48,7 +48,7 @@ records in this folder: the `relaxed` line of `*.summary.json`, the increment
 of `*.checks.json`, `*.pour.tsv`.  Heights and widths in cm, angles in
 degrees; reaction = support's vertical force / weight − 1, for the relaxed and
 reduced stages, and for the increment (change of reaction / change of weight −
-1); code = `code_version` of the states (digest of `sim/*.py` but draw.py,
+1); code = `code_version` of the states (digest of `sim/*.py`,
 `sim.io.code_version`).  See README.md here for how each pile was made.
 
 | pile | code | particles | height | width | flanks left / right | coordination | reaction relaxed / reduced / increment | pour wall / CPU, min |

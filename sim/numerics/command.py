@@ -1,22 +1,21 @@
-"""Reading a ``numerics`` configuration section, the global attributes of its
-netCDF files, and writing text or figure files atomically (a temporary name, then a rename, so a killed job leaves no file
-that looks whole)."""
+"""The ``python -m sim numerics <section>`` commands: reading their section of
+the configuration into settings and running a check (:func:`run_numerics_check`).
+
+The files are written by :mod:`sim.io` (atomically, with the CF global
+attributes of every file of ``sim``)."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
 import json
-import os
 import sys
-from datetime import datetime, timezone
 from pathlib import Path
 
 import yaml
 
-from .. import __version__
 from ..config import ConfigError
-from ..io import atomic_write
+from ..io import atomic_text, atomic_write, cf_attributes
 
 
 def load_section(params, section):
@@ -53,14 +52,16 @@ def load_section(params, section):
     return sub
 
 
-def run_command(section, description, argv, settings_class, compute, title, draw, tabulate):
+def run_numerics_check(section, description, argv, settings_class, compute, title, draw,
+                       tabulate):
     """``python -m sim numerics <section>``: settings, computation and its three files.
 
     Parses ``--params`` (the ``numerics.<section>`` mapping) and the output
     paths ``--nc``, ``--figure``, ``--table``; builds the settings, runs
-    ``compute(settings)`` (an :class:`xarray.Dataset`), writes it with
-    :func:`describe`'s attributes, ``draw(ds, path)`` and
-    ``tabulate(ds, settings)`` (Markdown text), each atomically.
+    ``compute(settings)`` (an :class:`xarray.Dataset`), writes it with the
+    CF global attributes (:func:`sim.io.cf_attributes`), ``draw(ds, path)``
+    and ``tabulate(ds, settings)`` (Markdown text), each atomically
+    (:mod:`sim.io`).
 
     Returns
     -------
@@ -76,7 +77,10 @@ def run_command(section, description, argv, settings_class, compute, title, draw
     args = ap.parse_args(argv)
     raw = load_section(args.params, section)
     settings = settings_class.from_dict(raw)
-    ds = describe(compute(settings), title, {"numerics": {section: raw}})
+    ds = compute(settings)
+    ds.attrs.update(cf_attributes(title, {"numerics": {section: raw}},
+                                  f"python -m sim {' '.join(sys.argv[1:])}",
+                                  source="python -m sim numerics"))
     atomic_write(ds, args.nc)
     draw(ds, args.figure)
     atomic_text(tabulate(ds, settings), args.table)
@@ -93,43 +97,3 @@ def settings_from_dict(cls, section, data):
         raise ConfigError(f"numerics.{section}: unknown setting(s) {unknown}; "
                           f"allowed: {sorted(allowed)}")
     return cls(**data)
-
-
-def _temporary(path):
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return path, path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
-
-
-def atomic_text(text, path):
-    """Write ``text`` to ``path`` through a temporary file and a rename."""
-    path, tmp = _temporary(path)
-    try:
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def atomic_figure(fig, path, **kwargs):
-    """Save a matplotlib figure to ``path`` through a temporary file and a rename."""
-    path, tmp = _temporary(path)
-    try:
-        fig.savefig(tmp, **kwargs)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def describe(ds, title, config):
-    """Add the global attributes (CF ``Conventions``, ``title``, ``source``,
-    ``history``, ``config``) to a dataset of this package."""
-    ds.attrs.update({
-        "Conventions": "CF-1.10",
-        "title": title,
-        "source": f"polypile sim {__version__} (python -m sim numerics)",
-        "history": f"{datetime.now(timezone.utc).isoformat(timespec='seconds')} "
-                   f"python -m sim {' '.join(sys.argv[1:])}".strip(),
-        "config": json.dumps(config, sort_keys=True),
-    })
-    return ds

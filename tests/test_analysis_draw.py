@@ -1,11 +1,15 @@
-"""sim/draw.py: pictures of particle states and the Eq. 2 particle pressure,
-on a tiny hand-made state file that follows CONTRACT.md section 1."""
+"""analysis/draw.py (python -m analysis draw): pictures of particle states and
+the Eq. 2 particle pressure, on a tiny hand-made state file that follows
+CONTRACT.md section 1."""
 
 import numpy as np
 import pytest
 import xarray as xr
 
-from sim import draw
+from analysis import draw
+from analysis.__main__ import main as analysis_main
+from analysis.states import load_state
+from analysis.stress import particle_stress
 
 A = 0.01        # side of the squares, m
 DENSITY = 2500.0  # kg/m^2
@@ -66,21 +70,21 @@ def write_state(path, theta=(0.0, 0.0, 0.0)):
 
 
 def test_pressure_matches_hand_computed_values(tmp_path):
-    ds = xr.open_dataset(write_state(tmp_path / "relaxed.nc")).load()
+    state = load_state(write_state(tmp_path / "relaxed.nc"))
     mg = M * G
-    sigma = draw.particle_stress(ds)
+    sigma = particle_stress(state)
     # T: branch (0, -A/2) x force (0, mg), over A^2.
     assert sigma[1] == pytest.approx(np.array([[0, 0], [0, -mg / (2 * A)]]))
     # B: (0, A/2) x (0, -mg) from T plus (0, -A/2) x (0, 2 mg) from the support.
     assert sigma[0] == pytest.approx(np.array([[0, 0], [0, -3 * mg / (2 * A)]]))
-    p = draw.particle_pressure(ds)
+    p = draw.particle_pressure(state)
     assert p == pytest.approx([3 * mg / (4 * A), mg / (4 * A), mg / (4 * A)])
     assert np.all(p > 0)  # compression gives a positive pressure
 
 
 def test_polygons_rotate_about_the_centre(tmp_path):
-    ds = xr.open_dataset(write_state(tmp_path / "s.nc", theta=(0.0, np.pi / 4, 0.0))).load()
-    polys = draw.polygons_world(ds)
+    state = load_state(write_state(tmp_path / "s.nc", theta=(0.0, np.pi / 4, 0.0)))
+    polys = draw.polygons_world(state)
     assert len(polys) == 3
     # Unrotated bottom square: corners at the centre +- A/2.
     assert polys[0] == pytest.approx(np.array(
@@ -95,20 +99,19 @@ def test_polygons_rotate_about_the_centre(tmp_path):
 def test_main_writes_a_png(tmp_path, extra):
     state = write_state(tmp_path / "relaxed.nc")
     out = tmp_path / "figs" / "wedge_seed0_relaxed.png"
-    assert draw.main(["--input", str(state), "--out", str(out), *extra]) == 0
+    assert analysis_main(["draw", "--input", str(state), "--out", str(out), *extra]) == 0
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert out.stat().st_size > 1000
     # No temporary file left behind.
     assert [f.name for f in out.parent.iterdir()] == [out.name]
 
 
-def test_main_fails_clearly(tmp_path):
-    with pytest.raises(SystemExit) as err:
-        draw.main(["--input", str(tmp_path / "missing.nc"), "--out", str(tmp_path / "x.png")])
-    assert "missing.nc" in str(err.value)
+def test_main_fails_clearly(tmp_path, capsys):
+    assert analysis_main(["draw", "--input", str(tmp_path / "missing.nc"), "--out", str(tmp_path / "x.png")]) == 1
+    assert "missing.nc" in capsys.readouterr().err
     bad = tmp_path / "bad.nc"
     xr.Dataset({"x": ("particle", np.zeros(2))}).to_netcdf(bad)
-    with pytest.raises(SystemExit) as err:
-        draw.main(["--input", str(bad), "--out", str(tmp_path / "x.png")])
-    assert "missing variables" in str(err.value) and "node_count" in str(err.value)
+    assert analysis_main(["draw", "--input", str(bad), "--out", str(tmp_path / "x.png")]) == 1
+    err = capsys.readouterr().err
+    assert "missing variable" in err and "node_count" in err
     assert not (tmp_path / "x.png").exists()

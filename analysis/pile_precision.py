@@ -13,13 +13,14 @@ error cannot be resolved.
 Observables of one relaxed pile (:func:`pile_observables`):
 
 ``angle_of_repose`` (deg)
-    :func:`sim.measure.angle_of_repose` (mean slope of both flanks).
+    Mean of the two flank angles of the pile's summary line
+    (``python -m sim summary``: ``flank_left_deg``, ``flank_right_deg``).
 ``solid_fraction`` (1)
     Polygon area inside a strip of square windows along the base of the
     core, centred on the pouring axis (:func:`solid_fraction_strip`).
 ``mean_coordination`` (1)
-    Particle–particle contacts per particle, 2 N_c / N
-    (:func:`sim.measure.mean_coordination`).
+    Particle–particle contacts per particle, 2 N_c / N (the summary line's
+    ``mean_coordination``).
 ``base_pressure`` (N/m, a profile)
     Normal force per unit length on the support in x bins
     (:func:`analysis.base_pressure.support_force_density`).
@@ -34,40 +35,38 @@ is *resolved* when it exceeds twice its error bar.
 Run time of a pile: the CPU time (user + system, from bash ``times``) of its
 pour and relax jobs, which includes a fixed start-up cost per job (imports,
 loading the kernels); their wall time (Snakemake benchmark files) is kept
-too but grows when other processes share the cores.
+too but grows when other processes share the cores (:mod:`analysis.run_times`).
 
 Command line (run by the rule ``numerics_piles_data``; ``figure`` by
 ``numerics_piles_figures``)::
 
-    python -m sim.numerics.pile_precision data --params JSON --states ... \
+    python -m analysis.pile_precision data --params JSON --states ... --summaries ... \
         --pour-benchmarks ... --relax-benchmarks ... --pour-cpu ... --relax-cpu ... --out piles.nc
-    python -m sim.numerics.pile_precision figure --data piles.nc --out a.png a.pdf
+    python -m analysis.pile_precision figure --data piles.nc --out a.png a.pdf
+
+The figure is :func:`analysis.numerics_figures.pile_error_figure`.
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import logging
 import sys
-import time
-from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
-from analysis.base_pressure import support_force_density
-from analysis.ensemble import nan_mean_sem
-from analysis.netcdf import check_cf, var
-from analysis.solid_fraction import solid_fraction
-from analysis.states import State, load_state
+from .base_pressure import support_force_density
+from .ensemble import nan_mean_sem
+from .netcdf import var, write_dataset
+from .numerics_cli import data_or_figure, module_command
+from .numerics_figures import pile_error_figure
+from .run_times import benchmark_time, children_cpu_time
+from .solid_fraction import solid_fraction
+from .states import State, load_state
 
-from .. import __version__
-from ..io import atomic_write
-from ..measure import angle_of_repose, mean_coordination
-
-log = logging.getLogger("sim.numerics")
+log = logging.getLogger("analysis.numerics")
 
 SCALARS = {
     "angle_of_repose": ("angle of repose (mean slope of both flanks)", "degree"),
@@ -80,12 +79,6 @@ OBSERVABLES = (*SCALARS, PROFILE[0])
 SOLID_FRACTION_PIXEL = 5e-4
 # An error is resolved when it exceeds this many error bars.
 RESOLVED = 2.0
-
-
-def circumradius(state: State) -> np.ndarray:
-    """Largest distance of a particle's corners from its centre, m, per particle."""
-    offsets = np.concatenate([[0], np.cumsum(state.node_count)[:-1]]).astype(np.int64)
-    return np.maximum.reduceat(np.hypot(state.node_x, state.node_y), offsets)
 
 
 def profile_edges(half_width: float, bin_width: float) -> np.ndarray:
@@ -107,12 +100,15 @@ def solid_fraction_strip(state: State, side: float, height: float, half_width: f
     return float(np.mean(solid_fraction(state, centres, "square", side, SOLID_FRACTION_PIXEL)))
 
 
-def pile_observables(state: State, params: dict) -> dict:
+def pile_observables(state: State, summary: dict, params: dict) -> dict:
     """The observables of one relaxed pile.
 
     Parameters
     ----------
     state : analysis.states.State
+    summary : dict
+        The pile's line of ``python -m sim summary`` (``flank_left_deg``,
+        ``flank_right_deg``, ``mean_coordination``).
     params : dict
         The ``numerics.piles`` settings (``bin_width``, ``half_width``,
         ``solid_fraction_window``, ``solid_fraction_height``,
@@ -125,49 +121,13 @@ def pile_observables(state: State, params: dict) -> dict:
         ``mean_coordination`` and the profile ``base_pressure`` (array).
     """
     return {
-        "angle_of_repose": angle_of_repose(state.x, state.y, circumradius(state)),
+        "angle_of_repose": float(np.mean([summary["flank_left_deg"], summary["flank_right_deg"]])),
         "solid_fraction": solid_fraction_strip(state, params["solid_fraction_window"],
                                                params["solid_fraction_height"], params["solid_fraction_half_width"]),
-        "mean_coordination": mean_coordination(state.contact_i, state.contact_j, state.n_particles),
+        "mean_coordination": float(summary["mean_coordination"]),
         "base_pressure": support_force_density(
             state, profile_edges(params["half_width"], params["bin_width"]))[0],
     }
-
-
-def benchmark_time(path, column: str = "s") -> float:
-    """A time in s from a Snakemake benchmark file: ``column`` ``s`` (wall clock) or
-    ``cpu_time`` (sampled every 0.5 s for 15 s, then every 30 s); mean of its rows.
-
-    Raises
-    ------
-    ValueError
-        If the column is missing or not a number (``NA``).
-    """
-    with open(path, newline="") as fh:
-        rows = list(csv.DictReader(fh, delimiter="\t"))
-    try:
-        return float(np.mean([float(r[column]) for r in rows])) if rows else float("nan")
-    except (KeyError, ValueError):
-        raise ValueError(f"benchmark file {path}: no number in column {column!r}") from None
-
-
-def _minutes_seconds(text: str) -> float:
-    minutes, seconds = text.rstrip("s").split("m")
-    return 60.0 * float(minutes) + float(seconds)
-
-
-def children_cpu_time(path) -> float:
-    """User + system CPU seconds of a shell's children, from the output of bash ``times``.
-
-    ``times`` prints two lines, ``XmY.YYYs XmY.YYYs`` for the shell itself and
-    for its children; the second line is the command the shell ran.
-    """
-    lines = Path(path).read_text().split("\n")
-    try:
-        user, system = lines[1].split()
-        return _minutes_seconds(user) + _minutes_seconds(system)
-    except (IndexError, ValueError):
-        raise ValueError(f"{path}: not the output of bash 'times' (two lines 'XmY.YYYs XmY.YYYs')") from None
 
 
 def scalar_error(values: np.ndarray, reference: np.ndarray) -> tuple[float, float]:
@@ -250,13 +210,16 @@ def runs(params: dict) -> list[tuple[str, float, int]]:
             for s in params["seeds"]]
 
 
-def piles_dataset(states: list[State], wall: list[float], cpu: list[float], params: dict) -> xr.Dataset:
+def piles_dataset(states: list[State], summaries: list[dict], wall: list[float], cpu: list[float],
+                  params: dict) -> xr.Dataset:
     """Per-pile observables and run times, and the errors against the reference.
 
     Parameters
     ----------
     states : list of State
         Relaxed piles, in the order of :func:`runs`.
+    summaries : list of dict
+        Their summary lines (``python -m sim summary``), same order.
     wall, cpu : list of float
         Wall-clock and CPU time of each pile's pour and relax jobs together, s.
     params : dict
@@ -269,9 +232,10 @@ def piles_dataset(states: list[State], wall: list[float], cpu: list[float], para
     """
     check_params(params)
     order = runs(params)
-    if not (len(states) == len(wall) == len(cpu) == len(order)):
+    if not (len(states) == len(summaries) == len(wall) == len(cpu) == len(order)):
         raise ValueError(f"{len(order)} piles expected (integrators x dt_factors x seeds), got "
-                         f"{len(states)} states, {len(wall)} wall and {len(cpu)} CPU times")
+                         f"{len(states)} states, {len(summaries)} summaries, {len(wall)} wall and "
+                         f"{len(cpu)} CPU times")
     integrators = list(params["integrators"])
     factors = np.array(sorted({f for _, f, _ in order}, reverse=True))
     seeds = np.array(params["seeds"], dtype=np.int64)
@@ -279,13 +243,13 @@ def piles_dataset(states: list[State], wall: list[float], cpu: list[float], para
     shape = (len(integrators), factors.size, seeds.size)
     per = {k: np.full(shape, np.nan) for k in (*SCALARS, "dt", "wall_time", "cpu_time", "steps", "sim_time")}
     profile = np.full(shape + (edges.size - 1,), np.nan)
-    for state, t_wall, t_cpu, (integ, f, seed) in zip(states, wall, cpu, order):
+    for state, summary, t_wall, t_cpu, (integ, f, seed) in zip(states, summaries, wall, cpu, order):
         attrs = state.attrs
         if str(attrs.get("integrator")) != integ or int(attrs.get("seed", -1)) != seed:
             raise ValueError(f"{state.path}: integrator {attrs.get('integrator')!r}, seed "
                              f"{attrs.get('seed')} where {integ!r}, seed {seed} was expected")
         k = (integrators.index(integ), int(np.flatnonzero(factors == f)[0]), int(np.flatnonzero(seeds == seed)[0]))
-        obs = pile_observables(state, params)
+        obs = pile_observables(state, summary, params)
         for name in SCALARS:
             per[name][k] = obs[name]
         profile[k] = obs["base_pressure"]
@@ -343,92 +307,16 @@ def piles_dataset(states: list[State], wall: list[float], cpu: list[float], para
     return ds
 
 
-def write_netcdf(ds: xr.Dataset, path, title: str, config: dict) -> None:
-    """Write a numerics dataset atomically with the CF global attributes.
-
-    Sets ``Conventions``, ``title``, ``source``, ``history`` (the command
-    line) and ``config`` (JSON), checks that every variable has ``units``
-    and ``long_name``, then writes to a temporary name and renames.
-    """
-    ds.attrs.update({
-        "Conventions": "CF-1.8",
-        "title": title,
-        "source": f"polypile sim {__version__} (sim.numerics)",
-        "history": f"{time.strftime('%Y-%m-%dT%H:%M:%SZ', time.gmtime())} "
-                   + " ".join([Path(sys.executable).name, *sys.argv]),
-        "config": json.dumps(config, sort_keys=True),
-    })
-    check_cf(ds)
-    atomic_write(ds, path)
-
-
-def log_axes(ax) -> None:
-    """Log scales on both axes of a panel, or a note instead when no drawn point is positive and finite."""
-    pts = [np.column_stack([np.asarray(line.get_xdata(), float), np.asarray(line.get_ydata(), float)])
-           for line in ax.get_lines()]
-    pts = np.concatenate(pts) if pts else np.empty((0, 2))
-    if np.any(np.all(np.isfinite(pts) & (pts > 0), axis=1)):
-        from matplotlib.ticker import NullFormatter
-
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.xaxis.set_minor_formatter(NullFormatter())  # labelled minor ticks overlap on short ranges
-    else:
-        ax.text(0.5, 0.5, "no finite values", transform=ax.transAxes, ha="center")
-
-
-def figure(ds: xr.Dataset, outputs: list[str]) -> None:
-    """Log-log error against wall time per pile, one curve per integrator, one panel per observable.
-
-    Each point is one dt factor (labelled); error bars are the seed scatter
-    of the error. The dashed line is the seed scatter of the reference's own
-    mean (the smallest error this number of seeds can resolve) and the dotted
-    line its wall time.
-    """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    ref_i = list(ds.integrator.values).index(ds.attrs["reference_integrator"])
-    ref_f = int(np.argmin(ds.dt_factor.values))
-    fig, axes = plt.subplots(2, 2, figsize=(9, 7), constrained_layout=True)
-    for ax, name in zip(axes.flat, OBSERVABLES):
-        for a, integ in enumerate(ds.integrator.values):
-            t = ds["cpu_time_mean"].values[a]
-            e = ds[f"{name}_error"].values[a]
-            bar = ds[f"{name}_error_bar"].values[a]
-            keep = ~((a == ref_i) & (np.arange(t.size) == ref_f)) & (e > 0)
-            # on a log axis the lower bar stops at a tenth of the error (it would reach zero)
-            yerr = [np.minimum(bar[keep], 0.9 * e[keep]), bar[keep]]
-            ax.errorbar(t[keep], e[keep], yerr=yerr, marker="o", capsize=3, label=str(integ))
-            for ti, ei, f in zip(t[keep], e[keep], ds.dt_factor.values[keep]):
-                ax.annotate(f"{f:g}", (ti, ei), textcoords="offset points", xytext=(4, 4), fontsize=7)
-        log_axes(ax)
-        ref_scatter = ds[f"{name}_error_bar"].values[ref_i, ref_f] / np.sqrt(2.0)
-        if ref_scatter > 0:
-            ax.axhline(ref_scatter, ls="--", color="0.4", lw=1, label="reference seed scatter")
-        ax.axvline(ds["cpu_time_mean"].values[ref_i, ref_f], ls=":", color="0.4", lw=1,
-                   label=f"reference ({ds.attrs['reference_integrator']}, dt x {ds.attrs['reference_dt_factor']:g})")
-        ax.set_xlabel("run time per pile (CPU, pour + relax), s")
-        unit = ds[f"{name}_error"].attrs["units"]
-        ax.set_ylabel(f"error of {name.replace('_', ' ')}" + ("" if unit == "1" else f" ({unit})"))
-        ax.grid(True, which="both", alpha=0.3)
-    axes.flat[0].legend(fontsize=7)
-    fig.suptitle(f"{ds.attrs['n_particles']}-particle {ds.attrs['protocol']} piles, "
-                 f"{ds.sizes['seed']} seeds per point; labels: dt factor")
-    for out in outputs:
-        fig.savefig(out, dpi=150)
-    plt.close(fig)
-
-
 def _parser():
-    ap = argparse.ArgumentParser(prog="python -m sim.numerics.pile_precision", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m analysis.pile_precision", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="command", required=True)
     p = sub.add_parser("data", help="observables and errors of the small piles (netCDF)")
     p.add_argument("--params", required=True, help="the numerics.piles settings as JSON")
     p.add_argument("--states", nargs="+", required=True, help="relaxed state files, integrators x dt "
                    "factors x seeds in config order")
+    p.add_argument("--summaries", nargs="+", required=True, help="their summary lines (python -m sim "
+                   "summary, one JSON line per file), same order")
     for step in ("pour", "relax"):
         p.add_argument(f"--{step}-benchmarks", nargs="+", required=True,
                        help=f"Snakemake benchmark files of the {step} jobs (wall time), same order")
@@ -441,39 +329,6 @@ def _parser():
     return ap
 
 
-def run_command(argv, parser: argparse.ArgumentParser, data, figure_fn) -> int:
-    """Run a numerics command line with subcommands ``data`` and ``figure``.
-
-    Parameters
-    ----------
-    argv : list of str or None
-    parser : argparse.ArgumentParser
-        With the subcommands ``data`` and ``figure`` (``--data``, ``--out``).
-    data : callable
-        ``data(args)`` computes and writes the dataset.
-    figure_fn : callable
-        ``figure_fn(ds, outputs)`` draws the dataset read from ``--data``.
-
-    Returns
-    -------
-    int
-        0, or 2 after logging a ValueError or FileNotFoundError (bad input).
-    """
-    args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(asctime)s %(levelname)s %(message)s")
-    try:
-        if args.command == "data":
-            data(args)
-            log.info("wrote %s", args.out)
-        else:
-            with xr.open_dataset(args.data) as ds:
-                figure_fn(ds.load(), args.out)
-        return 0
-    except (ValueError, FileNotFoundError) as exc:
-        log.error("%s", exc)
-        return 2
-
-
 def _data(args) -> None:
     params = json.loads(args.params)
     check_params(params)
@@ -481,15 +336,21 @@ def _data(args) -> None:
     for k, path in enumerate(args.states):
         log.info("reading %s (%d of %d)", path, k + 1, len(args.states))
         states.append(load_state(path))
+    summaries = []
+    for path in args.summaries:
+        with open(path, encoding="utf-8") as fh:
+            summaries.append(json.loads(fh.readline()))
     wall = [benchmark_time(a) + benchmark_time(b) for a, b in zip(args.pour_benchmarks, args.relax_benchmarks)]
     cpu = [children_cpu_time(a) + children_cpu_time(b) for a, b in zip(args.pour_cpu, args.relax_cpu)]
-    ds = piles_dataset(states, wall, cpu, params)
-    write_netcdf(ds, args.out, "Error of pile observables against run time", {"numerics": {"piles": params}})
+    ds = piles_dataset(states, summaries, wall, cpu, params)
+    write_dataset(ds, args.out, title="Error of pile observables against run time",
+                  params={"numerics": {"piles": params}}, command=module_command(__name__))
 
 
 def main(argv=None) -> int:
     """Command line; returns the exit status."""
-    return run_command(argv, _parser(), _data, figure)
+    return data_or_figure(argv, _parser(), _data,
+                          lambda ds, outputs: pile_error_figure(ds, outputs, OBSERVABLES))
 
 
 if __name__ == "__main__":

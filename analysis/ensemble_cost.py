@@ -26,10 +26,12 @@ needs ``n = ceil((s_N / (q |mean_N|))^2)`` piles (at least 2).
 
 Command line (rules ``numerics_ensemble`` and ``numerics_piles_figures``)::
 
-    python -m sim.numerics.ensemble_cost data --params JSON --analysis-params JSON \
+    python -m analysis.ensemble_cost data --params JSON --analysis-params JSON \
         --protocol wedge --fields ... --base-pressure bp.nc --pour-benchmarks ... \
         --relax-benchmarks ... --probe-benchmarks ... [--protocol layered ...] --out ensemble.nc
-    python -m sim.numerics.ensemble_cost figure --data ensemble.nc --out a.png a.pdf
+    python -m analysis.ensemble_cost figure --data ensemble.nc --out a.png a.pdf
+
+The figure is :func:`analysis.numerics_figures.ensemble_error_figure`.
 """
 
 from __future__ import annotations
@@ -43,14 +45,15 @@ import sys
 import numpy as np
 import xarray as xr
 
-from analysis.elastic import FITS, POINTS, fit_all
-from analysis.ensemble import nan_mean_sem
-from analysis.netcdf import var
-from analysis.params import resolve_params
+from .elastic import FITS, POINTS, fit_all
+from .ensemble import nan_mean_sem
+from .netcdf import var, write_dataset
+from .numerics_cli import data_or_figure, module_command
+from .numerics_figures import ensemble_error_figure
+from .params import resolve_params
+from .run_times import benchmark_time
 
-from .pile_precision import benchmark_time, log_axes, run_command, write_netcdf
-
-log = logging.getLogger("sim.numerics")
+log = logging.getLogger("analysis.numerics")
 
 HEADLINES = {
     "bulk_modulus": ("bulk modulus K at the pile's core (isotropic fit)", "N m-1"),
@@ -226,47 +229,8 @@ def ensemble_dataset(protocols: dict, params: dict, analysis_params: dict) -> xr
     return ds
 
 
-def figure(ds: xr.Dataset, outputs: list[str]) -> None:
-    """Relative standard error against cumulative compute time, one panel per headline result.
-
-    Solid: the first n piles (n labelled); dashed: the extrapolation
-    ``s_N / (sqrt(n) |mean_N|)`` at the mean compute time per pile.
-    """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(12, 4), constrained_layout=True)
-    n = ds["n"].values
-    for ax, name in zip(axes, HEADLINES):
-        for a, proto in enumerate(ds.protocol.values):
-            t = ds["cumulative_compute_time"].values[a]
-            mean = ds[f"{name}_mean"].values[a]
-            rel = ds[f"{name}_se"].values[a] / np.abs(mean)
-            ok = np.isfinite(rel) & np.isfinite(t)
-            line, = ax.plot(t[ok], rel[ok], marker="o", label=str(proto))
-            for ti, ri, k in zip(t[ok], rel[ok], n[ok]):
-                ax.annotate(str(k), (ti, ri), textcoords="offset points", xytext=(3, 3), fontsize=7)
-            last = np.flatnonzero(ok)
-            if last.size:
-                m = last[-1]
-                nn = np.arange(2, 4 * (m + 1) + 1)
-                per_pile = t[m] / (m + 1)
-                ax.plot(nn * per_pile, rel[m] * np.sqrt((m + 1) / nn), ls="--", color=line.get_color(), lw=1,
-                        label=f"{proto}: 1/sqrt(n)")
-        log_axes(ax)
-        ax.set_xlabel("CPU time of the n piles, s")
-        ax.set_ylabel(f"relative standard error of {name.replace('_', ' ')}")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend(fontsize=7)
-    fig.suptitle(f"core ({ds.attrs['core_x']:g}, {ds.attrs['core_y']:g}) m; labels: piles n")
-    for out in outputs:
-        fig.savefig(out, dpi=150)
-    plt.close(fig)
-
-
 def _parser():
-    ap = argparse.ArgumentParser(prog="python -m sim.numerics.ensemble_cost", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m analysis.ensemble_cost", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="command", required=True)
     p = sub.add_parser("data", help="headline results, standard error and compute time (netCDF)")
@@ -319,13 +283,15 @@ def _data(args) -> None:
     check_params(params)
     resolve_params(analysis_params)
     ds = ensemble_dataset(_protocol_inputs(args), params, analysis_params)
-    write_netcdf(ds, args.out, "Standard error of the headline results against compute time",
-                 {"numerics": {"ensemble": params}, "analysis": analysis_params})
+    write_dataset(ds, args.out, title="Standard error of the headline results against compute time",
+                  params={"numerics": {"ensemble": params}, "analysis": analysis_params},
+                  command=module_command(__name__))
 
 
 def main(argv=None) -> int:
     """Command line; returns the exit status."""
-    return run_command(argv, _parser(), _data, figure)
+    return data_or_figure(argv, _parser(), _data,
+                          lambda ds, outputs: ensemble_error_figure(ds, outputs, tuple(HEADLINES)))
 
 
 if __name__ == "__main__":
