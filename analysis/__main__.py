@@ -15,7 +15,7 @@ import sys
 import time
 from typing import Any
 
-from . import __version__, draw
+from . import __version__, draw, vtk
 from .errors import AnalysisError, InputError, ParamError
 from .fields import QUANTITIES
 from .params import parse_params
@@ -251,6 +251,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp = add("draw", "picture of one particle state: polygons coloured by their Eq. 2 pressure, and the "
              "contact-force network (PNG/PDF/SVG by extension)", draw.cmd_draw)
     draw.add_arguments(sp)
+    sp = add("export", "one particle state as VTK files for ParaView: OUT.vtu (polygons with velocity, Eq. 2 "
+             "pressure, coordination, ...) and OUT_contacts.vtu (the contact network with its forces)",
+             vtk.cmd_export)
+    vtk.add_arguments(sp)
     sp = add("figure", "draw one figure (PNG/PDF by extension)", cmd_figure)
     sp.add_argument("name", choices=["convergence", "vertical-strain", "fabric", "moduli", "invariants",
                                      "base-pressure"])
