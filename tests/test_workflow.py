@@ -118,7 +118,7 @@ def test_smoke_dry_run_lists_the_pile_jobs(workdir):
     counts = job_counts(proc.output)
     n = len(smoke_piles())
     assert n == 4
-    expected = {"compile_kernels": 1, "pour": n, "relax": n, "probe": n, "draw_pile": n}
+    expected = {"compile_kernels": 1, "pour": n, "relax": n, "probe": n, "draw_pile": n, "export_pile": n}
     assert {rule: counts.get(rule) for rule in expected} == expected, proc.output
     assert counts["all"] == 1
     for protocol, seed in smoke_piles():
@@ -460,11 +460,37 @@ def test_smoke_study_end_to_end(tmp_path):
         png = root / f"results/figures/piles/{protocol}_seed{seed}_relaxed.png"
         assert png.read_bytes()[:4] == b"\x89PNG"
         assert (root / f"benchmarks/pour/{protocol}/seed{seed}.tsv").exists()
+        check_vtk_files(root / f"results/vtk/{protocol}_seed{seed}_relaxed.vtu",
+                        root / f"results/piles/{protocol}/seed{seed}/relaxed.nc")
     # A second run has nothing to do: no parameter or code trigger fires spuriously.
     again = snakemake(root, "-n", "--cores", "2", *SMOKE)
     assert again.returncode == 0 and job_counts(again.output) == {}, again.output
     check_stress_only_scene_gives_the_same_values(root)
     check_reproduction_from_recorded_piles(root)
+
+
+def check_vtk_files(particles, state):
+    """Output vtk of a smoke pile: meshio and VTK's own reader (ParaView's)
+    load its polygons, one per particle, and its contacts with the fields a
+    ParaView user colours by."""
+    import meshio
+    import vtk
+    import xarray as xr
+
+    with xr.open_dataset(state) as ds:
+        n, n_contacts = ds.sizes["particle"], ds.sizes["contact"]
+    contacts = particles.with_name(particles.stem + "_contacts.vtu")
+    mesh = meshio.read(particles)
+    assert sum(len(block.data) for block in mesh.cells) == n
+    assert {"velocity", "pressure", "coordination", "area"} <= set(mesh.cell_data)
+    for path, cells, fields in ((particles, n, ("pressure", "velocity", "coordination")),
+                                (contacts, n_contacts, ("normal_force", "tangential_force", "force"))):
+        reader = vtk.vtkXMLUnstructuredGridReader()
+        reader.SetFileName(str(path))
+        reader.Update()
+        grid = reader.GetOutput()
+        assert grid.GetNumberOfCells() == cells, path
+        assert all(grid.GetCellData().GetArray(name) is not None for name in fields), path
 
 
 def check_reproduction_from_recorded_piles(root):

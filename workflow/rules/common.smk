@@ -170,6 +170,12 @@ def pile_figure(protocol, seed, stage):
     return f"results/figures/piles/{protocol}_seed{seed}_{stage}.png"
 
 
+def pile_vtk(protocol, seed, stage):
+    """Path of the VTK file of one pile state's particles (python -m analysis
+    export; its contact network is the same name with _contacts)."""
+    return f"results/vtk/{protocol}_seed{seed}_{stage}.vtu"
+
+
 def pile_figure_targets(stage="relaxed"):
     """Pictures of all configured piles at one stage."""
     return [

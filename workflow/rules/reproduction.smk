@@ -96,7 +96,8 @@ if config["committed"]:
         input:
             ensembles=expand("results/ensemble/{protocol}/{name}", protocol=PROTOCOLS,
                              name=["fields.nc", "base_pressure.nc", "moduli.nc", "invariants.nc"]),
-            convergence=_analysis_convergence_file,
+            convergence=[pile_result(p, s, "convergence") for p in PROTOCOLS
+                         for s in analysis_seeds(p, "convergence")],
             checks=[pile_result(p, s, "checks") for p in PROTOCOLS for s in analysis_seeds(p, "checks")],
             script="workflow/scripts/reproduction_numbers.py",
         output:

@@ -8,7 +8,7 @@
 OUTPUTS = set(config["outputs"])
 
 # Outputs that need the piles (pour and relax), and what each output needs.
-PILE_OUTPUTS = {"states", "fields", "strain", "fabric", "fits"}
+PILE_OUTPUTS = {"states", "fields", "strain", "fabric", "fits", "vtk"}
 OUTPUT_NEEDS = {"strain": "fields", "fabric": "fields", "fits": "strain"}
 
 
@@ -69,10 +69,10 @@ def _check_scene():
         folder = REPO / config["committed"]
         if not folder.is_dir():
             problems.append(f"committed = {config['committed']!r}: no such folder under {REPO}")
-        if OUTPUTS & {"states", "numerics"}:
+        if OUTPUTS & {"states", "vtk", "numerics"}:
             problems.append(
                 f"committed = {config['committed']!r} with outputs {asked}: committed results "
-                "replace the simulation, so states and numerics cannot be asked for; "
+                "replace the simulation, so states, vtk and numerics cannot be asked for; "
                 "leave them out of outputs"
             )
     if problems:
@@ -91,6 +91,8 @@ def scene_targets():
     targets = pile_targets() if wants("states") else []
     if wants("figures") and OUTPUTS & PILE_OUTPUTS and not config["committed"]:
         targets += pile_figure_targets("relaxed")
+    if wants("vtk"):
+        targets += [pile_vtk(protocol, seed, "relaxed") for protocol in PROTOCOLS for seed in seeds(protocol)]
     if wants("numerics"):
         targets += list(rules.numerics.input) + numerics_piles_targets()
     return targets + analysis_targets()

@@ -3,7 +3,7 @@
 Usage::
 
     python workflow/scripts/reproduction_numbers.py --ensemble results/ensemble \\
-        --protocols wedge layered --convergence FILE --checks FILE... --heights 0.045 0.09 ...
+        --protocols wedge layered --convergence FILE... --checks FILE... --heights 0.045 0.09 ...
 
 prints Markdown (``docs/reproduction/numbers.md`` under ``make reproduction``).
 Every value is a mean over the piles of a protocol with its standard error
@@ -23,8 +23,10 @@ measures:
   average of the two fitting methods.
 * **Fig. 5**: ``R²`` of a straight line through ``tr Δσ`` against ``tr ε``,
   over RVEs with ``|x| <= 10 cm`` and over all RVEs.
-* **Fig. 1**: at each fixed point, ``σ_yy`` at the two largest RVE sizes and
-  the particles in them.
+* **Fig. 1**: over every pile with a convergence file and its fixed points,
+  per RVE size: the particles in the RVE, and the relative deviation of
+  ``σ_yy`` and of ``Δσ_yy`` from their values in the largest RVE (median and
+  largest over piles and points).
 * **Balance laws**: the largest ``|support reaction / weight − 1|`` over the
   piles, relaxed, reduced and for the increment.
 """
@@ -120,16 +122,25 @@ def invariants(inv):
     return out
 
 
-def convergence(cv):
-    lines = []
-    sizes = cv["rve_size"].values
-    for p in range(cv.sizes["point"]):
-        s = cv["stress"].sel(i="y", j="y").values[:, p]
-        n = cv["n_particles"].values[:, p]
-        lines.append(f"point ({100 * float(cv['point_x'][p]):.1f}, {100 * float(cv['point_y'][p]):.1f}) cm: "
-                     + ", ".join(f"σ_yy = {s[k]:.4g} N/m with {int(n[k])} particles at {100 * sizes[k]:.0f} cm"
-                                 for k in range(max(len(sizes) - 2, 0), len(sizes))))
-    return lines
+def convergence(paths):
+    """Table rows of Fig. 1 over the convergence files ``paths`` (same sizes in each), and the number of points."""
+    sets = [xr.open_dataset(path).load() for path in paths]
+    sizes = sets[0]["rve_size"].values
+    if any(not np.array_equal(ds["rve_size"].values, sizes) for ds in sets):
+        raise SystemExit(f"the convergence files {paths} do not share their RVE sizes")
+
+    def deviation(name):
+        v = np.concatenate([ds[name].sel(i="y", j="y").values for ds in sets], axis=1)  # (size, pile x point)
+        return np.abs(v / v[-1] - 1.0)
+
+    dev, dev_inc = deviation("stress"), deviation("stress_increment")
+    n = np.concatenate([ds["n_particles"].values for ds in sets], axis=1)
+    rows = []
+    for k, size in enumerate(sizes[:-1]):
+        rows.append(f"| {100 * size:.1f} | {int(n[k].min())}–{int(n[k].max())} | "
+                    f"{100 * np.median(dev[k]):.1f} / {100 * dev[k].max():.1f} | "
+                    f"{100 * np.median(dev_inc[k]):.1f} / {100 * dev_inc[k].max():.1f} |")
+    return rows, n.shape[1]
 
 
 def balance(paths):
@@ -152,7 +163,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--ensemble", required=True, help="folder of results/ensemble/{protocol}/")
     ap.add_argument("--protocols", nargs="+", required=True)
-    ap.add_argument("--convergence", required=True, help="the convergence file of Fig. 1's pile")
+    ap.add_argument("--convergence", nargs="+", required=True, help="the convergence files of the piles")
     ap.add_argument("--checks", nargs="+", required=True, help="checks.json of every pile")
     ap.add_argument("--heights", nargs="+", type=float, required=True, help="rows of Fig. 2, m")
     args = ap.parse_args(argv)
@@ -171,9 +182,10 @@ def main(argv=None):
             out += ["", f"Moduli (Fig. 4): {moduli(md)}."]
         with xr.open_dataset(f"{args.ensemble}/{p}/invariants.nc") as inv:
             out += ["", "tr Δσ against tr ε (Fig. 5): " + "; ".join(invariants(inv)) + ".", ""]
-    with xr.open_dataset(args.convergence) as cv:
-        out += [f"## RVE convergence (Fig. 1; {cv.attrs.get('protocol', '')} seed {cv.attrs.get('seed', '')})", "",
-                *[f"- {line}" for line in convergence(cv)], ""]
+    rows, points = convergence(args.convergence)
+    out += [f"## RVE convergence (Fig. 1; {len(args.convergence)} piles, {points} points in all)", "",
+            "Deviation from the value in the largest RVE, %: median / largest over the piles and points.", "",
+            "| RVE side (cm) | particles | σ_yy | Δσ_yy |", "|---|---|---|---|", *rows, ""]
     out += ["## Balance laws", "", balance(args.checks) + ".", ""]
     sys.stdout.write("\n".join(out))
 
