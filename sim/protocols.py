@@ -165,34 +165,72 @@ def _spot_clear(sim, x, y, radius):
 
 
 class Progress:
-    """Logs simulated time, particles, steps per second and ETA every ``interval`` s.
+    """Logs simulated time, particles, speed and ETA every ``interval`` s of wall time.
 
-    Times count from the first call (a resumed pour or a relaxation starts
-    at its own zero); the ETA assumes ``total`` seconds of simulated time.
+    The ETA is the work still to do, in particle-steps, at the cost per
+    particle-step since the previous line: a growing pile costs more per
+    simulated second at its end than at its start, so extrapolating simulated
+    time alone would promise too early an end.
+
+    Parameters
+    ----------
+    interval : float
+        Wall-clock seconds between lines.
+    remaining : callable
+        ``remaining(sim)`` -> (simulated s, particle-s) still to come: the
+        simulated time left and its integral of the particle count.
+    at_most : bool
+        The run may end earlier (a relaxation stops once at rest): the line
+        says "at most" instead of "about".
     """
 
-    def __init__(self, interval, total_time):
+    def __init__(self, interval, remaining, at_most=False):
         self.interval = interval
-        self.total = total_time
-        self.t0 = _time.monotonic()
-        self.last = self.t0
-        self.start = None
+        self.remaining = remaining
+        self.bound = "at most" if at_most else "about"
+        self.last = _time.monotonic()
+        self.step = None
+        self.work = 0  # particle-steps since the previous line
 
-    def __call__(self, sim, what, force=False, detail=""):
-        if self.start is None:
-            self.start = (sim.time, sim.step)
+    def __call__(self, sim, what, detail=""):
+        """Count the steps run since the previous call (by as many particles as
+        there are now: particles are only added between runs) and log a line
+        when ``interval`` has passed."""
+        if self.step is not None:
+            self.work += sim.n * (sim.step - self.step)
+        self.step = sim.step
         now = _time.monotonic()
-        if not force and now - self.last < self.interval:
+        if now - self.last < self.interval:
             return
-        self.last = now
-        wall = now - self.t0
-        t, steps = sim.time - self.start[0], sim.step - self.start[1]
-        rate = steps / wall if wall > 0 else 0.0
-        frac = min(t / self.total, 1.0) if self.total > 0 else 1.0
-        eta = wall * (1 - frac) / frac if frac > 0 else float("nan")
-        log.info("%s: %.4f s of %.4f s simulated (t = %.4f s), %d particles, %d steps, "
-                 "%.0f steps/s, ETA %.0f s%s", what, t, self.total, sim.time, sim.n, steps,
-                 rate, eta, f", {detail}" if detail else "")
+        cost = (now - self.last) / self.work if self.work > 0 else float("nan")  # s per particle-step
+        self.last, self.work = now, 0
+        left, particle_seconds = self.remaining(sim)
+        log.info("%s: t = %.4f s simulated, %s %.4f s to go, %d particles, %d steps, "
+                 "%.0f ns per particle-step, ETA %.0f s%s", what, sim.time, self.bound, left, sim.n, sim.step,
+                 1e9 * cost, cost * particle_seconds / sim.dt, f", {detail}" if detail else "")
+
+
+def pour_remaining(n_particles, interval, settle_time):
+    """``remaining(sim)`` of :class:`Progress` for a pour.
+
+    The particles not yet released come one per ``interval`` after the next
+    release is due, then ``settle_time`` follows; releases held back because
+    the source is not clear (``_spot_clear``) make the real pour longer, which
+    each line's estimate takes in as it comes.
+    """
+    def remaining(sim):
+        to_release = n_particles - sim.n
+        feed = to_release * interval
+        return feed + settle_time, sim.n * feed + 0.5 * to_release * feed + n_particles * settle_time
+    return remaining
+
+
+def fixed_remaining(end_time):
+    """``remaining(sim)`` of :class:`Progress` for a run of the particles there are until ``end_time``."""
+    def remaining(sim):
+        left = max(end_time - sim.time, 0.0)
+        return left, sim.n * left
+    return remaining
 
 
 def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
@@ -373,8 +411,7 @@ def _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock):
     log.info("pouring %d particles (%s, seed %d), dt = %.3g s (%s; limit %.3g s)",
              p.n_particles, protocol, seed, sim.dt, cfg.model.integrator,
              sim.bound.dt_limit)
-    total = max(p.n_particles * interval - sim.time, 0.0) + settle_time
-    progress = Progress(p.progress_interval, total)
+    progress = Progress(p.progress_interval, pour_remaining(p.n_particles, interval, settle_time))
     t_wall = _time.monotonic()
     last_ckpt = t_wall
     attrs = {"protocol": protocol, "seed": seed}
@@ -532,7 +569,7 @@ def _relax_loop(sim, cfg, what, t0, load, scale):
     speed_max = r.max_speed * scale
     chunk = max(min(1e-3, r.hold_time / 5.0), sim.dt)
     rest_since = None
-    progress = Progress(cfg.pour.progress_interval, r.max_time)
+    progress = Progress(cfg.pour.progress_interval, fixed_remaining(t0 + r.max_time), at_most=True)
     while True:
         sim.run(duration=chunk)
         ke, vmax, unbalanced = _rest_measures(sim, load)
