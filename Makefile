@@ -27,9 +27,27 @@ $(STAMP): pyproject.toml
 	touch $@
 
 # The paper's study (config/config.yaml): all piles, pictures and the analysis.
+# While Snakemake runs, a line on the piles done, running and left and the time
+# left (workflow/scripts/study_progress.py) comes every PROGRESS_EVERY seconds,
+# and once at the end, into the terminal and logs/make-run.log (through the
+# same tee: a second writer appending to the file would be overwritten by
+# tee). The trap stops that loop whenever the group ends; the group, and so
+# `make run`, exits with Snakemake's status.
+PROGRESS := $(PY) workflow/scripts/study_progress.py
+PROGRESS_EVERY := 300
+
 run: venv
 	mkdir -p logs
-	$(SNAKEMAKE) --cores all --profile $(PROFILE) 2>&1 | tee logs/make-run.log
+	{ $(PROGRESS) --every $(PROGRESS_EVERY) 2>&1 & progress=$$!; \
+	  trap 'kill $$progress 2>/dev/null || true' EXIT; \
+	  status=0; $(SNAKEMAKE) --cores all --profile $(PROFILE) 2>&1 || status=$$?; \
+	  kill $$progress 2>/dev/null || true; $(PROGRESS) 2>&1 || true; \
+	  exit $$status; } | tee logs/make-run.log
+
+# The progress line of the study, once (e.g. from another terminal during `make run`).
+.PHONY: progress
+progress: venv
+	@$(PROGRESS)
 
 # The study's ensembles, fits and figures, and the table of finished piles,
 # rebuilt from the per-pile results committed under docs/reproduction/ alone

@@ -1,0 +1,265 @@
+"""workflow/scripts/study_progress.py: the one-line progress of the study
+(issue 15, item 4), on fake results/, logs/ and benchmarks/ trees."""
+
+import importlib.util
+import os
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+SCRIPT = REPO / "workflow" / "scripts" / "study_progress.py"
+_spec = importlib.util.spec_from_file_location("study_progress", SCRIPT)
+sp = sys.modules["study_progress"] = importlib.util.module_from_spec(_spec)  # for its dataclass
+_spec.loader.exec_module(sp)
+
+NOW = 1.8e9  # s since the epoch, the "now" of the pure functions
+STAGES = ["poured", "relaxed", "reduced"]
+# CPU seconds of the finished piles' jobs: pour, relax, probe.
+CPU = {("wedge", 1): (1000.0, 100.0, 50.0), ("wedge", 2): (1400.0, 140.0, 60.0)}
+# Means per stage: pour 1200, relax 120, probe 55 -> 1375 s of CPU per pile.
+ETA_LINE = ("2026-12-01 18:35:03,828 INFO pour wedge seed 3: t = 31.9 s simulated, about 3.2 s "
+            "to go, 2743 particles, 4705393 steps, 1100 ns per particle-step, ETA 397 s\n")
+
+
+def write_config(root, wedge=(1, 2, 3), layered=(1, 2)):
+    """A small study (schema defaults for the rest: 3500 particles, one probe)."""
+    protocols = {name: {"seeds": list(seeds)} for name, seeds in
+                 (("wedge", wedge), ("layered", layered)) if seeds}
+    config = {"protocols": protocols, "threads": 1}
+    path = Path(root) / "config" / "config.yaml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(yaml.safe_dump(config))
+    return path
+
+
+def touch(path, mtime=None, text=""):
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    if mtime is not None:
+        os.utime(path, (mtime, mtime))
+    return path
+
+
+def benchmark(root, protocol, seed, stage, cpu_time, wall=None):
+    header = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
+    wall = 2 * cpu_time if wall is None else wall
+    touch(sp.benchmark_file(root, protocol, seed, stage),
+          text=header + f"{wall}\t0:00:00\t258\t492\t187\t209\t0\t67\t50\t{cpu_time}\n")
+
+
+def finished_pile(root, protocol, seed, cpu, now):
+    """State files, old logs and benchmarks of a finished pile."""
+    for stage, cpu_time in zip(STAGES, cpu):
+        touch(sp.stage_file(root, protocol, seed, stage))
+        touch(sp.log_file(root, protocol, seed, stage), mtime=now - 3600, text="done\n")
+        benchmark(root, protocol, seed, stage, cpu_time)
+
+
+def fake_study(root, now=NOW):
+    """wedge 1, 2 done; wedge 3 pouring (checkpoint, ETA 397 s written 7 s ago);
+    layered 2 relaxing (log written a minute ago, no progress line yet);
+    layered 1 not started."""
+    write_config(root)
+    for (protocol, seed), cpu in CPU.items():
+        finished_pile(root, protocol, seed, cpu, now)
+    touch(sp.checkpoint_file(root, "wedge", 3))
+    touch(sp.log_file(root, "wedge", 3, "poured"), mtime=now - 7,
+          text="2026-12-01 18:30:00,000 INFO pouring 3500 particles (wedge, seed 3)\n" + ETA_LINE)
+    touch(sp.stage_file(root, "layered", 2, "poured"))
+    touch(sp.log_file(root, "layered", 2, "poured"), mtime=now - 900, text="poured\n")
+    touch(sp.log_file(root, "layered", 2, "relaxed"), mtime=now - 60,
+          text="2026-12-01 18:30:00,000 INFO relaxing 3500 particles\n")
+    return root
+
+
+def config_of(root):
+    return sp.load_config(Path(root) / "config" / "config.yaml")
+
+
+def states(root, now=NOW):
+    config = config_of(root)
+    return {(p.protocol, p.seed): p for p in (
+        sp.pile_state(root, protocol, seed, STAGES, 3500, now)
+        for protocol, seed in sp.study_piles(config))}
+
+
+def test_stages_and_paths():
+    assert sp.pile_stages([0.1]) == STAGES
+    assert sp.pile_stages([]) == ["poured", "relaxed"]
+    assert sp.pile_stages([0.1, 0.05]) == STAGES + ["reduced05"]
+    root = Path("r")
+    assert sp.benchmark_file(root, "wedge", 3, "poured") == root / "benchmarks/pour/wedge/seed3.tsv"
+    assert (sp.benchmark_file(root, "wedge", 3, "reduced")
+            == root / "benchmarks/probe/wedge/seed3_reduced.tsv")
+    assert sp.log_file(root, "layered", 1, "relaxed") == root / "logs/relax/layered/seed1.log"
+    assert sp.checkpoint_file(root, "wedge", 3) == root / "results/piles/wedge/seed3/pour.checkpoint.nc"
+
+
+def test_parse_progress_lines():
+    assert sp.parse_progress(ETA_LINE) == (397.0, 2743, False)
+    old = ("2026-12-01 18:35:03,828 INFO bench pile of 3000: 0.0269 s of 1.0000 s simulated, "
+           "3000 particles, 4077 steps, 401 steps/s, ETA 367 s, KE per particle 0.28 m g d")
+    assert sp.parse_progress(old) == (367.0, 3000, False)
+    relax = ("INFO relax: t = 0.4 s simulated, at most 9.6 s to go, 3500 particles, 10 steps, "
+             "900 ns per particle-step, ETA 120 s, KE per particle 0.1 m g d")
+    assert sp.parse_progress(relax) == (120.0, 3500, True)
+    assert sp.parse_progress("INFO pour: ... ETA nan s") is None
+    assert sp.parse_progress("INFO pouring 3500 particles") is None
+
+
+def test_benchmark_cpu(tmp_path):
+    benchmark(tmp_path, "wedge", 1, "poured", 4756.78, wall=8339.04)
+    assert sp.benchmark_cpu(sp.benchmark_file(tmp_path, "wedge", 1, "poured")) == 4756.78
+    assert sp.benchmark_cpu(tmp_path / "missing.tsv") is None
+    two = touch(tmp_path / "two.tsv", text="s\tcpu_time\n10\t4\n12\t6\n")
+    assert sp.benchmark_cpu(two) == 5.0  # --benchmark-repeats: the mean
+    na = touch(tmp_path / "na.tsv", text="s\tcpu_time\n10\tNA\n")
+    assert sp.benchmark_cpu(na) == 10.0  # no CPU time: the wall seconds
+
+
+def test_counts_and_running_piles(tmp_path):
+    piles = states(fake_study(tmp_path))
+    assert {k: p.state for k, p in piles.items()} == {
+        ("wedge", 1): "done", ("wedge", 2): "done", ("wedge", 3): "running",
+        ("layered", 1): "left", ("layered", 2): "running"}
+    pouring = piles["wedge", 3]
+    assert pouring.missing == ("poured", "relaxed", "reduced")
+    assert pouring.eta == 397.0 - 7  # less the 7 s since the line was written
+    assert pouring.fraction == pytest.approx(2743 / 3500)
+    assert sp.describe_running(pouring) == "wedge 3: pour 78 %, ETA 6 min"
+    relaxing = piles["layered", 2]
+    assert relaxing.missing == ("relaxed", "reduced") and relaxing.eta is None
+    assert sp.describe_running(relaxing) == "layered 2: relax"
+
+
+def test_killed_pour_keeps_its_eta(tmp_path):
+    """A checkpoint whose log is old (a killed pour) is running; its ETA is the
+    work its pour still needs, not reduced by the time since."""
+    write_config(tmp_path)
+    touch(sp.checkpoint_file(tmp_path, "wedge", 1))
+    touch(sp.log_file(tmp_path, "wedge", 1, "poured"), mtime=NOW - 86400, text=ETA_LINE)
+    pile = states(tmp_path)["wedge", 1]
+    assert (pile.state, pile.eta) == ("running", 397.0)
+
+
+def test_stale_log_without_checkpoint_is_left(tmp_path):
+    write_config(tmp_path)
+    touch(sp.log_file(tmp_path, "wedge", 1, "poured"), mtime=NOW - 2 * sp.RECENT_S, text=ETA_LINE)
+    assert states(tmp_path)["wedge", 1].state == "left"
+
+
+def test_time_left_by_hand(tmp_path):
+    root = fake_study(tmp_path)
+    piles = list(states(root).values())
+    means, counted = sp.stage_means(root, piles, STAGES)
+    assert counted == 2
+    assert means == {"poured": 1200.0, "relaxed": 120.0, "reduced": 55.0}
+    # wedge 3: its ETA 390 s, then relax 120 + probe 55; layered 2: relax 120
+    # (no ETA yet) + probe 55; layered 1: a whole pile, 1375 s.
+    work = (390 + 120 + 55) + (120 + 55) + 1375
+    assert sp.time_left(piles, means, cores=1, threads=1) == (work, 1)
+    # Two cores: the work over 2 jobs (1057.5 s) is less than the longest pile.
+    assert sp.time_left(piles, means, cores=2, threads=1) == (1375.0, 2)
+    # Many cores: no more jobs than unfinished piles.
+    assert sp.time_left(piles, means, cores=16, threads=1) == (1375.0, 3)
+
+
+def test_time_left_shared_work():
+    """Without a long single pile the work is shared among the jobs; two
+    threads per job use two cores each."""
+    means = {"poured": 1000.0, "relaxed": 100.0, "reduced": 50.0}
+    piles = [sp.PileState("wedge", s, "left", tuple(STAGES)) for s in range(1, 5)]
+    piles.append(sp.PileState("wedge", 5, "running", tuple(STAGES), eta=200.0))
+    work = 4 * 1150 + (200 + 150)
+    assert sp.time_left(piles, means, cores=2, threads=1) == (work / 2, 2)
+    work2 = 4 * 1150 + (2 * 200 + 150)  # ETA: wall seconds on 2 cores
+    assert sp.time_left(piles, means, cores=4, threads=2) == (work2 / 4, 2)
+
+
+def test_progress_line(tmp_path):
+    root = fake_study(tmp_path)
+    line = sp.progress_line(root, config_of(root), cores=1, now=NOW)
+    assert line == ("study: 2 of 5 piles done, 2 running (wedge 3: pour 78 %, ETA 6 min; "
+                    "layered 2: relax), 1 left; about 35 min left at 1 job at a time "
+                    "(mean of 2 finished piles: 23 min of CPU per pile)")
+    assert "about 23 min left at 2 jobs" in sp.progress_line(root, config_of(root), 2, NOW)
+
+
+def test_unknown_before_a_pile_has_finished(tmp_path):
+    root = fake_study(tmp_path)
+    for seed in (1, 2):  # the finished piles' last stage gone
+        sp.stage_file(root, "wedge", seed, "reduced").unlink()
+    line = sp.progress_line(root, config_of(root), cores=2, now=NOW)
+    assert line.startswith("study: 0 of 5 piles done, 2 running (wedge 3: pour 78 %, ETA 6 min;")
+    assert "time left unknown" in line and "about" not in line
+    empty = tmp_path / "empty"
+    write_config(empty)
+    assert sp.progress_line(empty, config_of(empty), 2, NOW) == (
+        "study: 0 of 5 piles done, 0 running, 5 left; "
+        "time left unknown until a pile has finished (with benchmark files)")
+
+
+def test_seed10_is_not_seed1(tmp_path):
+    """A benchmark or log of seed 10 does not count for seed 1."""
+    write_config(tmp_path, wedge=(1, 10), layered=())
+    finished_pile(tmp_path, "wedge", 10, (1000.0, 100.0, 50.0), NOW)
+    touch(sp.log_file(tmp_path, "wedge", 10, "poured"), mtime=NOW - 10, text=ETA_LINE)
+    line = sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW)
+    assert line.startswith("study: 1 of 2 piles done, 0 running, 1 left; about 19 min left")
+
+
+def test_all_done(tmp_path):
+    write_config(tmp_path, wedge=(1,), layered=())
+    finished_pile(tmp_path, "wedge", 1, (1000.0, 100.0, 50.0), NOW)
+    assert sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW) == (
+        "study: 1 of 1 piles done, 0 running, 0 left; all piles simulated")
+
+
+def test_no_probe_levels(tmp_path):
+    """Without gravity probes the last stage is relaxed."""
+    path = write_config(tmp_path, wedge=(1,), layered=())
+    config = yaml.safe_load(path.read_text())
+    config["probe"] = {"levels": []}
+    path.write_text(yaml.safe_dump(config))
+    touch(sp.stage_file(tmp_path, "wedge", 1, "poured"))
+    touch(sp.stage_file(tmp_path, "wedge", 1, "relaxed"))
+    assert sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW).startswith(
+        "study: 1 of 1 piles done")
+
+
+def test_script_on_a_fake_tree(tmp_path):
+    root = fake_study(tmp_path, now=time.time())
+    result = subprocess.run([sys.executable, str(SCRIPT), "--directory", str(root), "--cores", "2"],
+                            capture_output=True, text=True, check=True, cwd=tmp_path)
+    assert result.stderr == ""
+    lines = result.stdout.splitlines()
+    assert len(lines) == 1
+    print(lines[0])
+    assert re.fullmatch(
+        r"study: 2 of 5 piles done, 2 running \(wedge 3: pour 78 %, ETA [67] min; layered 2: relax\), "
+        r"1 left; about 23 min left at 2 jobs at a time \(mean of 2 finished piles: 23 min of CPU "
+        r"per pile\)", lines[0])
+    other = write_config(tmp_path / "elsewhere", wedge=(1, 2), layered=())
+    result = subprocess.run([sys.executable, str(SCRIPT), "--directory", str(root),
+                             "--configfile", str(other)],
+                            capture_output=True, text=True, check=True)
+    assert result.stdout.startswith("study: 2 of 2 piles done, 0 running, 0 left")
+
+
+def test_every_prints_until_killed(tmp_path):
+    root = fake_study(tmp_path, now=time.time())
+    proc = subprocess.Popen([sys.executable, str(SCRIPT), "--directory", str(root),
+                             "--every", "0.2"], stdout=subprocess.PIPE, text=True)
+    try:
+        first, second = proc.stdout.readline(), proc.stdout.readline()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+    assert first.startswith("study: 2 of 5 piles done") and second.startswith("study: 2 of 5")

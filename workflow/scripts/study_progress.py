@@ -1,0 +1,498 @@
+"""One line on the progress of the study: piles done, running and left, and
+the time left (issue 15, item 4).
+
+The piles are those of the validated configuration (``protocols``); a pile is
+
+* **done** when its last stage exists: every gravity probe of
+  ``probe.levels`` (``reduced.nc``, ``reducedNN.nc``), or ``relaxed.nc``
+  when there is none;
+* **running** when it is not done but its pour checkpoint
+  (``pour.checkpoint.nc``) exists, or one of its logs was written in the last
+  :data:`RECENT_S` seconds;
+* **left** otherwise (not started, or waiting between stages).
+
+The time left is the work still to do divided by the cores it can use. The
+work is counted in CPU seconds: a stage not yet run costs the mean
+``cpu_time`` of that stage in the Snakemake benchmark files
+(``benchmarks/{pour,relax,probe}/...tsv``) of the finished piles; the stage
+a running pile is in costs what the ETA of its log's last progress line
+(``sim.protocols.Progress``) says instead, when there is one. The cores it
+can use are the jobs that run side by side, ``cores // threads``, but no more
+than there are unfinished piles; and the study cannot end before its longest
+single pile. Before any pile has finished the estimate is unknown. Only the
+simulations are counted, not the analysis after them.
+
+Usage::
+
+    .venv/bin/python workflow/scripts/study_progress.py [--configfile config/config.yaml]
+        [--cores N] [--directory DIR] [--every SECONDS]
+
+``--every`` prints the line every SECONDS seconds until killed (``make run``
+starts it in the background), or until the process that started it is gone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import os
+import re
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO))  # for workflow/validation.py
+
+# A pile whose log was written this recently (s) counts as running.
+RECENT_S = 300.0
+# How much of the end of a log (bytes) is searched for its last progress line.
+LOG_TAIL_BYTES = 65536
+# The rule that makes each stage (workflow/rules/{pour,relax,probe}.smk).
+RULES = {"poured": "pour", "relaxed": "relax"}
+
+# Parts of a progress line of sim.protocols.Progress, e.g.
+# "pour wedge seed 3: t = 31.9 s simulated, about 3.2 s to go, 2743 particles,
+#  4705393 steps, 1100 ns per particle-step, ETA 397 s"; older lines also end
+# their numbers with "ETA N s".
+_ETA = re.compile(r"\bETA (\S+) s\b")
+_PARTICLES = re.compile(r"\b(\d+) particles\b")
+
+
+@dataclass(frozen=True)
+class PileState:
+    """Where one pile stands.
+
+    Attributes
+    ----------
+    protocol : str
+    seed : int
+    state : {"done", "running", "left"}
+    missing : tuple of str
+        Its stages without a state file, in order; the first one is the stage
+        it is in (or waits for).
+    eta : float or None
+        Wall seconds still to go of the stage it is in, from the last progress
+        line of that stage's log; None without one.
+    at_most : bool
+        The ETA is an upper bound (a relaxation stops once at rest).
+    fraction : float or None
+        Fraction of the particles released, for a pour with a progress line.
+    """
+
+    protocol: str
+    seed: int
+    state: str
+    missing: tuple = ()
+    eta: float | None = None
+    at_most: bool = False
+    fraction: float | None = None
+
+
+def load_config(path):
+    """The workflow configuration in `path`, validated and with every default
+    filled in (``workflow/validation.py``, as the Snakefile does).
+
+    Parameters
+    ----------
+    path : path-like
+        A YAML configuration such as ``config/config.yaml``.
+
+    Returns
+    -------
+    dict
+    """
+    from workflow.validation import validate_config
+
+    config = yaml.safe_load(Path(path).read_text()) or {}
+    validate_config(config)
+    return config
+
+
+def study_piles(config):
+    """The piles of the study, wedge before layered as in the workflow.
+
+    Parameters
+    ----------
+    config : dict
+        Validated configuration.
+
+    Returns
+    -------
+    list of (str, int)
+        (protocol, seed) in config order.
+    """
+    protocols = config["protocols"]
+    return [(protocol, int(seed)) for protocol in ("wedge", "layered") if protocol in protocols
+            for seed in protocols[protocol]["seeds"]]
+
+
+def pile_stages(levels):
+    """The stages of a pile, in the order they are made.
+
+    Parameters
+    ----------
+    levels : sequence of float
+        ``probe.levels``: the first gives the stage ``reduced``, any other
+        ``reducedNN`` with NN = round(100 * level) (``stage_for_level`` in
+        workflow/rules/common.smk).
+
+    Returns
+    -------
+    list of str
+        ``poured``, ``relaxed``, then one stage per gravity probe.
+    """
+    probes = ["reduced"] + [f"reduced{round(100 * float(level)):02d}" for level in levels[1:]]
+    return ["poured", "relaxed"] + probes[:len(levels)]
+
+
+def rule_of(stage):
+    """The rule that makes `stage`: ``pour``, ``relax`` or ``probe``."""
+    return RULES.get(stage, "probe")
+
+
+def stage_file(root, protocol, seed, stage):
+    """Path of a pile's state file (``pile`` in workflow/rules/common.smk)."""
+    return Path(root) / "results" / "piles" / protocol / f"seed{seed}" / f"{stage}.nc"
+
+
+def checkpoint_file(root, protocol, seed):
+    """Path of a running pour's checkpoint (``pour_checkpoint`` in common.smk)."""
+    return Path(root) / "results" / "piles" / protocol / f"seed{seed}" / "pour.checkpoint.nc"
+
+
+def _job_name(seed, stage):
+    """File name, without suffix, of the log and benchmark of the job making
+    `stage`: ``seed3`` (pour, relax) or ``seed3_reduced`` (probe)."""
+    return f"seed{seed}" if rule_of(stage) != "probe" else f"seed{seed}_{stage}"
+
+
+def log_file(root, protocol, seed, stage):
+    """Path of the log of the job making `stage` (the rules' ``log:``)."""
+    return Path(root) / "logs" / rule_of(stage) / protocol / f"{_job_name(seed, stage)}.log"
+
+
+def benchmark_file(root, protocol, seed, stage):
+    """Path of the benchmark TSV of the job making `stage` (the rules' ``benchmark:``)."""
+    return Path(root) / "benchmarks" / rule_of(stage) / protocol / f"{_job_name(seed, stage)}.tsv"
+
+
+def benchmark_cpu(path):
+    """CPU seconds of a finished job from its Snakemake benchmark file.
+
+    Parameters
+    ----------
+    path : path-like
+        Tab-separated, a header line, one row per repeat (``--benchmark-repeats``).
+
+    Returns
+    -------
+    float or None
+        Mean ``cpu_time`` over the rows (the wall seconds ``s`` of a row
+        without a number there); None when the file is missing or holds no
+        number.
+    """
+    try:
+        with open(path, newline="") as f:
+            rows = list(csv.DictReader(f, delimiter="\t"))
+    except OSError:
+        return None
+    values = []
+    for row in rows:
+        for column in ("cpu_time", "s"):
+            try:
+                value = float(row.get(column) or "nan")
+            except ValueError:
+                continue
+            if math.isfinite(value):
+                values.append(value)
+                break
+    return sum(values) / len(values) if values else None
+
+
+def parse_progress(line):
+    """ETA and particle count of a progress line of ``sim.protocols.Progress``.
+
+    Parameters
+    ----------
+    line : str
+
+    Returns
+    -------
+    tuple (float, int or None, bool) or None
+        (ETA in wall seconds, particles, whether the ETA is an upper bound
+        "at most"); None for a line without a finite ETA.
+    """
+    eta = _ETA.search(line)
+    try:
+        seconds = float(eta.group(1)) if eta else math.nan
+    except ValueError:
+        return None
+    if not math.isfinite(seconds):
+        return None
+    particles = _PARTICLES.search(line)
+    return seconds, int(particles.group(1)) if particles else None, " at most " in line
+
+
+def last_progress(path):
+    """The last progress line of a log, parsed by :func:`parse_progress`.
+
+    Parameters
+    ----------
+    path : path-like
+
+    Returns
+    -------
+    tuple or None
+        As :func:`parse_progress`; None for a missing log or one without a
+        progress line (in its last :data:`LOG_TAIL_BYTES` bytes).
+    """
+    try:
+        with open(path, "rb") as f:
+            f.seek(max(f.seek(0, os.SEEK_END) - LOG_TAIL_BYTES, 0))
+            lines = f.read().decode("utf-8", "replace").splitlines()
+    except OSError:
+        return None
+    for line in reversed(lines):
+        parsed = parse_progress(line)
+        if parsed is not None:
+            return parsed
+    return None
+
+
+def _age(path, now):
+    """Seconds since `path` was last written; None if it does not exist."""
+    try:
+        return now - Path(path).stat().st_mtime
+    except OSError:
+        return None
+
+
+def pile_state(root, protocol, seed, stages, n_particles, now):
+    """Where one pile stands (see the module's docstring for the rules).
+
+    Parameters
+    ----------
+    root : path-like
+        The workflow's directory (holding results/, logs/).
+    protocol : str
+    seed : int
+    stages : list of str
+        :func:`pile_stages`.
+    n_particles : int
+        ``pour.n_particles``, for the fraction of a pour.
+    now : float
+        Time (s since the epoch) the logs' ages are measured at.
+
+    Returns
+    -------
+    PileState
+        The ETA of a running stage is its last progress line's less the time
+        since the log was written while the log is recent; the ETA of a log
+        not written for :data:`RECENT_S` s (a killed pour) is taken as it
+        stands, the work its stage still needs when it resumes.
+    """
+    missing = tuple(s for s in stages if not stage_file(root, protocol, seed, s).exists())
+    if not set(stages[2:] or stages[1:2]) & set(missing):  # its gravity probes, else relaxed
+        return PileState(protocol, seed, "done")
+    ages = [_age(log_file(root, protocol, seed, s), now) for s in stages]
+    recent = any(a is not None and a < RECENT_S for a in ages)
+    if not (recent or checkpoint_file(root, protocol, seed).exists()):
+        return PileState(protocol, seed, "left", missing)
+    stage = missing[0]
+    log = log_file(root, protocol, seed, stage)
+    progress = last_progress(log)
+    if progress is None:
+        return PileState(protocol, seed, "running", missing)
+    eta, particles, at_most = progress
+    age = _age(log, now)
+    if age is not None and 0 < age < RECENT_S:
+        eta = max(eta - age, 0.0)
+    fraction = particles / n_particles if rule_of(stage) == "pour" and particles else None
+    return PileState(protocol, seed, "running", missing, eta, at_most, fraction)
+
+
+def stage_means(root, piles, stages):
+    """Mean CPU seconds of each stage over the finished piles with benchmarks.
+
+    Parameters
+    ----------
+    root : path-like
+    piles : list of PileState
+    stages : list of str
+
+    Returns
+    -------
+    (dict, int)
+        Mean CPU seconds per stage (empty when no pile counts) and the number
+        of piles averaged: the done ones with a benchmark of every stage.
+    """
+    rows = []
+    for p in piles:
+        if p.state == "done":
+            cpu = [benchmark_cpu(benchmark_file(root, p.protocol, p.seed, s)) for s in stages]
+            if None not in cpu:
+                rows.append(cpu)
+    means = {s: sum(r[i] for r in rows) / len(rows) for i, s in enumerate(stages)} if rows else {}
+    return means, len(rows)
+
+
+def pile_work(pile, means, cores_per_job):
+    """CPU seconds a pile still needs: the mean of each missing stage, with
+    the ETA (wall seconds on `cores_per_job` cores) for the stage it runs."""
+    work = [means[s] for s in pile.missing]
+    if pile.state == "running" and pile.eta is not None:
+        work[0] = pile.eta * cores_per_job
+    return sum(work)
+
+
+def time_left(piles, means, cores, threads):
+    """Wall seconds the simulations of the study still need.
+
+    Parameters
+    ----------
+    piles : list of PileState
+    means : dict
+        :func:`stage_means`; empty: unknown.
+    cores : int
+        Cores Snakemake runs jobs on (``--cores``).
+    threads : int
+        Threads (cores) per simulation job (config ``threads``).
+
+    Returns
+    -------
+    (float or None, int)
+        Seconds (None when `means` is empty) and the jobs at a time: the
+        unfinished work over the cores the jobs occupy, at least the longest
+        single pile's work.
+    """
+    todo = [p for p in piles if p.state != "done"]
+    per_job = max(min(int(threads), int(cores)), 1)
+    jobs = min(max(int(cores) // per_job, 1), len(todo))
+    if not means or not todo:
+        return (None if not means and todo else 0.0), jobs
+    work = [pile_work(p, means, per_job) for p in todo]
+    return max(sum(work) / (jobs * per_job), max(work) / per_job), jobs
+
+
+def format_duration(seconds):
+    """`seconds` in words: ``45 s``, ``6 min``, ``9.5 h``."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 90 * 60:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+def describe_running(pile):
+    """A running pile in words: ``wedge 3: pour 78 %, ETA 6 min``."""
+    stage = pile.missing[0]
+    what = rule_of(stage) if stage in ("poured", "relaxed", "reduced") else f"probe {stage}"
+    text = f"{pile.protocol} {pile.seed}: {what}"
+    if pile.fraction is not None:
+        text += f" {100 * pile.fraction:.0f} %"
+    if pile.eta is not None:
+        text += f", ETA {'at most ' if pile.at_most else ''}{format_duration(pile.eta)}"
+    return text
+
+
+def progress_line(root, config, cores, now):
+    """The line on the progress of the study.
+
+    Parameters
+    ----------
+    root : path-like
+        The workflow's directory (holding results/, logs/, benchmarks/).
+    config : dict
+        Validated configuration (:func:`load_config`).
+    cores : int
+    now : float
+        Time (s since the epoch).
+
+    Returns
+    -------
+    str
+        E.g. ``study: 3 of 19 piles done, 2 running (wedge 3: pour 78 %, ETA
+        6 min; layered 2: relax), 14 left; about 9.5 h left at 2 jobs at a
+        time (mean of 3 finished piles: 82 min of CPU per pile)``.
+    """
+    stages = pile_stages(config["probe"]["levels"])
+    n_particles = int(config["pour"]["n_particles"])
+    piles = [pile_state(root, protocol, seed, stages, n_particles, now)
+             for protocol, seed in study_piles(config)]
+    done = [p for p in piles if p.state == "done"]
+    running = [p for p in piles if p.state == "running"]
+    left = len(piles) - len(done) - len(running)
+    line = f"study: {len(done)} of {len(piles)} piles done, {len(running)} running"
+    if running:
+        line += " (" + "; ".join(describe_running(p) for p in running) + ")"
+    line += f", {left} left; "
+    means, counted = stage_means(root, piles, stages)
+    seconds, jobs = time_left(piles, means, cores, config["threads"])
+    if seconds is None:
+        return line + "time left unknown until a pile has finished (with benchmark files)"
+    if not running and not left:
+        return line + "all piles simulated"
+    per_pile = format_duration(sum(means.values()))
+    return (line + f"about {format_duration(seconds)} left at {jobs} job{'s' * (jobs != 1)} "
+            f"at a time (mean of {counted} finished pile{'s' * (counted != 1)}: "
+            f"{per_pile} of CPU per pile)")
+
+
+def available_cores():
+    """Cores this process may run on (what ``snakemake --cores all`` uses)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+def watch(every, line):
+    """Print ``line()`` every `every` seconds until killed or until the
+    process that started this one has gone (this one is then re-parented).
+
+    Parameters
+    ----------
+    every : float
+        Seconds between lines; the first comes after `every` seconds.
+    line : callable
+        Returns the line to print.
+    """
+    parent = os.getppid()
+    while True:
+        time.sleep(every)
+        if os.getppid() != parent:
+            return
+        print(line(), flush=True)
+
+
+def main(argv=None):
+    """Command line: print the line once, or every ``--every`` seconds."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--configfile", help="configuration (default: DIR/config/config.yaml)")
+    parser.add_argument("--cores", type=int, default=available_cores(),
+                        help="cores Snakemake runs on (default: all of this machine)")
+    parser.add_argument("--directory", default=".", help="the workflow's directory DIR (default: .)")
+    parser.add_argument("--every", type=float, help="print the line every EVERY seconds until killed")
+    args = parser.parse_args(argv)
+    root = Path(args.directory)
+    config = load_config(args.configfile or root / "config" / "config.yaml")
+
+    def line():
+        try:
+            return progress_line(root, config, args.cores, time.time())
+        except (OSError, ValueError, KeyError) as exc:  # one line, also mid-write
+            return f"study: progress unknown ({type(exc).__name__}: {exc})"
+
+    if args.every:
+        watch(args.every, line)
+    else:
+        print(line(), flush=True)
+
+
+if __name__ == "__main__":
+    main()
