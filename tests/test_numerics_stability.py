@@ -15,9 +15,8 @@ import xarray as xr
 
 from sim.config import ConfigError
 from sim.engine import BlowUpError
-from sim.numerics.stability import (CASE_NAMES, StabilitySettings, largest_stable_dt,
-                                    linear_spring, linear_spring_limit, main, packing,
-                                    run_case)
+from sim.numerics.stability import StabilitySettings, largest_stable_dt, main, run_case
+from sim.numerics.stability_cases import CASE_NAMES, linear_spring, linear_spring_limit, packing
 
 REPO = Path(__file__).resolve().parents[1]
 REFUSED = {"degenerate_refused": ["too flat", "179.8", "maximum allowed 179"],

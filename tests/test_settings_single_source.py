@@ -17,7 +17,7 @@ the copies the packages load) and hold against them:
   two rules the workflow adds to JSON schema (workflow/validation.py): a
   number must be finite, and an integer setting takes no float;
 * the keyword defaults of the public functions whose keywords mirror
-  settings (sim.shapes.make_shapes and random_polygon, the physics keywords
+  settings (sim.shapes.make_shapes and sim.polygon.random_polygon, the physics keywords
   of sim.engine.Simulation, sim.numerics.polygons.shapes_of), and the
   ranges that make_shapes accepts;
 * config/config.yaml writes out every simulator and analysis setting, the
@@ -318,7 +318,8 @@ def test_the_analysis_accepts_what_the_schema_allows(section, key):
 def _keyword_defaults():
     from sim.engine import Simulation
     from sim.numerics.polygons import shapes_of
-    from sim.shapes import make_shapes, random_polygon
+    from sim.polygon import random_polygon
+    from sim.shapes import make_shapes
 
     particles = {name: ("particles", name) for name in CONFIG["properties"]["particles"]["properties"]}
     return [

@@ -1,4 +1,4 @@
-"""Tests of particle shape generation and mass properties (sim/shapes.py).
+"""Tests of particle shape generation and mass properties (sim/polygon.py, sim/shapes.py).
 
 Reference values are analytic formulas or shapely; nothing is copied from
 the output of the code under test.
@@ -8,14 +8,8 @@ import numpy as np
 import pytest
 from shapely.geometry import Point, Polygon
 
-from sim.shapes import (
-    Shapes,
-    make_shapes,
-    polygon_mass_properties,
-    random_polygon,
-    shapes_from_nodes,
-    validate_polygon,
-)
+from sim.polygon import polygon_mass_properties, random_polygon, validate_polygon
+from sim.shapes import Shapes, make_shapes, shapes_from_nodes
 
 
 def regular_polygon(n, R, phase=0.0, center=(0.0, 0.0)):

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..shapes import polygon_mass_properties, shapes_from_nodes
+from ..polygon import polygon_mass_properties
+from ..shapes import shapes_from_nodes
 
 
 def rectangle(w, h):
@@ -43,7 +44,7 @@ def ellipse_polygon(n, semi_a, semi_b):
 
 def centred(x, y):
     """The polygon ``(x, y)`` shifted so that its area centroid is the origin
-    (centroid from :func:`sim.shapes.polygon_mass_properties`)."""
+    (centroid from :func:`sim.polygon.polygon_mass_properties`)."""
     x = np.asarray(x, float)
     y = np.asarray(y, float)
     _, cx, cy, _ = polygon_mass_properties(x, y)
