@@ -102,7 +102,7 @@ import os
 
 import numpy as np
 
-from .draw import particle_pressure
+from .draw import force_segments, particle_pressure
 from .errors import InputError
 from .netcdf import atomic_path
 from .states import State, load_state
@@ -238,12 +238,10 @@ def contact_mesh(state: State):
 
     ci, cj = state.contact_i, state.contact_j
     m = ci.size
-    support = cj < 0
-    jj = np.where(support, 0, cj)
-    start = _xyz(state.x[ci], state.y[ci])
-    end = np.where(support[:, None], _xyz(state.contact_x, state.contact_y), _xyz(state.x[jj], state.y[jj]))
-    points = np.empty((2 * m, 3))
-    points[0::2], points[1::2] = start, end
+    segments, _ = force_segments(state)  # (m, 2 ends, 2): the lines of the pictures
+    points = np.zeros((2 * m, 3))
+    points[:, :2] = segments.reshape(2 * m, 2)  # start, end of contact 0, then of contact 1, ...
+    start, end = points[0::2], points[1::2]
     fn, ft = contact_force_components(state)
     data = {
         "contact": np.arange(m, dtype=np.int64),
