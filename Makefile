@@ -17,7 +17,7 @@ SMOKE := --configfile config/smoke.yaml --replace-workflow-config
 # the same directory themselves).
 export NUMBA_CACHE_DIR := $(CURDIR)/.numba_cache
 
-.PHONY: venv run reproduction smoke test bench lint clean distclean
+.PHONY: venv run reproduction report smoke test browser bench lint clean distclean
 
 venv: $(STAMP)
 
@@ -57,12 +57,31 @@ reproduction: venv
 	$(SNAKEMAKE) reproduction --cores all --profile $(PROFILE) --config committed=docs/reproduction \
 	    'outputs=[fields,strain,fabric,fits,figures]' 2>&1 | tee logs/make-reproduction.log
 
-# Tiny piles (config/smoke.yaml), end to end in minutes.
+# The study's HTML report (snakemake --report, one self-contained page): every
+# figure, the pictures and films of the piles, the run-time table, each with
+# its caption (workflow/report/). Open results/report.html in a browser.
+REPORT := results/report.html
+report: venv
+	$(SNAKEMAKE) --profile $(PROFILE) --report $(REPORT)
+
+# Tiny piles (config/smoke.yaml), end to end in minutes, and their report.
 smoke: venv
 	mkdir -p logs
 	$(SNAKEMAKE) --cores all --profile $(PROFILE) $(SMOKE) 2>&1 | tee logs/make-smoke.log
+	$(SNAKEMAKE) --profile $(PROFILE) $(SMOKE) --report $(REPORT)
 
-test: venv
+# The test of the report opens it in headless Chromium (tests/test_workflow.py):
+# Debian's chromium and chromium-driver, installed here when missing (as root
+# with apt-get; otherwise install them and rerun).
+browser:
+	@if command -v chromium >/dev/null && command -v chromedriver >/dev/null; then :; \
+	elif command -v apt-get >/dev/null && [ "$$(id -u)" = 0 ]; then \
+	  echo "installing chromium and chromium-driver (for the report test)"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver >/dev/null; \
+	else echo "make test needs Chromium and ChromeDriver for the report test: install the" \
+	  "Debian packages chromium and chromium-driver (or put chromium and chromedriver on PATH)" >&2; exit 1; fi
+
+test: venv browser
 	$(PY) -m pytest
 
 bench: venv

@@ -15,7 +15,7 @@ import sys
 import time
 from typing import Any
 
-from . import __version__, draw, vtk
+from . import __version__, draw, film, vtk
 from .errors import AnalysisError, InputError, ParamError
 from .fields import QUANTITIES
 from .params import parse_params
@@ -56,6 +56,20 @@ def _labelled(items: list[str]) -> dict[str, str]:
 
 
 # ------------------------------------------------------------------ commands
+def cmd_run_times(args, params) -> None:
+    from .netcdf import atomic_path
+    from .run_times import job_label, run_times_html
+
+    missing = [p for p in args.benchmarks if not os.path.exists(p)]
+    if missing:
+        raise InputError(f"{missing[0]}: no such benchmark file")
+    page = run_times_html({job_label(p): p for p in args.benchmarks}, args.title)
+    with atomic_path(args.out) as tmp:
+        with open(tmp, "w") as fh:
+            fh.write(page)
+    _log(f"run-times: {len(args.benchmarks)} jobs -> {args.out}")
+
+
 def cmd_params(args, params) -> None:
     from .params import params_json
 
@@ -255,6 +269,15 @@ def build_parser() -> argparse.ArgumentParser:
              "pressure, coordination, ...) and OUT_contacts.vtu (the contact network with its forces)",
              vtk.cmd_export)
     vtk.add_arguments(sp)
+    sp = add("film", "a film of a pour from its frames (python -m sim pour --frames): MP4, and optionally "
+             "an HTML page holding it", film.cmd_film)
+    film.add_arguments(sp)
+    sp = add("run-times", "table (HTML) of the wall and CPU time and peak memory of simulation jobs, "
+             "from their Snakemake benchmark files", cmd_run_times)
+    sp.add_argument("--benchmarks", nargs="+", required=True,
+                    help="benchmark files benchmarks/<rule>/<protocol>/<name>.tsv")
+    sp.add_argument("--title", default="Run times of the simulation jobs")
+    sp.add_argument("--out", required=True, help="the table (.html)")
     sp = add("figure", "draw one figure (PNG/PDF by extension)", cmd_figure)
     sp.add_argument("name", choices=["convergence", "vertical-strain", "fabric", "moduli", "invariants",
                                      "base-pressure"])

@@ -49,3 +49,62 @@ def children_cpu_time(path) -> float:
         return _minutes_seconds(user) + _minutes_seconds(system)
     except (IndexError, ValueError):
         raise ValueError(f"{path}: not the output of bash 'times' (two lines 'XmY.YYYs XmY.YYYs')") from None
+
+
+def benchmark_row(path) -> dict:
+    """Wall time, CPU time (s) and peak memory (MB) of one job's benchmark file
+    (means over its rows); ``cores`` is CPU time over wall time, NaN where
+    either is missing."""
+    out = {}
+    for key, column in (("wall_s", "s"), ("cpu_s", "cpu_time"), ("max_rss_mb", "max_rss")):
+        try:
+            out[key] = benchmark_time(path, column)
+        except ValueError:
+            out[key] = float("nan")
+    out["cores"] = out["cpu_s"] / out["wall_s"] if out["wall_s"] > 0 else float("nan")
+    return out
+
+
+def job_label(path) -> str:
+    """``"<rule> <protocol> <name>"`` of a benchmark file
+    ``benchmarks/<rule>/<protocol>/<name>.tsv`` (e.g. ``pour wedge seed1``)."""
+    p = Path(path)
+    return f"{p.parent.parent.name} {p.parent.name} {p.stem}"
+
+
+def run_times_html(jobs: dict[str, str], title: str) -> str:
+    """An HTML page with one table row per job and the totals per kind of job.
+
+    Parameters
+    ----------
+    jobs : dict
+        Label ``"<kind> <pile>"`` (e.g. ``"pour wedge seed1"``) to the job's
+        benchmark file.
+    title : str
+        Heading of the page.
+    """
+    import html
+
+    rows = {label: benchmark_row(path) for label, path in jobs.items()}
+
+    def row(head, wall, cpu, memory):
+        cores = f"{cpu / wall:.2f}" if wall > 0 else "nan"
+        return (f"<tr>{head}<td>{wall / 60:.2f}</td><td>{cpu / 60:.2f}</td><td>{cores}</td>"
+                f"<td>{memory:.0f}</td></tr>")
+
+    body = [row(f"<td>{html.escape(label)}</td>", r["wall_s"], r["cpu_s"], r["max_rss_mb"])
+            for label, r in rows.items()]
+    for kind in sorted({label.split()[0] for label in rows}):
+        group = [r for label, r in rows.items() if label.split()[0] == kind]
+        body.append(row(f"<th>{html.escape(kind)}: {len(group)} jobs</th>",
+                        float(np.nansum([r["wall_s"] for r in group])),
+                        float(np.nansum([r["cpu_s"] for r in group])),
+                        float(np.nanmax([r["max_rss_mb"] for r in group]))))
+    return (
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+        f"<title>{html.escape(title)}</title><style>"
+        "table{border-collapse:collapse;font-family:sans-serif;font-size:14px}"
+        "td,th{border:1px solid #bbb;padding:2px 8px;text-align:right}</style></head><body>\n"
+        f"<h3>{html.escape(title)}</h3>\n<table>\n"
+        "<tr><th>job</th><th>wall (min)</th><th>CPU (min)</th><th>cores used</th>"
+        "<th>peak memory (MB)</th></tr>\n" + "\n".join(body) + "\n</table>\n</body></html>\n")

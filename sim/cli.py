@@ -81,8 +81,8 @@ def _parser():
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="command", required=True)
     params_help = "run parameters: JSON text, or @FILE (JSON or YAML config)"
-    bookkeeping_help = ("settings that change no result (checkpoint and progress "
-                        "intervals) as JSON, e.g. '{\"pour\": {\"progress_interval\": 5}}'")
+    bookkeeping_help = ("settings that change no result (checkpoint, progress and "
+                        "frame intervals) as JSON, e.g. '{\"pour\": {\"progress_interval\": 5}}'")
 
     p = sub.add_parser("pour", help="pour a pile (wedge: point source, layered: line source)")
     p.add_argument("--params", help=params_help)
@@ -91,6 +91,9 @@ def _parser():
     p.add_argument("--seed", required=True, type=int)
     p.add_argument("--out", required=True, help="state file of the poured pile (.nc)")
     p.add_argument("--checkpoint", help="checkpoint file to resume from and write to")
+    p.add_argument("--frames", help="also write frames of the pour for a film, every "
+                   "pour.frame_interval simulated seconds, to this file (.nc; "
+                   "python -m analysis film); empty: no frames")
 
     p = sub.add_parser("relax", help="relax a pile to rest")
     p.add_argument("--params", help=params_help)
@@ -193,7 +196,8 @@ def main(argv=None):
         cfg = _params(args.params, args.bookkeeping)
         from . import protocols
         if args.command == "pour":
-            protocols.pour(cfg, args.protocol, args.seed, args.out, args.checkpoint)
+            protocols.pour(cfg, args.protocol, args.seed, args.out, args.checkpoint,
+                           frames=args.frames)
         elif args.command == "relax":
             protocols.relax_file(cfg, args.input, args.out)
         elif args.command == "probe":

@@ -37,7 +37,7 @@ class ConfigError(ValueError):
 #: Settings that change how a run reports and saves its progress, never its
 #: result: a checkpoint made under other values is resumed, and the workflow
 #: passes them outside the rule params so that changing them re-runs nothing.
-BOOKKEEPING = {"pour": ("checkpoint_interval", "progress_interval")}
+BOOKKEEPING = {"pour": ("checkpoint_interval", "progress_interval", "frame_interval")}
 
 #: The JSON schema (YAML) of the workflow configuration: the source of every
 #: default and bound of the simulator's settings.
@@ -257,6 +257,8 @@ class PourParams:
         Wall-clock seconds between checkpoints.
     progress_interval : float
         Wall-clock seconds between progress lines.
+    frame_interval : float
+        Simulated seconds between the frames of a pour's film (``pour --frames``).
     """
 
     n_particles: int = _default("pour", "n_particles")
@@ -269,6 +271,7 @@ class PourParams:
     layered_slope_deg: float = _default("pour", "layered_slope_deg")
     checkpoint_interval: float = _default("pour", "checkpoint_interval")
     progress_interval: float = _default("pour", "progress_interval")
+    frame_interval: float = _default("pour", "frame_interval")
 
     def __post_init__(self):
         _check_fields(self, "pour")

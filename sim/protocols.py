@@ -43,6 +43,7 @@ import numpy as np
 
 from .config import ConfigError, SimConfig, result_settings
 from .engine import BlowUpError, Simulation
+from .frames import FrameRecorder, partial_path
 from .io import StateFileError, code_version, load_simulation, save_state
 from .measure import angle_of_repose, mean_coordination
 from .shapes import make_shapes
@@ -234,7 +235,7 @@ def fixed_remaining(end_time):
 
 
 def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
-         settle_time=0.1):
+         settle_time=0.1, frames=None):
     """Pour a pile from a point (wedge) or line (layered) source and save it.
 
     Parameters
@@ -255,6 +256,12 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
     settle_time : float
         Simulated time after the last release before the state is saved, s;
         longer while particles are still in flight (see :func:`_land`).
+    frames : path, optional
+        Where to write the frames of a film of the pour
+        (:class:`sim.frames.FrameRecorder`, one every ``pour.frame_interval``
+        simulated seconds), written just before the poured state.  With a
+        checkpoint, the frames so far are kept beside it
+        (:func:`sim.frames.partial_path`) and resumed with it.
 
     Returns
     -------
@@ -276,10 +283,10 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
                           "without it the particles fall for ever (allowed: true)")
     checkpoint = Path(checkpoint) if checkpoint else None
     if checkpoint is None:
-        return _pour(cfg, protocol, seed, out, None, settle_time, None)
+        return _pour(cfg, protocol, seed, out, None, settle_time, None, frames)
     with PourLock(checkpoint.with_name(checkpoint.name + ".lock"),
                   stale_after=3 * cfg.pour.checkpoint_interval + 60.0) as lock:
-        return _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock)
+        return _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock, frames)
 
 
 class PourLock:
@@ -389,21 +396,28 @@ def _resume(cfg, protocol, seed, checkpoint, shapes):
     return sim, next_release
 
 
-def _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock):
+def _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock, frames):
     """The pour itself (see :func:`pour`); ``lock`` is refreshed at each checkpoint."""
     p = cfg.pour
     shapes = pile_shapes(cfg, seed)
     interval = 1.0 / p.rate
     resumed = None
     if checkpoint is not None:
-        # temporary files of checkpoints whose writer was killed (we hold the lock)
-        for stale in checkpoint.parent.glob(f".{checkpoint.name}.*.tmp"):
-            stale.unlink()
+        # temporary files of checkpoints (and their frames) whose writer was
+        # killed (we hold the lock)
+        for name in (checkpoint.name, partial_path(checkpoint).name):
+            for stale in checkpoint.parent.glob(f".{name}.*.tmp"):
+                stale.unlink()
         if checkpoint.exists():
             resumed = _resume(cfg, protocol, seed, checkpoint, shapes)
+    recorder = FrameRecorder(shapes, p.n_particles, p.frame_interval) if frames else None
     if resumed is not None:
         sim, next_release = resumed
+        if recorder is not None:
+            recorder.resume(partial_path(checkpoint), sim.time)
     else:
+        if checkpoint is not None:
+            partial_path(checkpoint).unlink(missing_ok=True)
         phys = cfg.physics
         sim = Simulation(shapes, cfg.model, gravity=(0.0, -GRAVITY), support=phys.support,
                          walls=phys.walls, rotate=phys.rotation)
@@ -428,7 +442,11 @@ def _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock):
                     next_release = sim.time + 0.1 * interval
             sim.run(duration=max(next_release - sim.time, sim.dt))
             progress(sim, f"pour {protocol} seed {seed}")
+            if recorder is not None:
+                recorder(sim)
             if checkpoint is not None and _time.monotonic() - last_ckpt > p.checkpoint_interval:
+                if recorder is not None:
+                    recorder.save(partial_path(checkpoint), cfg.to_dict(), **attrs)
                 save_state(sim, checkpoint, cfg.to_dict(), stage="checkpoint",
                            next_release=next_release, **attrs)
                 if lock is not None:
@@ -439,9 +457,13 @@ def _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock):
     except BlowUpError as exc:
         _keep_last_good(sim, out, cfg, exc, **attrs)
         raise
+    if recorder is not None:
+        recorder.finish(sim)
+        recorder.save(frames, cfg.to_dict(), **attrs)
     save_state(sim, out, cfg.to_dict(), stage="poured", **attrs)
-    if checkpoint is not None and checkpoint.exists():
-        checkpoint.unlink()
+    if checkpoint is not None:
+        checkpoint.unlink(missing_ok=True)
+        partial_path(checkpoint).unlink(missing_ok=True)
     _summary(sim, f"pour {protocol} seed {seed}", _time.monotonic() - t_wall)
     return sim
 

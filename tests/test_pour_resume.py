@@ -22,7 +22,7 @@ from sim.engine import Simulation
 from sim.io import StateFileError, read_state, save_state
 
 TINY = {"pour": {"n_particles": 12, "rate": 400.0, "checkpoint_interval": 0.02,
-                 "progress_interval": 1e9},
+                 "progress_interval": 1e9, "frame_interval": 0.01},
         "model": {"integrator": "verlet"}}
 VARIABLES = ("x", "y", "theta", "vx", "vy", "omega", "contact_i", "contact_j", "force_x",
              "force_y", "contact_spring")
@@ -38,9 +38,10 @@ def tiny(**changes):
 
 @pytest.fixture(scope="module")
 def whole(tmp_path_factory):
-    """The tiny pile poured without interruption."""
+    """The tiny pile poured without interruption (with the frames of its film
+    beside it, frames.nc)."""
     out = tmp_path_factory.mktemp("whole") / "poured.nc"
-    protocols.pour(tiny(), "wedge", 3, out)
+    protocols.pour(tiny(), "wedge", 3, out, frames=out.with_name("frames.nc"))
     return out
 
 
@@ -189,6 +190,7 @@ def pour_killed_repeatedly(folder, kills, seed):
     Numba threading layer is fork-safe (workqueue; GNU OpenMP is not)."""
     logging.basicConfig(level=logging.INFO)
     out, ckpt = Path(folder) / "poured.nc", Path(folder) / "pour.checkpoint.nc"
+    frames = out.with_name("frames.nc")
     rng = random.Random(seed)
     protocols.pour(tiny(), "wedge", 3, out)      # compiles the kernels before the forks
     out.unlink()
@@ -197,7 +199,7 @@ def pour_killed_repeatedly(folder, kills, seed):
         pid = os.fork()
         if pid == 0:
             try:
-                protocols.pour(tiny(), "wedge", 3, out, checkpoint=ckpt)
+                protocols.pour(tiny(), "wedge", 3, out, checkpoint=ckpt, frames=frames)
             finally:
                 os._exit(0)
         time.sleep(rng.uniform(0.0, 0.4))
@@ -207,15 +209,17 @@ def pour_killed_repeatedly(folder, kills, seed):
             done += 1
         elif out.exists():       # finished before the kill: pour again from scratch
             out.unlink()
+            frames.unlink()
     assert ckpt.exists(), "no kill came after the first checkpoint"
-    protocols.pour(tiny(), "wedge", 3, out, checkpoint=ckpt)
+    protocols.pour(tiny(), "wedge", 3, out, checkpoint=ckpt, frames=frames)
 
 
 def test_killed_at_random_moments_the_pour_ends_bit_for_bit_as_uninterrupted(tmp_path,
                                                                               whole):
     """SIGKILL at 20 random moments (mid-step, mid-checkpoint, holding the
-    lock), each rerun resuming what the last one left: the pile is the
-    uninterrupted one, and no lock or temporary file is left behind."""
+    lock), each rerun resuming what the last one left: the pile and the frames
+    of its film are the uninterrupted ones, and no lock, partial frames or
+    temporary file is left behind."""
     env = {**os.environ, "NUMBA_THREADING_LAYER": "workqueue", "NUMBA_NUM_THREADS": "1"}
     code = f"import test_pour_resume as t; t.pour_killed_repeatedly({str(tmp_path)!r}, 20, 12)"
     proc = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).parent, env=env,
@@ -223,4 +227,10 @@ def test_killed_at_random_moments_the_pour_ends_bit_for_bit_as_uninterrupted(tmp
     assert proc.returncode == 0, proc.stderr[-5000:]
     assert proc.stderr.count("resuming wedge seed 3") >= 5     # the kills did interrupt
     assert_same_pile(whole, tmp_path / "poured.nc")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["poured.nc"]
+    # the film's frames too: every frame of the uninterrupted pour, none twice
+    with xr.open_dataset(whole.with_name("frames.nc")) as a, \
+            xr.open_dataset(tmp_path / "frames.nc") as b:
+        assert a.sizes["frame"] >= 10
+        for v in ("time", "x", "y", "theta", "speed", "released"):
+            np.testing.assert_array_equal(a[v].values, b[v].values, err_msg=v)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frames.nc", "poured.nc"]

@@ -13,6 +13,7 @@ import shlex
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -272,14 +273,14 @@ if cmd == "warmup":
     sys.exit(0)
 parser = argparse.ArgumentParser()
 for option in ("--params", "--bookkeeping", "--protocol", "--seed", "--out", "--checkpoint",
-               "--input", "--level"):
+               "--input", "--level", "--frames"):
     parser.add_argument(option)
 args = parser.parse_args(rest)
 if cmd in ("pour", "relax", "probe"):
     assert set(json.loads(args.params)) == SECTIONS[cmd], args.params
     assert "checkpoint_interval" not in json.loads(args.params)["pour"], args.params
     assert set(json.loads(args.bookkeeping)["pour"]) == {"checkpoint_interval",
-                                                        "progress_interval"}
+                                                        "progress_interval", "frame_interval"}
     assert int(os.environ["NUMBA_NUM_THREADS"]) >= 1
 if cmd != "pour":
     assert Path(args.input).exists()
@@ -288,6 +289,8 @@ if cmd == "probe":
 record = {"cmd": cmd, "args": vars(args),
           "env": {k: os.environ.get(k) for k in ("NUMBA_NUM_THREADS", "NUMBA_CACHE_DIR")}}
 Path(args.out).write_text(json.dumps(record))
+if args.frames:
+    Path(args.frames).write_text(json.dumps(record))
 '''
 
 # python -m analysis draw, faked: records its command line in the picture.
@@ -415,6 +418,7 @@ def test_editing_analysis_code_or_a_caption_leaves_the_piles(ran, folder, rerun)
     # bookkeeping: how often a pour saves and reports, never what it pours
     ("pour", {"checkpoint_interval": 5.0}, ()),
     ("pour", {"progress_interval": 1.0}, ()),
+    ("pour", {"frame_interval": 0.1}, ()),
 ])
 def test_simulation_parameters_rerun_exactly_the_jobs_that_read_them(ran, section, change,
                                                                        rerun):
@@ -428,6 +432,20 @@ def test_simulation_parameters_rerun_exactly_the_jobs_that_read_them(ran, sectio
     assert {rule: counts.get(rule) for rule in ("pour", "relax", "probe")} == \
         {rule: (n if rule in rerun else None) for rule in ("pour", "relax", "probe")}
     assert "compile_kernels" not in counts
+
+
+def test_a_scene_without_film_repours_nothing_a_scene_with_film_poured(ran):
+    """The smoke asks for films, so its pours wrote frames; the same piles
+    without the film output need no pour again (the frames are an extra
+    output, passed outside the recorded params)."""
+    root, targets = ran
+    for frames in root.glob("results/piles/*/seed*/frames.nc"):
+        assert frames.exists()
+    assert len(list(root.glob("results/piles/*/seed*/frames.nc"))) == len(smoke_piles())
+    without = with_overrides(root, "no_film", {"outputs": ["states", "figures"]})
+    proc = snakemake(root, "-n", "--cores", "2", *without, *targets)
+    assert proc.returncode == 0, proc.output
+    assert job_counts(proc.output) == {}, proc.output
 
 
 # --- (d) the smoke study, end to end ----------------------------------------
@@ -462,9 +480,11 @@ def test_smoke_study_end_to_end(tmp_path):
         assert (root / f"benchmarks/pour/{protocol}/seed{seed}.tsv").exists()
         check_vtk_files(root / f"results/vtk/{protocol}_seed{seed}_relaxed.vtu",
                         root / f"results/piles/{protocol}/seed{seed}/relaxed.nc")
+        check_film(root, protocol, seed)
     # A second run has nothing to do: no parameter or code trigger fires spuriously.
     again = snakemake(root, "-n", "--cores", "2", *SMOKE)
     assert again.returncode == 0 and job_counts(again.output) == {}, again.output
+    check_report(root)
     check_stress_only_scene_gives_the_same_values(root)
     check_reproduction_from_recorded_piles(root)
 
@@ -491,6 +511,120 @@ def check_vtk_files(particles, state):
         grid = reader.GetOutput()
         assert grid.GetNumberOfCells() == cells, path
         assert all(grid.GetCellData().GetArray(name) is not None for name in fields), path
+
+
+def check_film(root, protocol, seed):
+    """Output film of a smoke pile: the pour's frames end on the poured state,
+    and the MP4 holds one picture per frame (tests/test_analysis_film.py
+    checks the frames and the film in detail)."""
+    import imageio_ffmpeg
+    import xarray as xr
+
+    with xr.open_dataset(root / f"results/piles/{protocol}/seed{seed}/frames.nc") as frames, \
+            xr.open_dataset(root / f"results/piles/{protocol}/seed{seed}/poured.nc") as poured:
+        n_frames = frames.sizes["frame"]
+        assert frames["released"].values[-1] == poured.sizes["particle"]
+        assert frames["time"].values[-1] == poured.attrs["time"]
+    # a frame every pour.frame_interval of a pour of n_particles / rate seconds, and more while it settles
+    pour = SMOKE_CONFIG["pour"]
+    assert n_frames >= pour["n_particles"] / 100.0 / pour["frame_interval"]
+    counted, _ = imageio_ffmpeg.count_frames_and_secs(str(root / f"results/films/{protocol}_seed{seed}.mp4"))
+    assert counted == n_frames
+    assert "data:video/mp4;base64," in (root / f"results/films/{protocol}_seed{seed}.html").read_text()
+
+
+# Every result of the report, decoded by the browser: images loaded (their
+# width), films played up to their first frame (their width and length), and
+# HTML pages without a film checked for a table.
+REPORT_RESULTS_JS = """
+const done = arguments[arguments.length - 1];
+const out = {};
+const checks = Object.entries(results).map(([path, r]) => new Promise(resolve => {
+  const put = (value) => { out[path] = Object.assign({caption: r.caption || ""}, value); resolve(); };
+  if (r.mime_type.startsWith("image/")) {
+    const img = new Image();
+    img.onload = () => put({kind: "image", width: img.naturalWidth});
+    img.onerror = () => put({kind: "image", width: 0});
+    img.src = r.data_uri;
+  } else if (r.mime_type === "text/html") {
+    fetch(r.data_uri).then(x => x.text()).then(text => {
+      const film = text.match(/src="(data:video\\/mp4;base64,[^"]+)"/);
+      if (!film) { put({kind: "html", table: text.includes("<table")}); return; }
+      const video = document.createElement("video");
+      video.muted = true;
+      video.onloadeddata = () => put({kind: "film", width: video.videoWidth, seconds: video.duration});
+      video.onerror = () => put({kind: "film", width: 0});
+      video.src = film[1];
+    });
+  } else { put({kind: r.mime_type}); }
+}));
+Promise.all(checks).then(() => done(out));
+"""
+
+
+def check_report(root):
+    """snakemake --report of the smoke study, opened in headless Chromium (make
+    test installs it): the first page loads with the workflow's description
+    and the result categories, and its screenshot is saved as
+    results/report_first_page.png (here and in the repository's results/);
+    every figure of the report decodes, every film plays, the run-time table
+    is there, and the captions say with how many piles."""
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    report = root / "results" / "report.html"
+    proc = snakemake(root, *SMOKE, "--report", str(report), timeout=600)
+    assert proc.returncode == 0, proc.output[-5000:]
+    chromium, driver_path = shutil.which("chromium"), shutil.which("chromedriver")
+    assert chromium and driver_path, "make test installs chromium and chromium-driver (Debian)"
+    profile = tempfile.TemporaryDirectory(prefix="chromium-profile-")
+    options = webdriver.ChromeOptions()
+    options.binary_location = chromium
+    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--window-size=1400,1000", f"--user-data-dir={profile.name}"):
+        options.add_argument(flag)
+    browser = webdriver.Chrome(service=Service(driver_path), options=options)
+    try:
+        browser.get(report.as_uri())
+        categories = ("Analysis", "Films of the pours", "Piles", "Run times")
+        WebDriverWait(browser, 120).until(
+            lambda b: all(c in b.find_element(By.TAG_NAME, "body").text for c in categories))
+        assert "discrete-element simulations of sand piles" in browser.find_element(By.TAG_NAME, "body").text
+        shot = root / "results" / "report_first_page.png"
+        assert browser.save_screenshot(str(shot))
+        browser.set_script_timeout(120)
+        found = browser.execute_async_script(REPORT_RESULTS_JS)
+    finally:
+        browser.quit()
+        profile.cleanup()
+    assert shot.read_bytes()[:4] == b"\x89PNG"
+    if root != REPO:
+        (REPO / "results").mkdir(exist_ok=True)
+        shutil.copy(shot, REPO / "results" / shot.name)
+    piles = smoke_piles()
+    films = {f"results/films/{p}_seed{s}.html" for p, s in piles}
+    pictures = {f"results/figures/piles/{p}_seed{s}_relaxed.png" for p, s in piles}
+    figures = {f"results/figures/{name}.png" for name in (
+        "fig1_convergence", "fig2_vertical_strain", "fig3_fabric", "fig4_moduli", "fig5_invariants",
+        "base_pressure")}
+    assert set(found) == films | pictures | figures | {"results/run_times.html"}, sorted(found)
+    for path in pictures | figures:
+        assert found[path]["kind"] == "image" and found[path]["width"] > 500, (path, found[path])
+    for path in films:
+        assert found[path]["kind"] == "film" and found[path]["width"] == 1280, (path, found[path])
+        assert found[path]["seconds"] > 1.0, (path, found[path])
+        assert "the scene has 2 piles of this protocol" in words(found[path]["caption"])
+    assert found["results/run_times.html"]["table"]
+    for path in figures - {"results/figures/fig1_convergence.png"} | {"results/run_times.html"}:
+        assert "2 wedge and 2 layered" in words(found[path]["caption"]), (path, found[path]["caption"])
+
+
+def words(text):
+    """`text` with every run of white space made one blank."""
+    return " ".join(text.split())
 
 
 def check_reproduction_from_recorded_piles(root):

@@ -170,6 +170,21 @@ def pile_figure(protocol, seed, stage):
     return f"results/figures/piles/{protocol}_seed{seed}_{stage}.png"
 
 
+# The table of the simulation jobs' run times (rule run_times_table, in the report).
+RUN_TIMES_TABLE = "results/run_times.html"
+
+
+def pile_frames(protocol, seed):
+    """Path of the frames of a pile's pour (python -m sim pour --frames; output film)."""
+    return f"results/piles/{protocol}/seed{seed}/frames.nc"
+
+
+def pile_film(protocol, seed, ext="mp4"):
+    """Path of the film of a pile's pour (python -m analysis film): the MP4,
+    or with ext="html" the page holding it that the report shows."""
+    return f"results/films/{protocol}_seed{seed}.{ext}"
+
+
 def pile_vtk(protocol, seed, stage):
     """Path of the VTK file of one pile state's particles (python -m analysis
     export; its contact network is the same name with _contacts)."""

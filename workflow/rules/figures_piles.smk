@@ -1,6 +1,6 @@
 # Pictures of pile states: polygons to scale, coloured by the particle
-# pressure of Eq. 2, with the contact-force network; and the same states as
-# VTK files for ParaView (output vtk).
+# pressure of Eq. 2, with the contact-force network; the same states as
+# VTK files for ParaView (output vtk); films of the pours (output film).
 
 
 rule draw_pile:
@@ -55,3 +55,69 @@ rule export_pile:
     shell:
         py_shell("-m analysis export --input {input.state:q} --vtk {output.particles:q} > {log:q} 2>&1")
 
+
+
+rule film_pile:
+    # A film of a pile's pour from the frames the pour wrote (output film):
+    # the MP4, and an HTML page holding it that the report shows inline.
+    input:
+        frames=pile_frames("{protocol}", "{seed}"),
+        code=ANALYSIS_CODE,
+    output:
+        film=pile_film("{protocol}", "{seed}"),
+        page=report(
+            pile_film("{protocol}", "{seed}", "html"),
+            caption="../report/film.rst",
+            category="Films of the pours",
+            subcategory="{protocol}",
+            labels={"protocol": "{protocol}", "seed": "{seed}"},
+        ),
+    log:
+        "logs/film_pile/{protocol}_seed{seed}.log",
+    benchmark:
+        "benchmarks/film_pile/{protocol}_seed{seed}.tsv"
+    threads: 1
+    resources:
+        mem_mb=1500,
+        runtime=15,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        py_shell(
+            "-m analysis film --input {input.frames:q} --out {output.film:q}"
+            " --html {output.page:q} > {log:q} 2>&1"
+        )
+
+
+def pile_benchmarks():
+    """Benchmark files of every simulation job of the scene's piles (pour,
+    relax, each probe)."""
+    return [
+        path
+        for protocol in PROTOCOLS
+        for seed in seeds(protocol)
+        for path in [f"benchmarks/pour/{protocol}/seed{seed}.tsv",
+                     f"benchmarks/relax/{protocol}/seed{seed}.tsv"]
+        + [f"benchmarks/probe/{protocol}/seed{seed}_{stage}.tsv" for stage in probe_stages()]
+    ]
+
+
+rule run_times_table:
+    # Wall and CPU time and peak memory of every simulation job, from the
+    # benchmark files Snakemake wrote for them, as a table in the report.
+    input:
+        benchmarks=pile_benchmarks(),
+        code=ANALYSIS_CODE,
+    output:
+        report(RUN_TIMES_TABLE, caption="../report/run_times.rst", category="Run times"),
+    log:
+        "logs/run_times_table.log",
+    localrule: True
+    threads: 1
+    resources:
+        mem_mb=500,
+        runtime=5,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        py_shell("-m analysis run-times --benchmarks {input.benchmarks:q} --out {output:q} > {log:q} 2>&1")

@@ -30,11 +30,16 @@ rule pour:
         code=SIM_CODE,
         compiled=COMPILED_FLAG,
     output:
-        pile("{protocol}", "{seed}", "poured"),
+        poured=pile("{protocol}", "{seed}", "poured"),
+        # the frames of a film of the pour, only when the scene asks for one
+        **({"frames": pile_frames("{protocol}", "{seed}")} if wants("film") else {}),
     params:
         sim=sim_params("model", "particles", "pour", "physics"),
         bookkeeping=sim_bookkeeping(),
         checkpoint=lambda wildcards: pour_checkpoint(wildcards.protocol, wildcards.seed),
+        # empty: no frames; Unrecorded, so that a scene without film (whose
+        # pour rule has no frames) re-pours nothing that a scene with film poured
+        frames=lambda wildcards, output: Unrecorded(output.frames if wants("film") else ""),
     log:
         "logs/pour/{protocol}/seed{seed}.log",
     benchmark:
@@ -49,5 +54,6 @@ rule pour:
         sim_shell(
             "pour --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
             " --protocol {wildcards.protocol} --seed {wildcards.seed}"
-            " --out {output:q} --checkpoint {params.checkpoint:q} > {log:q} 2>&1"
+            " --out {output.poured:q} --checkpoint {params.checkpoint:q} --frames {params.frames:q}"
+            " > {log:q} 2>&1"
         )

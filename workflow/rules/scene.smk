@@ -8,7 +8,7 @@
 OUTPUTS = set(config["outputs"])
 
 # Outputs that need the piles (pour and relax), and what each output needs.
-PILE_OUTPUTS = {"states", "fields", "strain", "fabric", "fits", "vtk"}
+PILE_OUTPUTS = {"states", "fields", "strain", "fabric", "fits", "vtk", "film"}
 OUTPUT_NEEDS = {"strain": "fields", "fabric": "fields", "fits": "strain"}
 
 
@@ -69,10 +69,10 @@ def _check_scene():
         folder = REPO / config["committed"]
         if not folder.is_dir():
             problems.append(f"committed = {config['committed']!r}: no such folder under {REPO}")
-        if OUTPUTS & {"states", "vtk", "numerics"}:
+        if OUTPUTS & {"states", "vtk", "film", "numerics"}:
             problems.append(
                 f"committed = {config['committed']!r} with outputs {asked}: committed results "
-                "replace the simulation, so states, vtk and numerics cannot be asked for; "
+                "replace the simulation, so states, vtk, film and numerics cannot be asked for; "
                 "leave them out of outputs"
             )
     if problems:
@@ -84,15 +84,18 @@ _check_scene()
 
 def scene_targets():
     """Everything the scene asks for, the input of `all`. The pile states, the
-    pictures of the relaxed piles (not from committed results: they need the
-    states), the analysis (analysis_targets()) and the
-    numerical checks. Called from the Snakefile after every rule file is
+    pictures of the relaxed piles and the table of the simulation jobs' run
+    times (not from committed results: they need the states), the VTK files,
+    the films, the analysis (analysis_targets()) and the numerical checks. Called from the Snakefile after every rule file is
     included, so the numerics rules exist."""
     targets = pile_targets() if wants("states") else []
     if wants("figures") and OUTPUTS & PILE_OUTPUTS and not config["committed"]:
-        targets += pile_figure_targets("relaxed")
+        targets += pile_figure_targets("relaxed") + [RUN_TIMES_TABLE]
     if wants("vtk"):
         targets += [pile_vtk(protocol, seed, "relaxed") for protocol in PROTOCOLS for seed in seeds(protocol)]
+    if wants("film"):
+        targets += [pile_film(protocol, seed, ext) for protocol in PROTOCOLS
+                    for seed in seeds(protocol) for ext in ("mp4", "html")]
     if wants("numerics"):
         targets += list(rules.numerics.input) + numerics_piles_targets()
     return targets + analysis_targets()
