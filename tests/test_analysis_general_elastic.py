@@ -1,0 +1,155 @@
+"""The general 2D elastic fit (analysis.general_elastic): a known anisotropic
+stiffness is recovered from its own stress-strain samples to rounding; one
+probe (strains all in one direction) is reported as not identifying it, and
+so are gravity probes of any number (their strains span two shapes); the
+isotropic and cubic laws of the paper are its special cases, with the
+directional Young's modulus of analysis.elastic's closed forms; the stiffness
+axis turns with the material, checked against a rotation of the fourth-order
+tensor built independently of the Mandel algebra."""
+
+import numpy as np
+import pytest
+
+from analysis import general_elastic as ge
+from analysis.elastic import cubic_engineering_moduli, youngs_modulus_2d
+
+RNG = np.random.default_rng(14)
+
+
+def sym(a):
+    return 0.5 * (a + np.swapaxes(a, -1, -2))
+
+
+def random_stiffness(scale=1e6):
+    """A symmetric positive definite Mandel stiffness with no symmetry of the material."""
+    q = RNG.normal(size=(3, 3))
+    return scale * (q @ q.T + 0.5 * np.eye(3))
+
+
+def stress_of(c, strains):
+    """Δσ (…, 2, 2) of Mandel stiffness `c` for strains (…, 2, 2), by the Mandel rules."""
+    s = np.einsum("ij,...j->...i", c, ge.mandel(strains))
+    out = np.empty(strains.shape)
+    out[..., 0, 0], out[..., 1, 1] = s[..., 0], s[..., 1]
+    out[..., 0, 1] = out[..., 1, 0] = s[..., 2] / np.sqrt(2)
+    return out
+
+
+def test_a_known_anisotropic_stiffness_is_recovered_to_rounding():
+    c = random_stiffness()
+    strains = sym(RNG.normal(scale=1e-4, size=(4, 3, 5, 2, 2)))   # 4x3 RVEs, 5 samples each
+    fit = ge.fit_general_stiffness(stress_of(c, strains), strains)
+    assert np.all(fit["flag"] == 0) and np.all(fit["n_samples"] == 5)
+    np.testing.assert_allclose(fit["stiffness"], np.broadcast_to(c, (4, 3, 3, 3)), rtol=1e-9,
+                               atol=1e-9 * np.abs(c).max())
+    assert np.all(fit["condition"] < 50)
+    assert ge.explained_fraction(fit["stiffness"], stress_of(c, strains), strains) == \
+        pytest.approx(np.ones((4, 3)), abs=1e-12)
+
+
+def test_invalid_samples_are_left_out():
+    c = random_stiffness()
+    strains = sym(RNG.normal(scale=1e-4, size=(6, 2, 2)))
+    sigma = stress_of(c, strains)
+    sigma[2, 0, 0] = np.nan
+    strains[4] = np.nan
+    fit = ge.fit_general_stiffness(sigma, strains)
+    assert fit["n_samples"] == 4 and fit["flag"] == 0
+    np.testing.assert_allclose(fit["stiffness"], c, rtol=1e-9)
+    lone = ge.fit_general_stiffness(sigma[:1], strains[:1])
+    assert lone["flag"] & ge.GENERAL_INSUFFICIENT_SAMPLES and np.isnan(lone["stiffness"]).all()
+
+
+def test_one_probe_does_not_identify_the_general_stiffness():
+    """A gravity reduction at five neighbouring points: strains of one shape,
+    amplitudes and directions differing by a percent. The stresses are fitted,
+    but the condition number says the six constants are not pinned."""
+    c = random_stiffness()
+    base = np.array([[-1.0e-4, 2.0e-5], [2.0e-5, 3.0e-4]])
+    strains = np.array([(1 + 0.1 * k) * base + 1e-6 * sym(RNG.normal(size=(2, 2)))
+                        for k in range(5)])
+    fit = ge.fit_general_stiffness(stress_of(c, strains), strains)
+    assert fit["condition"] > ge.MAX_CONDITION
+    assert fit["flag"] & ge.GENERAL_NOT_IDENTIFIED and np.isnan(fit["stiffness"]).all()
+    # three probes of independent strain shapes at the same points do identify it
+    shapes = [np.array([[2.0e-4, 0.0], [0.0, -1.0e-4]]), np.array([[0.0, 2.0e-4], [2.0e-4, 0.0]])]
+    three = np.concatenate([strains] + [np.array([(1 + 0.1 * k) * t for k in range(5)]) for t in shapes])
+    fit3 = ge.fit_general_stiffness(stress_of(c, three), three)
+    assert fit3["flag"] == 0 and fit3["condition"] < 10
+    np.testing.assert_allclose(fit3["stiffness"], c, rtol=1e-9)
+
+
+def test_gravity_probes_alone_pin_five_of_the_six_constants():
+    """In a linear elastic pile the strain at a point is linear in the change
+    of gravity, a vector with two components: whatever reductions and tilts
+    are probed, the strains at one point span two shapes, and the symmetric
+    C + t w w^T (w normal to both) fits them all as well as C does."""
+    c = random_stiffness()
+    shape_y = np.array([[-0.3e-4, 0.2e-5], [0.2e-5, 1.0e-4]])    # response to a change of g_y
+    shape_x = np.array([[0.4e-5, 0.6e-4], [0.6e-4, -0.2e-5]])    # response to a change of g_x
+    probes = [(0.10, 0.0), (0.0, 0.05), (0.0, -0.05), (0.05, 0.02)]   # (reduction, tilt)
+    strains = np.array([dy * shape_y + dx * shape_x for dy, dx in probes]) * 10
+    fit = ge.fit_general_stiffness(stress_of(c, strains), strains)
+    assert fit["condition"] > 1e10 and fit["flag"] & ge.GENERAL_NOT_IDENTIFIED
+    w = np.cross(ge.mandel(shape_y), ge.mandel(shape_x))
+    other = c + 1e5 * np.outer(w, w) / (w @ w)
+    np.testing.assert_allclose(stress_of(other, strains), stress_of(c, strains), rtol=1e-9, atol=1e-9)
+
+
+def test_the_isotropic_law_is_a_special_case():
+    K, G = 8.0e5, 3.0e5
+    c = ge.isotropic_stiffness(K, G)
+    strains = sym(RNG.normal(scale=1e-4, size=(7, 2, 2)))
+    sigma = stress_of(c, strains)
+    # the paper's definitions: tr Δσ = 2K tr Δu, deviators 2G
+    tr = np.trace(sigma, axis1=-2, axis2=-1)
+    np.testing.assert_allclose(tr, 2 * K * np.trace(strains, axis1=-2, axis2=-1), rtol=1e-12)
+    np.testing.assert_allclose(sigma[:, 0, 1], 2 * G * strains[:, 0, 1], rtol=1e-12)
+    axes = ge.stiffness_axes(c)
+    assert axes["anisotropy"] == pytest.approx(1.0, abs=1e-12) and np.isnan(axes["axis_deg"])
+    np.testing.assert_allclose(ge.directional_modulus(c), youngs_modulus_2d(K, G), rtol=1e-12)
+    assert ge.explained_fraction(c, sigma, strains) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_the_cubic_law_and_its_moduli_along_the_axes_and_bisectors():
+    l1, l2, l3 = 1.2e6, 0.4e6, 0.15e6
+    c = ge.cubic_stiffness(l1, l2, l3)
+    eng = cubic_engineering_moduli(l1, l2, l3)
+    e = ge.directional_modulus(c, np.array([0.0, 90.0, 45.0, -45.0]))
+    np.testing.assert_allclose(e[:2], eng["E_p"], rtol=1e-12)      # along y and x
+    np.testing.assert_allclose(e[2:], eng["E_b"], rtol=1e-12)      # along the bisectors
+    axes = ge.stiffness_axes(c)
+    # lambda3 < (lambda1 - lambda2)/2: stiffest along the cube axes, E(0) = E(90 deg),
+    # the first of them on the grid of directions is the vertical
+    assert eng["E_p"] > eng["E_b"] and axes["axis_deg"] == 0.0
+    assert axes["anisotropy"] == pytest.approx(eng["E_p"] / eng["E_b"], rel=1e-4)
+
+
+def fourth_order(c):
+    """C_ijkl of a Mandel stiffness, element by element (σ_ij = C_ijkl u_kl)."""
+    index = {(0, 0): 0, (1, 1): 1, (0, 1): 2, (1, 0): 2}
+    weight = {0: 1.0, 1: 1.0, 2: 1.0 / np.sqrt(2)}
+    out = np.zeros((2, 2, 2, 2))
+    for (i, j), a in index.items():
+        for (k, l), b in index.items():
+            out[i, j, k, l] = c[a, b] * weight[a] * weight[b]
+    return out
+
+
+def test_the_stiffness_axis_turns_with_the_material():
+    """A material stiffest along x (E_max at 90 deg from the vertical), rotated
+    by beta counter-clockwise as a fourth-order tensor: its axis is at 90 + beta."""
+    c = np.diag([3.0e6, 1.0e6, 0.8e6])
+    c[0, 1] = c[1, 0] = 0.3e6
+    for beta in (20.0, -35.0, 60.0):
+        b = np.radians(beta)
+        r = np.array([[np.cos(b), -np.sin(b)], [np.sin(b), np.cos(b)]])
+        rotated4 = np.einsum("ia,jb,kc,ld,abcd->ijkl", r, r, r, r, fourth_order(c))
+        strains = sym(RNG.normal(scale=1e-4, size=(6, 2, 2)))
+        sigma = np.einsum("ijkl,nkl->nij", rotated4, strains)
+        fit = ge.fit_general_stiffness(sigma, strains)
+        axes = ge.stiffness_axes(fit["stiffness"])
+        expected = (90.0 + beta + 90.0) % 180.0 - 90.0
+        assert axes["axis_deg"] == pytest.approx(expected, abs=0.5), beta
+        unrotated = ge.stiffness_axes(c)
+        assert axes["anisotropy"] == pytest.approx(unrotated["anisotropy"], rel=1e-3)
