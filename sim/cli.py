@@ -101,12 +101,16 @@ def _parser():
     p.add_argument("--input", required=True)
     p.add_argument("--out", required=True)
 
-    p = sub.add_parser("probe", help="lower gravity by a level and relax again")
+    p = sub.add_parser("probe", help="change gravity (lower, tilt or restore it) and relax again")
     p.add_argument("--params", help=params_help)
     p.add_argument("--bookkeeping", help=bookkeeping_help)
-    p.add_argument("--input", required=True, help="relaxed state file")
-    p.add_argument("--level", required=True, type=float,
-                   help="relative gravity reduction Delta, in (0, 1)")
+    p.add_argument("--input", required=True, help="relaxed state file (reduced for --restore)")
+    change = p.add_mutually_exclusive_group(required=True)
+    change.add_argument("--level", type=float, help="relative gravity reduction Delta, in (0, 1)")
+    change.add_argument("--tilt", type=float,
+                        help="horizontal component of gravity added, delta |g|, in (-0.5, 0.5)")
+    change.add_argument("--restore", action="store_true",
+                        help="restore full gravity g0 (from a reduced state)")
     p.add_argument("--out", required=True)
     p.add_argument("--stage", default=None,
                    help="stage name stored in the file (default: from the output name)")
@@ -202,7 +206,12 @@ def main(argv=None):
             protocols.relax_file(cfg, args.input, args.out)
         elif args.command == "probe":
             stage = args.stage or Path(args.out).stem
-            protocols.probe_file(cfg, args.input, args.level, args.out, stage)
+            if args.tilt is not None:
+                protocols.tilt_file(cfg, args.input, args.tilt, args.out, stage)
+            elif args.restore:
+                protocols.restore_file(cfg, args.input, args.out, stage)
+            else:
+                protocols.probe_file(cfg, args.input, args.level, args.out, stage)
         return 0
     except (ConfigError, ValueError, FileNotFoundError) as exc:
         log.error("%s", exc)

@@ -351,13 +351,20 @@ class ProbeParams:
     levels : tuple of float
         Relative gravity reductions Δ, each in (0, 1); the first one's stage is
         called ``reduced``.  Empty: the scene has no gravity probe.
+    tilts : tuple of float
+        Tilted-gravity probes δ, each in (0, 0.5): gravity gets a horizontal
+        component ±δ g0 (stages ``tiltpNN``, ``tiltmNN``).
+    restore : bool
+        Restore full gravity after the first reduction (stage ``restored``).
     mode : str
-        ``"step"`` lowers gravity at once, ``"ramp"`` linearly over ``ramp_time``.
+        ``"step"`` changes gravity at once, ``"ramp"`` linearly over ``ramp_time``.
     ramp_time : float
         Duration of the ramp, s.
     """
 
     levels: tuple = _default("probe", "levels")
+    tilts: tuple = _default("probe", "tilts")
+    restore: bool = _default("probe", "restore")
     mode: str = _default("probe", "mode")
     ramp_time: float = _default("probe", "ramp_time")
 
@@ -371,6 +378,18 @@ class ProbeParams:
         if schema.get("uniqueItems") and len(set(self.levels)) != len(self.levels):
             raise ConfigError(f"probe.levels = {list(self.levels)!r}: must be unique")
         object.__setattr__(self, "levels", tuple(float(v) for v in self.levels))
+        tilt_schema = setting_schema("probe", "tilts")
+        if not isinstance(self.tilts, (list, tuple)):
+            raise ConfigError(f"probe.tilts = {self.tilts!r}: must be a list of numbers "
+                              "in (0, 0.5) (empty: no tilted probe)")
+        for tilt in self.tilts:
+            _check_value("probe", "tilts[]", tilt, tilt_schema["items"])
+        if len(set(self.tilts)) != len(self.tilts):
+            raise ConfigError(f"probe.tilts = {list(self.tilts)!r}: must be unique")
+        object.__setattr__(self, "tilts", tuple(float(v) for v in self.tilts))
+        if self.restore and not self.levels:
+            raise ConfigError("probe.restore = true with probe.levels = []: restoring "
+                              "gravity needs a gravity reduction first (give a level)")
         _check_fields(self, "probe")
 
 
@@ -464,6 +483,7 @@ class SimConfig:
         """Plain nested dict of all settings (JSON-serialisable)."""
         out = dataclasses.asdict(self)
         out["probe"]["levels"] = list(out["probe"]["levels"])
+        out["probe"]["tilts"] = list(out["probe"]["tilts"])
         if out["physics"]["walls"] is not None:
             out["physics"]["walls"] = list(out["physics"]["walls"])
         return out

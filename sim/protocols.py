@@ -639,33 +639,73 @@ def relax_file(cfg: SimConfig, input_path, out):
     return sim
 
 
-def probe_file(cfg: SimConfig, input_path, level, out, stage="reduced"):
-    """Lower gravity by ``level`` (Δ) from a relaxed state, relax again and save.
+def change_gravity(cfg: SimConfig, input_path, target, out, stage, what, **attrs):
+    """Change gravity of a state at rest to ``target(g)``, relax again and save.
 
-    With ``probe.mode = "ramp"`` gravity decreases linearly over
-    ``probe.ramp_time`` in 50 equal steps; with ``"step"`` at once.  The
-    pile then relaxes to the rest criterion of the increment: :func:`relax`
-    with the change of weight, ``Δ M g``, as the load.
+    With ``probe.mode = "ramp"`` gravity goes linearly to `target` over
+    ``probe.ramp_time`` in 50 equal steps; with ``"step"`` at once.  The pile
+    then relaxes to the rest criterion of the increment: :func:`relax` with
+    the change of weight, ``M |Δg|``, as the load.
+
+    Parameters
+    ----------
+    cfg : SimConfig
+    input_path : path
+        A state at rest (``relaxed``, or ``reduced`` for the restoring probe).
+    target : callable
+        The new gravity vector (m/s²) from the state's gravity vector ``g``.
+    out : path
+        The probe's state file (written atomically).
+    stage : str
+        Its stage name.
+    what : str
+        Name of the probe in log lines.
+    **attrs
+        Further global attributes of the state file.
     """
-    if not 0.0 < level < 1.0:
-        raise ValueError(f"level = {level!r}: the gravity reduction must be in (0, 1)")
     sim, ds = load_simulation(input_path, cfg.model)
-    gx0, gy0 = sim.gravity
+    g_start = np.array(sim.gravity, float)
+    g_end = np.array(target(g_start), float)
     t = _time.monotonic()
     try:
         sim.drag = cfg.relax.drag
         if cfg.probe.mode == "ramp":
             for s in range(1, 51):
-                f = 1.0 - level * s / 50.0
-                sim.set_gravity(f * gx0, f * gy0)
+                sim.set_gravity(*(g_start + (g_end - g_start) * s / 50.0))
                 sim.run(duration=cfg.probe.ramp_time / 50.0)
-        sim.set_gravity((1.0 - level) * gx0, (1.0 - level) * gy0)
-        weight0 = float(np.sum(sim.shapes.mass[:sim.n])) * float(np.hypot(gx0, gy0))
-        relax(sim, cfg, f"probe {level:g}", load=level * weight0)
+        sim.set_gravity(*g_end)
+        mass = float(np.sum(sim.shapes.mass[:sim.n]))
+        relax(sim, cfg, what, load=mass * float(np.hypot(*(g_end - g_start))))
     except BlowUpError as exc:
         _keep_last_good(sim, out, cfg, exc)
         raise
-    save_state(sim, out, cfg.to_dict(), stage=stage, gravity_reduction=level,
-               protocol=ds.attrs.get("protocol", ""), seed=int(ds.attrs.get("seed", -1)))
-    _summary(sim, f"probe {level:g}", _time.monotonic() - t)
+    save_state(sim, out, cfg.to_dict(), stage=stage, protocol=ds.attrs.get("protocol", ""),
+               seed=int(ds.attrs.get("seed", -1)), **attrs)
+    _summary(sim, what, _time.monotonic() - t)
     return sim
+
+
+def probe_file(cfg: SimConfig, input_path, level, out, stage="reduced"):
+    """Lower gravity by ``level`` (Δ) from a relaxed state to (1 − Δ) g and relax
+    again (:func:`change_gravity`); the stage records ``gravity_reduction``."""
+    if not 0.0 < level < 1.0:
+        raise ValueError(f"level = {level!r}: the gravity reduction must be in (0, 1)")
+    return change_gravity(cfg, input_path, lambda g: (1.0 - level) * g, out, stage,
+                          f"probe {level:g}", gravity_reduction=level)
+
+
+def tilt_file(cfg: SimConfig, input_path, tilt, out, stage):
+    """Add a horizontal component ``tilt · |g|`` to the gravity of a relaxed state
+    and relax again (:func:`change_gravity`); the stage records ``gravity_tilt``."""
+    if not (0.0 < abs(tilt) < 0.5):
+        raise ValueError(f"tilt = {tilt!r}: the tilt of gravity must be in (-0.5, 0.5), not 0")
+    return change_gravity(cfg, input_path, lambda g: g + (tilt * float(np.hypot(*g)), 0.0), out,
+                          stage, f"tilt {tilt:+g}", gravity_tilt=tilt)
+
+
+def restore_file(cfg: SimConfig, input_path, out, stage="restored"):
+    """Restore full gravity ``(0, −g0)`` (:data:`GRAVITY`) from a reduced state and
+    relax again (:func:`change_gravity`); the part of the strain increment
+    that comes back is the elastic part."""
+    return change_gravity(cfg, input_path, lambda g: (0.0, -GRAVITY), out, stage, "restore",
+                          gravity_reduction=0.0)

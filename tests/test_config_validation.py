@@ -19,9 +19,11 @@ from workflow.validation import (ANALYSIS_SCHEMA, CONFIG_SCHEMA,  # noqa: E402
                                  ConfigurationError, validate_config)
 
 def valid_config():
-    """The smoke study with every default filled in, and side walls."""
+    """The smoke study with every default filled in, side walls and a tilted probe
+    (so that every list of numbers has an item to spoil)."""
     config = yaml.safe_load((REPO / "config" / "smoke.yaml").read_text())
     config["physics"] = {"walls": [-0.05, 0.05]}
+    config["probe"] = {"tilts": [0.05]}
     validate_config(config)
     return config
 
@@ -92,7 +94,7 @@ def bad_settings(draw):
 def test_every_numeric_key_is_covered():
     names = {".".join(map(str, path)) for path, _ in KEYS}
     for key in ("model.youngs_modulus", "pour.n_particles", "relax.max_time",
-                "probe.levels.0", "physics.walls.0", "protocols.wedge.seeds.0",
+                "probe.levels.0", "probe.tilts.0", "physics.walls.0", "protocols.wedge.seeds.0",
                 "analysis.strain.min_contacts", "analysis.convergence.points.0.0",
                 "numerics.collisions.cases.0.damping"):
         assert key in names, key
@@ -117,6 +119,7 @@ def test_a_bad_number_anywhere_is_refused_naming_its_key(case):
     (("relax", "max_time"), math.nan, "relax.max_time = nan: must be finite"),
     (("pour", "rate"), math.inf, "pour.rate = inf: must be finite, a number > 0"),
     (("probe", "levels"), [0.1, math.nan], "probe.levels[1] = nan"),
+    (("probe", "tilts"), [0.05, 0.6], "probe.tilts"),
     # integer-valued floats: what the simulator and the analysis refuse, the validator refuses
     (("pour", "n_particles"), 3500.0, "pour.n_particles = 3500.0: must be an integer (write 3500)"),
     (("analysis", "strain", "min_contacts"), 20.0, "analysis.strain.min_contacts = 20.0"),

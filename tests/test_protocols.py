@@ -181,6 +181,43 @@ def test_probe_increment_balances_as_well_as_the_relaxed_pile(tmp_path):
     assert abs(rep["support_reaction_rel_error"]) <= u * (1.0 + level) / level
 
 
+def test_tilted_and_restored_gravity_probes_balance_their_load(tmp_path):
+    """Tilting gravity of a relaxed pile by delta adds a sideways body force
+    M delta g that the support must take: at rest its horizontal reaction is
+    -M delta g and its vertical one the weight, each within u M delta g (the
+    probe's rest criterion on the change of load, u = relax.unbalanced_force),
+    for either sign of delta. Restoring full gravity after the reduction gives
+    (0, -g0) exactly and the weight back on the support within u Delta W."""
+    cfg = SimConfig.from_dict({"pour": {"n_particles": 40, "rate": 200.0,
+                                        "progress_interval": 1e9},
+                               "model": {"integrator": "verlet"}})
+    protocols.pour(cfg, "wedge", 2, tmp_path / "poured.nc")
+    protocols.relax_file(cfg, tmp_path / "poured.nc", tmp_path / "relaxed.nc")
+    a = load_state(str(tmp_path / "relaxed.nc"))
+    weight = float(a.mass.sum()) * a.gravity
+    u = cfg.relax.unbalanced_force
+    for delta, stage in ((0.05, "tiltp05"), (-0.05, "tiltm05")):
+        protocols.tilt_file(cfg, tmp_path / "relaxed.nc", delta, tmp_path / f"{stage}.nc", stage)
+        with xr.open_dataset(tmp_path / f"{stage}.nc") as ds:
+            assert ds.attrs["stage"] == stage and ds.attrs["gravity_tilt"] == delta
+            assert ds.attrs["gravity_x"] == pytest.approx(delta * a.gravity, rel=1e-12)
+            assert ds.attrs["gravity_y"] == pytest.approx(-a.gravity, rel=1e-12)
+            support = ds["contact_j"].values == -1
+            rx, ry = ds["force_x"].values[support].sum(), ds["force_y"].values[support].sum()
+        assert abs(rx + delta * weight) <= u * abs(delta) * weight
+        assert abs(ry - weight) <= u * abs(delta) * weight + u * weight
+    level = 0.1
+    protocols.probe_file(cfg, tmp_path / "relaxed.nc", level, tmp_path / "reduced.nc")
+    protocols.restore_file(cfg, tmp_path / "reduced.nc", tmp_path / "restored.nc")
+    with xr.open_dataset(tmp_path / "restored.nc") as ds:
+        assert ds.attrs["stage"] == "restored"
+        assert (ds.attrs["gravity_x"], ds.attrs["gravity_y"]) == (0.0, -protocols.GRAVITY)
+        support = ds["contact_j"].values == -1
+        assert abs(ds["force_y"].values[support].sum() - weight) <= u * level * weight + u * weight
+    with pytest.raises(ValueError, match="tilt = 0.0"):
+        protocols.tilt_file(cfg, tmp_path / "relaxed.nc", 0.0, tmp_path / "x.nc", "tiltp00")
+
+
 @pytest.mark.parametrize("protocol", ["wedge", "layered"])
 def test_release_points_stay_inside_side_walls(protocol):
     """The line source is wider than a narrow box: its particles must still be

@@ -152,6 +152,8 @@ def test_each_probe_level_is_a_stage(workdir):
 @pytest.mark.parametrize("name, override, message", [
     ("corners", {"particles": {"corners_min": 8, "corners_max": 6}}, "corners_min"),
     ("levels", {"probe": {"levels": [0.1, 0.05, 0.051]}}, "percent resolution"),
+    ("tilts", {"probe": {"tilts": [0.05, 0.0501]}}, "tilts must differ at percent resolution"),
+    ("restore", {"probe": {"levels": [], "restore": True}}, "probe.restore = true with probe.levels = []"),
     ("threads", {"threads": 0}, "threads"),
     # workflow/validation.py runs before any job (and before resource functions)
     ("nan", {"model": {"youngs_modulus": float("nan")}}, "model.youngs_modulus = nan"),
@@ -214,6 +216,24 @@ def test_stress_only_scene_runs_no_probe_no_fit_no_figure(workdir):
         "all": 1}
     assert "--reduced" not in proc.output and "reduced.nc" not in proc.output
     assert "--quantities  --params" in proc.output   # the stress only
+
+
+def test_the_elastic_probes_scene_tilts_and_restores_every_pile(workdir):
+    """config/scenes/elastic_probes.yaml: per pile the reduction, gravity tilted
+    by +0.05 and -0.05 g0 from the relaxed state, and full gravity restored
+    from the reduced one; the run-time table counts all four probes."""
+    proc = snakemake(workdir, "-n", "-p", "--cores", "2", *scene_args("elastic_probes"))
+    assert proc.returncode == 0, proc.output
+    n = len(smoke_piles())
+    assert job_counts(proc.output)["probe"] == 4 * n
+    for protocol, seed in smoke_piles():
+        folder = f"results/piles/{protocol}/seed{seed}"
+        for start, option, stage in (("relaxed", "--level 0.1", "reduced"),
+                                     ("relaxed", "--tilt 0.05", "tiltp05"),
+                                     ("relaxed", "--tilt -0.05", "tiltm05"),
+                                     ("reduced", "--restore", "restored")):
+            assert f"--input {folder}/{start}.nc {option} --out {folder}/{stage}.nc" in proc.output, \
+                (protocol, seed, stage)
 
 
 def test_a_scene_without_figures_draws_nothing(workdir):
@@ -379,7 +399,9 @@ def test_asking_for_fewer_outputs_reruns_no_simulation(ran):
     root, _ = ran
     config = with_overrides(root, "states_only", {"outputs": ["states", "figures"]})
     proc = snakemake(root, "-n", "--cores", "2", *config)
-    assert proc.returncode == 0 and job_counts(proc.output) == {}, proc.output
+    # the run-time table (part of figures) is all that is missing: not a simulation
+    assert proc.returncode == 0 and job_counts(proc.output) == {"run_times_table": 1, "all": 1}, \
+        proc.output
 
 
 def test_editing_simulator_code_reruns_the_piles(ran):

@@ -73,9 +73,10 @@ COMPILED_FLAG = "results/.numba/compiled.ok"
 
 SIM_THREADS = int(config["threads"])
 
-# Stage names: the gravity probes, and every stage of a pile.
-STAGE_PATTERN = r"reduced|reduced\d\d"
-PILE_STAGE_PATTERN = r"poured|relaxed|reduced|reduced\d\d"
+# Stage names: the gravity probes (reductions, tilts, the restoring probe),
+# and every stage of a pile.
+STAGE_PATTERN = r"reduced|reduced\d\d|tilt[pm]\d\d|restored"
+PILE_STAGE_PATTERN = rf"poured|relaxed|{STAGE_PATTERN}"
 
 
 def pile(protocol, seed, stage):
@@ -105,6 +106,36 @@ def stage_for_level(level):
 def probe_stages():
     """Stage names of all configured gravity probes, in config order."""
     return [stage_for_level(level) for level in config["probe"]["levels"]]
+
+
+def tilt_stages():
+    """Stage names of the tilted-gravity probes (config probe.tilts): tiltpNN
+    and tiltmNN for +delta and -delta, NN = round(100 delta)."""
+    return [f"tilt{sign}{round(100 * float(t)):02d}" for t in config["probe"]["tilts"]
+            for sign in "pm"]
+
+
+def extra_probe_stages():
+    """The probes beyond the gravity reductions: the tilts and, with
+    probe.restore, the stage `restored` (full gravity after `reduced`)."""
+    return tilt_stages() + (["restored"] if config["probe"]["restore"] else [])
+
+
+def probe_input_stage(stage):
+    """The stage a probe starts from: `reduced` for `restored`, else `relaxed`."""
+    return "reduced" if stage == "restored" else "relaxed"
+
+
+def probe_change(stage):
+    """The simulator's options of the probe `stage` (python -m sim probe):
+    --level Delta, --tilt +-delta, or --restore."""
+    if stage == "restored":
+        return ["--restore"]
+    for t in config["probe"]["tilts"]:
+        for sign, factor in (("p", 1.0), ("m", -1.0)):
+            if stage == f"tilt{sign}{round(100 * float(t)):02d}":
+                return ["--tilt", repr(factor * float(t))]
+    return ["--level", repr(level_for_stage(stage))]
 
 
 def level_for_stage(stage):
@@ -156,7 +187,7 @@ def sim_bookkeeping():
 def pile_targets(stages=None):
     """All particle-state files of the configured piles."""
     if stages is None:
-        stages = ["poured", "relaxed"] + probe_stages()
+        stages = ["poured", "relaxed"] + probe_stages() + extra_probe_stages()
     return [
         pile(protocol, seed, stage)
         for protocol in PROTOCOLS
@@ -172,6 +203,20 @@ def pile_figure(protocol, seed, stage):
 
 # The table of the simulation jobs' run times (rule run_times_table, in the report).
 RUN_TIMES_TABLE = "results/run_times.html"
+
+
+def pile_benchmarks():
+    """Benchmark files of every simulation job of the scene's piles (pour,
+    relax, each probe)."""
+    return [
+        path
+        for protocol in PROTOCOLS
+        for seed in seeds(protocol)
+        for path in [f"benchmarks/pour/{protocol}/seed{seed}.tsv",
+                     f"benchmarks/relax/{protocol}/seed{seed}.tsv"]
+        + [f"benchmarks/probe/{protocol}/seed{seed}_{stage}.tsv"
+           for stage in probe_stages() + extra_probe_stages()]
+    ]
 
 
 def pile_frames(protocol, seed):
@@ -214,6 +259,17 @@ def _check_config():
         problems.append(
             f"probe.levels {config['probe']['levels']} give repeated stage names "
             f"{stages}: levels must differ at percent resolution"
+        )
+    tilts = tilt_stages()
+    if len(set(tilts)) != len(tilts):
+        problems.append(
+            f"probe.tilts {config['probe']['tilts']} give repeated stage names {tilts}: "
+            "tilts must differ at percent resolution"
+        )
+    if config["probe"]["restore"] and not stages:
+        problems.append(
+            "probe.restore = true with probe.levels = []: restoring gravity needs a "
+            "gravity reduction first (give a level)"
         )
     bad = [s for s in stages if not re.fullmatch(STAGE_PATTERN, s)]
     if bad:

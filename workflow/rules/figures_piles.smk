@@ -89,19 +89,6 @@ rule film_pile:
         )
 
 
-def pile_benchmarks():
-    """Benchmark files of every simulation job of the scene's piles (pour,
-    relax, each probe)."""
-    return [
-        path
-        for protocol in PROTOCOLS
-        for seed in seeds(protocol)
-        for path in [f"benchmarks/pour/{protocol}/seed{seed}.tsv",
-                     f"benchmarks/relax/{protocol}/seed{seed}.tsv"]
-        + [f"benchmarks/probe/{protocol}/seed{seed}_{stage}.tsv" for stage in probe_stages()]
-    ]
-
-
 rule run_times_table:
     # Wall and CPU time and peak memory of every simulation job, from the
     # benchmark files Snakemake wrote for them, as a table in the report.

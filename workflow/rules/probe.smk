@@ -1,11 +1,14 @@
 # Gravity probes: lower gravity of a relaxed pile to (1 - Delta) g0 and let it
 # come to rest again. One stage per level in config probe.levels: the first is
-# `reduced` (CONTRACT.md), the others reducedNN (NN = round(100 Delta)).
+# `reduced` (CONTRACT.md), the others reducedNN (NN = round(100 Delta)). With
+# probe.tilts, gravity of the relaxed pile also gets a horizontal component
+# +-delta g0 (stages tiltpNN, tiltmNN); with probe.restore, full gravity comes
+# back after `reduced` (stage restored).
 
 
 rule probe:
     input:
-        state=pile("{protocol}", "{seed}", "relaxed"),
+        state=lambda wc: pile(wc.protocol, wc.seed, probe_input_stage(wc.stage)),
         code=SIM_CODE,
         compiled=COMPILED_FLAG,
     output:
@@ -15,7 +18,7 @@ rule probe:
     params:
         sim=sim_params("model", "pour", "relax", "probe"),
         bookkeeping=sim_bookkeeping(),
-        level=lambda wildcards: level_for_stage(wildcards.stage),
+        change=lambda wildcards: probe_change(wildcards.stage),
     log:
         "logs/probe/{protocol}/seed{seed}_{stage}.log",
     benchmark:
@@ -29,6 +32,6 @@ rule probe:
     shell:
         sim_shell(
             "probe --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
-            " --input {input.state:q} --level {params.level:q}"
+            " --input {input.state:q} {params.change:q}"
             " --out {output:q} > {log:q} 2>&1"
         )
