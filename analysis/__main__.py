@@ -114,6 +114,37 @@ def cmd_fields(args, params) -> None:
          f"{time.perf_counter() - t0:.2f} s -> {args.out}")
 
 
+def cmd_probes(args, params) -> None:
+    from .netcdf import write_dataset
+    from .probes import probe_increments
+    from .states import load_state
+
+    t0 = time.perf_counter()
+    relaxed = load_state(args.relaxed)
+    probes = {stage: load_state(path) for stage, path in _labelled(args.probes).items()}
+    ds = probe_increments(relaxed, probes, params)
+    write_dataset(ds, args.out, title=f"Probe increments of pile {os.path.basename(args.relaxed)} "
+                  f"({ds.attrs.get('protocol', '')}, seed {ds.attrs.get('seed', '')})", params=params)
+    _log(f"probes: {', '.join(probes)} of {relaxed.n_particles} particles, {time.perf_counter() - t0:.2f} s "
+         f"-> {args.out}")
+
+
+def cmd_general_fit(args, params) -> None:
+    from .netcdf import write_dataset
+    from .probes import general_fit_dataset
+
+    piles = [_read(p) for p in args.probes]
+    for ds, p in zip(piles, args.probes):
+        _require(ds, p, ("stress_increment", "strain_increment", "probe"))
+    ensemble = _read(args.ensemble) if args.ensemble else None
+    ds = general_fit_dataset(piles, params, ensemble)
+    write_dataset(ds, args.out, title="General 2D elastic fit of the probe increments, and reversibility",
+                  params=params)
+    ok = int((ds["general_flag"].sel(points=5).values == 0).sum())
+    _log(f"general-fit: {len(piles)} piles, probes {ds.attrs['loading_probes']}; m = 5 identified and positive definite at {ok} RVEs "
+         f"-> {args.out}")
+
+
 def cmd_ensemble(args, params) -> None:
     from .ensemble import ensemble_fields
     from .netcdf import write_dataset
@@ -213,6 +244,10 @@ def cmd_figure(args, params) -> None:
         for lab, ds in data.items():
             _require(ds, inputs[lab], ("normal_force_density", "shear_force_density"))
         figures.fig_base_pressure(data, args.out, dpi)
+    elif name == "general":
+        for lab, ds in data.items():
+            _require(ds, inputs[lab], ("axis_deg", "reversibility", "explained_general"))
+        figures.fig_general(data, f["heights"], args.out, dpi)
     _log(f"figure {name} -> {', '.join(args.out)}")
 
 
@@ -244,6 +279,16 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--checks", help="JSON file for the balance-law checks")
     sp = add("ensemble", "average per-pile fields over seeds (fields.nc with _sem)", cmd_ensemble)
     sp.add_argument("--fields", nargs="+", required=True, help="per-pile fields files")
+    sp.add_argument("--out", required=True)
+    sp = add("probes", "stress and strain increments of every probe stage of one pile (probe dimension)",
+             cmd_probes)
+    sp.add_argument("--relaxed", required=True)
+    sp.add_argument("--probes", nargs="+", required=True, help="probe states as stage=path")
+    sp.add_argument("--out", required=True)
+    sp = add("general-fit", "general 2D elastic fit of the probe increments over piles, and reversibility",
+             cmd_general_fit)
+    sp.add_argument("--probes", nargs="+", required=True, help="per-pile probe increment files")
+    sp.add_argument("--ensemble", help="the protocol's ensemble fields.nc (fabric and stress axes copied in)")
     sp.add_argument("--out", required=True)
     sp = add("moduli", "isotropic and cubic elastic fits (moduli.nc)", cmd_moduli)
     sp.add_argument("--ensemble", required=True, help="ensemble fields.nc")
@@ -280,7 +325,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", required=True, help="the table (.html)")
     sp = add("figure", "draw one figure (PNG/PDF by extension)", cmd_figure)
     sp.add_argument("name", choices=["convergence", "vertical-strain", "fabric", "moduli", "invariants",
-                                     "base-pressure"])
+                                     "base-pressure", "general"])
     sp.add_argument("--inputs", nargs="+", required=True,
                     help="input netCDF files, optionally as label=path (label = protocol; default: folder name)")
     sp.add_argument("--out", nargs="+", required=True, help="output files, e.g. fig.png fig.pdf")

@@ -230,6 +230,46 @@ def fig_base_pressure(bps: dict[str, xr.Dataset], outputs: list[str], dpi: int =
     save(fig, outputs, dpi)
 
 
+def fig_general(generals: dict[str, xr.Dataset], heights: list[float], outputs: list[str],
+                dpi: int = 150) -> None:
+    """The general elastic fit (#14), one row per protocol: (a) reversibility of
+    the gravity reduction over the pile; (b) stiffness axis (m = 5) against the
+    fabric and stress axes in the two lowest layers; (c) fractions of the stress
+    increments explained by the general, cubic and isotropic laws (m = 5)."""
+    fig, axes = plt.subplots(len(generals), 3, figsize=(15, 4 * len(generals)), layout="constrained",
+                             squeeze=False)
+    for row, (protocol, ds) in zip(axes, generals.items()):
+        x, y = ds["x"].values, ds["y"].values
+        mesh = row[0].pcolormesh(x, y, ds["reversibility"].values, vmin=0.0, vmax=1.0, cmap="viridis",
+                                 shading="nearest")
+        fig.colorbar(mesh, ax=row[0], label="reversibility (1)")
+        row[0].set_aspect("equal")
+        row[0].set_xlabel("x (m)")
+        row[0].set_ylabel("y (m)")
+        row[0].set_title(f"a  {protocol}: 1 - |u(restored)| / |u(reduced)|", loc="left", fontsize=9)
+        five = ds.sel(points=5)
+        for (k, h), ls in zip(_rows(ds, heights)[:2], ("-", "--")):
+            for name, lab in (("axis_deg", "stiffest axis"), ("fabric_orientation", "fabric"),
+                              ("stress_orientation", "stress")):
+                if name in five:
+                    row[1].plot(x, five[name].isel(y=k).values, ls, label=f"{lab}, y = {h * 100:.1f} cm")
+        row[1].set_ylabel("axis from vertical, counter-clockwise (degree)")
+        row[1].set_xlabel("x (m)")
+        row[1].set_title("b  stiffness, fabric and stress axes", loc="left", fontsize=9)
+        row[1].legend(fontsize=7)
+        k, h = _rows(ds, heights)[0]
+        for name, lab in (("explained_general", "general"), ("explained_cubic", "cubic"),
+                          ("explained_isotropic", "isotropic")):
+            _band(row[2], x, five[name].isel(y=k).values, five[f"{name}_sem"].isel(y=k).values, label=lab)
+        row[2].set_ylim(-0.1, 1.05)
+        row[2].set_xlabel("x (m)")
+        row[2].set_ylabel("fraction of the stress increments explained")
+        row[2].set_title(f"c  y = {h * 100:.1f} cm; probes {ds.attrs.get('loading_probes', '')}; "
+                         f"{ds.attrs.get('n_seeds', '?')} piles", loc="left", fontsize=9)
+        row[2].legend(fontsize=7)
+    save(fig, outputs, dpi)
+
+
 FIGURES: dict[str, Any] = {
     "convergence": fig_convergence,
     "vertical-strain": fig_vertical_strain,
@@ -237,4 +277,5 @@ FIGURES: dict[str, Any] = {
     "moduli": fig_moduli,
     "invariants": fig_invariants,
     "base-pressure": fig_base_pressure,
+    "general": fig_general,
 }

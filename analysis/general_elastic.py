@@ -52,8 +52,9 @@ MIN_SAMPLES = 2
 
 GENERAL_NOT_IDENTIFIED = 1
 GENERAL_INSUFFICIENT_SAMPLES = 2
-GENERAL_FLAGS = {"flag_masks": np.array([1, 2], dtype=np.int32),
-                 "flag_meanings": "not_identified insufficient_samples"}
+GENERAL_NOT_POSITIVE = 4
+GENERAL_FLAGS = {"flag_masks": np.array([1, 2, 4], dtype=np.int32),
+                 "flag_meanings": "not_identified insufficient_samples not_positive_definite"}
 
 #: Directions (degrees from the vertical) at which E(α) is evaluated for the axes.
 ANGLES_DEG = np.arange(-89.5, 90.0, 0.5)
@@ -103,7 +104,9 @@ def fit_general_stiffness(sigma: np.ndarray, u: np.ndarray, min_samples: int = M
     dict
         ``stiffness`` ``(..., 3, 3)`` N/m, ``condition`` (largest over
         smallest singular value of the design matrix; inf when singular),
-        ``n_samples``, ``flag`` (:data:`GENERAL_FLAGS`).
+        ``n_samples``, ``flag`` (:data:`GENERAL_FLAGS`; a fit that is not
+        positive definite keeps its values but is flagged
+        ``not_positive_definite``).
     """
     s_m, u_m = mandel(sigma), mandel(u)
     valid = np.all(np.isfinite(s_m), axis=-1) & np.all(np.isfinite(u_m), axis=-1)
@@ -126,7 +129,17 @@ def fit_general_stiffness(sigma: np.ndarray, u: np.ndarray, min_samples: int = M
     flag = (np.where(~(condition <= max_condition), GENERAL_NOT_IDENTIFIED, 0)
             | np.where(n < min_samples, GENERAL_INSUFFICIENT_SAMPLES, 0)).astype(np.int32)
     stiffness = np.where((flag == 0)[..., None, None], _matrix(c), np.nan)
+    flag |= np.where((flag == 0) & ~positive_definite(stiffness), GENERAL_NOT_POSITIVE, 0).astype(np.int32)
     return {"stiffness": stiffness, "condition": condition, "n_samples": n, "flag": flag}
+
+
+def positive_definite(stiffness: np.ndarray) -> np.ndarray:
+    """Whether each symmetric ``(..., 3, 3)`` stiffness has only positive
+    eigenvalues (a stable elastic law: every strain costs energy); False where NaN."""
+    stiffness = np.asarray(stiffness, float)
+    finite = np.all(np.isfinite(stiffness), axis=(-2, -1))
+    eig = np.linalg.eigvalsh(np.where(finite[..., None, None], stiffness, np.eye(3)))
+    return finite & np.all(eig > 0, axis=-1)
 
 
 def isotropic_stiffness(K: np.ndarray, G: np.ndarray) -> np.ndarray:
@@ -186,10 +199,10 @@ def stiffness_axes(stiffness: np.ndarray, angles_deg: np.ndarray = ANGLES_DEG) -
         ``axis_deg`` (direction of the largest E, degrees from the vertical,
         counter-clockwise, at the resolution of ``angles_deg``; NaN when the
         ratio is 1 to 1e-9), ``E_max``, ``E_min`` (N/m), ``anisotropy``
-        (``E_max / E_min``).
+        (``E_max / E_min``); all NaN where ``C`` is not positive definite.
     """
     e = directional_modulus(stiffness, angles_deg)
-    ok = np.all(np.isfinite(e), axis=-1)
+    ok = np.all(np.isfinite(e), axis=-1) & positive_definite(stiffness)
     filled = np.where(ok[..., None], e, 1.0)
     e_max, e_min = filled.max(axis=-1), filled.min(axis=-1)
     axis = np.asarray(angles_deg, float)[np.argmax(filled, axis=-1)]

@@ -153,3 +153,96 @@ def test_the_stiffness_axis_turns_with_the_material():
         assert axes["axis_deg"] == pytest.approx(expected, abs=0.5), beta
         unrotated = ge.stiffness_axes(c)
         assert axes["anisotropy"] == pytest.approx(unrotated["anisotropy"], rel=1e-3)
+
+
+def probe_file(stress, strain, probes):
+    """A per-pile probe file as python -m analysis probes writes it."""
+    import xarray as xr
+
+    n_probe, ny, nx = stress.shape[:3]
+    dims = ("probe", "y", "x", "i", "j")
+    return xr.Dataset({"stress_increment": (dims, stress), "strain_increment": (dims, strain)},
+                      coords={"probe": probes, "y": 0.01 * np.arange(ny), "x": 0.01 * np.arange(nx),
+                              "i": ["x", "y"], "j": ["x", "y"]}, attrs={"protocol": "wedge"})
+
+
+def test_the_ensemble_fit_recovers_the_stiffness_with_its_scatter_and_the_reversibility():
+    """Five piles of one material C, each probed in three load shapes with
+    strains that differ from pile to pile, and restored to 30 % of the
+    reduction's strain: the fit of the ensemble means is C, identified, with
+    standard errors zero to rounding (every pile's fit is C too); the general
+    law explains everything, the isotropic one less; reversibility 0.7."""
+    from analysis.probes import general_fit_dataset
+
+    c = random_stiffness()
+    probes = ["reduced", "tiltp05", "tiltm05", "restored"]
+    piles = []
+    for _ in range(5):
+        shapes = sym(RNG.normal(scale=1e-4, size=(3, 1, 1, 2, 2)))
+        strain = shapes * (1 + 0.05 * RNG.normal(size=(3, 3, 4, 1, 1)))       # (probe, y, x, 2, 2)
+        restored = 0.3 * strain[:1]
+        strain = np.concatenate([strain, restored])
+        stress = stress_of(c, strain)
+        stress[3] = 0.0                                                        # unloaded again
+        piles.append(probe_file(stress, strain, probes))
+    ds = general_fit_dataset(piles, {"moduli": {"min_points": 3}})
+    assert ds.attrs["loading_probes"] == "reduced tiltp05 tiltm05" and ds.attrs["n_seeds"] == 5
+    for m in (1, 5):
+        fit = ds.sel(points=m)
+        inner = fit.isel(y=1, x=slice(1, 3))
+        assert (inner["general_flag"] == 0).all()
+        np.testing.assert_allclose(inner["stiffness"].values, np.broadcast_to(c, (2, 3, 3)), rtol=1e-8)
+        assert float(np.nanmax(inner["stiffness_sem"].values)) <= 1e-8 * np.abs(c).max()
+        assert np.allclose(inner["explained_general"].values, 1.0, atol=1e-10)
+        assert (inner["explained_isotropic"].values < inner["explained_general"].values).all()
+    np.testing.assert_allclose(ds["reversibility"].values, 0.7, rtol=1e-12)
+    assert (ds["reversibility_count"].values == 5).all()
+
+
+def test_probe_increments_are_the_imposed_strains_of_each_probe():
+    """A jittered hexagon packing displaced affinely in two different ways (two
+    probes): python -m analysis probes gives each probe's imposed strain
+    (symmetric part) at every filled RVE, its reduced entry is the fields'
+    increment of that stage, and a probe that only scales the contact forces
+    by 1.2 has the stress increment 0.2 sigma."""
+    from synthetic_states import as_state, displaced, hex_lattice, make_state
+
+    from analysis.fields import compute_fields
+    from analysis.params import parse_params
+    from analysis.probes import probe_increments
+
+    x, y, c, nodes = hex_lattice(24, 24, 0.007, jitter=0.0015, seed=3)
+    base = make_state(x, y, nodes, c)
+    base["force_y"] = np.full(base["force_y"].shape, -0.01)       # some stress to change
+    r = np.column_stack([base["x"], base["y"]])
+    eps = {"reduced": np.array([[2.0e-4, -3.0e-4], [0.7e-4, -1.1e-4]]),
+           "tiltp05": np.array([[-1.0e-4, 0.5e-4], [0.9e-4, 3.0e-4]])}
+    probes = {k: as_state(displaced(base, r @ e)) for k, e in eps.items()}
+    probes["tiltm05"] = as_state(displaced(base, 0.0 * r, force_scale=1.2))
+    params = parse_params('{"grid": {"x_min": 0.06, "x_max": 0.1, "y_min": 0.06, "y_max": 0.1, '
+                          '"spacing": 0.02}, "rve": {"size": 0.05, "min_particles": 10}}')
+    relaxed = as_state(base)
+    ds = probe_increments(relaxed, probes, params)
+    assert list(ds["probe"].values) == ["reduced", "tiltp05", "tiltm05"]
+    for k, stage in enumerate(["reduced", "tiltp05"]):
+        u = ds["strain_increment"].values[k]
+        filled = np.isfinite(u[..., 0, 0])
+        assert filled.sum() >= 4
+        np.testing.assert_allclose(u[filled], np.broadcast_to(sym(eps[stage]), u[filled].shape),
+                                   atol=1e-12)
+    fields = compute_fields(relaxed, probes["reduced"], params, ("strain",))
+    np.testing.assert_array_equal(ds["stress_increment"].values[0], fields["stress_increment"].values)
+    np.testing.assert_array_equal(ds["strain_increment"].values[0], fields["strain_increment"].values)
+    filled = np.isfinite(fields["stress"].values[..., 0, 0])
+    np.testing.assert_allclose(ds["stress_increment"].values[2][filled], 0.2 * fields["stress"].values[filled],
+                               rtol=1e-12)
+
+
+def test_a_fit_that_is_not_positive_definite_is_flagged_and_has_no_axes():
+    c = np.diag([2.0e6, 1.0e6, -0.3e6])                  # a shear that releases energy
+    strains = sym(RNG.normal(scale=1e-4, size=(6, 2, 2)))
+    fit = ge.fit_general_stiffness(stress_of(c, strains), strains)
+    assert fit["flag"] == ge.GENERAL_NOT_POSITIVE
+    np.testing.assert_allclose(fit["stiffness"], c, rtol=1e-9, atol=1e-3)
+    axes = ge.stiffness_axes(fit["stiffness"])
+    assert all(np.isnan(axes[k]) for k in ("axis_deg", "anisotropy", "E_max", "E_min"))

@@ -352,3 +352,86 @@ rule analysis_figure_base_pressure:
             "-m analysis figure base-pressure --inputs {params.inputs:q} --params {params.cfg:q} "
             "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
         )
+
+
+# --- the extra probes (probe.tilts, probe.restore): general fit, reversibility
+
+
+rule analysis_probes:
+    # Stress and strain increments of every probe stage of one pile, from its relaxed state.
+    input:
+        relaxed=pile("{protocol}", "{seed}", "relaxed"),
+        probes=lambda wc: [pile(wc.protocol, wc.seed, st) for st in probe_stages() + extra_probe_stages()],
+        code=ANALYSIS_CODE,
+    output:
+        "results/fields/{protocol}/seed{seed}.probes.nc",
+    params:
+        cfg=ANALYSIS_PARAMS,
+        probes=lambda wc, input: [f"{st}={path}" for st, path in
+                                  zip(probe_stages() + extra_probe_stages(), input.probes)],
+    log:
+        "logs/analysis/probes/{protocol}_seed{seed}.log",
+    threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=30,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        py_shell(
+            "-m analysis probes --relaxed {input.relaxed:q} --probes {params.probes:q} "
+            "--params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
+        )
+
+
+rule analysis_general_fit:
+    # The general 2D elastic fit of all loading probes over the piles, and reversibility.
+    input:
+        probes=lambda wc: [f"results/fields/{wc.protocol}/seed{s}.probes.nc" for s in seeds(wc.protocol)],
+        ensemble="results/ensemble/{protocol}/fields.nc",
+        code=ANALYSIS_CODE,
+    output:
+        "results/ensemble/{protocol}/general_moduli.nc",
+    params:
+        cfg=ANALYSIS_PARAMS,
+    log:
+        "logs/analysis/general_fit/{protocol}.log",
+    localrule: True
+    threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        py_shell(
+            "-m analysis general-fit --probes {input.probes:q} --ensemble {input.ensemble:q} "
+            "--params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
+        )
+
+
+rule analysis_figure_general:
+    input:
+        data=expand("results/ensemble/{protocol}/general_moduli.nc", protocol=PROTOCOLS),
+        code=ANALYSIS_CODE,
+    output:
+        png=report("results/figures/general_fit.png", caption="../report/analysis/general_fit.rst",
+                   category="Analysis", subcategory="General fit"),
+        pdf="results/figures/general_fit.pdf",
+    params:
+        cfg=ANALYSIS_PARAMS,
+        inputs=lambda wc, input: _labelled(input.data, PROTOCOLS),
+    log:
+        "logs/analysis/figures/general_fit.log",
+    localrule: True
+    threads: 1
+    resources:
+        mem_mb=ANALYSIS_MEM_MB,
+        runtime=10,
+    conda:
+        "../envs/polypile.yaml"
+    shell:
+        py_shell(
+            "-m analysis figure general --inputs {params.inputs:q} --params {params.cfg:q} "
+            "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
+        )

@@ -83,6 +83,10 @@ def analysis_targets():
     if wants("figures"):
         targets += [f"results/figures/{stem}.{ext}" for stem, output in ANALYSIS_FIGURES.items()
                     if wants(output) for ext in ("png", "pdf")]
+    if wants("fits") and extra_probe_stages() and COMMITTED is None:
+        targets += [f"results/ensemble/{p}/general_moduli.nc" for p in PROTOCOLS]
+        if wants("figures"):
+            targets += [f"results/figures/general_fit.{ext}" for ext in ("png", "pdf")]
     return targets
 
 

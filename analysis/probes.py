@@ -1,0 +1,220 @@
+"""Increments of every probe of a pile, and from them the general elastic fit
+and the reversibility of the gravity reduction (#14).
+
+Per pile (``python -m analysis probes``): for each probe stage (``reduced``,
+``tiltpNN``, ``tiltmNN``, ``restored``, ...) the RVE stress increment and the
+Cambou strain increment from the relaxed pile, on the grid and RVEs of the
+fields (:func:`analysis.fields.rve_quantities`, membership on the relaxed
+positions), in one file with a dimension ``probe``.
+
+Over the piles of a protocol (``python -m analysis general-fit``):
+
+* the **general fit** (:mod:`analysis.general_elastic`) of the ensemble-mean
+  increments of the *loading* probes (every probe but ``restored``), with m = 1
+  (the RVE alone: one sample per probe) and m = 5 points (the RVE and its four
+  grid neighbours), its condition number, the stiffest axis and anisotropy
+  ratio; standard errors from the same fit done pile by pile
+  (``std/√n`` over the piles whose fit is identified);
+* the **fractions explained** by the general law and by the paper's isotropic
+  and cubic laws fitted to the same samples
+  (:func:`analysis.general_elastic.explained_fraction`);
+* the **reversibility** of the reduction: ``1 − |u(restored)| / |u(reduced)|``
+  (Frobenius norms of the strain increments from the relaxed pile), 1 where
+  the pile comes back to its relaxed shape (elastic), 0 where it keeps all
+  of the reduction's strain; per pile, then mean and standard error.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from . import general_elastic as ge
+from .elastic import fit_cubic_moduli, fit_isotropic_moduli, gather_points
+from .ensemble import nan_mean_sem
+from .errors import InputError
+from .fields import rve_quantities
+from .netcdf import tensor_coords, var
+from .rve import Grid
+from .states import State, check_same_particles
+
+#: The probe whose increment, compared with the reduction's, measures reversibility.
+RESTORED = "restored"
+POINTS = (1, 5)
+
+
+def probe_increments(relaxed: State, probes: dict[str, State], params: dict[str, Any]) -> xr.Dataset:
+    """Stress and strain increments ``(probe, y, x, i, j)`` of each probe state from ``relaxed``.
+
+    Parameters
+    ----------
+    relaxed : State
+    probes : dict
+        Stage name to its state (same particles as ``relaxed``).
+    params : dict
+        The analysis parameters (grid, rve, strain).
+    """
+    if not probes:
+        raise InputError("probes: no probe state given")
+    grid = Grid.from_params(params["grid"])
+    ny, nx = grid.shape
+    rp = params["rve"]
+    stress, strain = [], []
+    for stage, state in probes.items():
+        check_same_particles(relaxed, state)
+        q = rve_quantities(relaxed, state, grid.centres(), rp["shape"], rp["size"], params,
+                           quantities=("strain",))
+        stress.append(np.asarray(q["stress_increment"]).reshape(ny, nx, 2, 2))
+        strain.append(np.asarray(q["strain_increment"]).reshape(ny, nx, 2, 2))
+    coords = {
+        "probe": var("probe", np.array(list(probes), dtype=object), "probe stage (from the relaxed pile)", "1"),
+        "y": var("y", grid.y, "height of the RVE centre above the support", "m", axis="Y"),
+        "x": var("x", grid.x, "horizontal position of the RVE centre (0 at the pouring axis)", "m", axis="X"),
+        **tensor_coords(),
+    }
+    dims = ("probe", "y", "x", "i", "j")
+    ds = xr.Dataset({
+        "stress_increment": var(dims, np.array(stress), "RVE stress of the probe minus the relaxed one", "N/m"),
+        "strain_increment": var(dims, np.array(strain), "Cambou best-fit strain (symmetric part), relaxed -> probe",
+                                "1"),
+    }, coords=coords)
+    ds.attrs.update({"rve_shape": rp["shape"], "rve_size": rp["size"], "grid_spacing": params["grid"]["spacing"],
+                     "protocol": str(relaxed.attrs.get("protocol", "")),
+                     "seed": str(relaxed.attrs.get("seed", "")), "relaxed_file": relaxed.path})
+    return ds
+
+
+def _samples(stress: np.ndarray, strain: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Samples ``(ny, nx, n_probes * m, 2, 2)`` of probe fields ``(probe, ny, nx, 2, 2)``."""
+    sig = np.concatenate([gather_points(s, m) for s in stress], axis=2)
+    u = np.concatenate([gather_points(e, m) for e in strain], axis=2)
+    return sig, u
+
+
+def _fit(stress: np.ndarray, strain: np.ndarray, m: int, min_samples: int) -> dict[str, np.ndarray]:
+    """General fit, axes and explained fractions on one set of probe fields."""
+    sig, u = _samples(stress, strain, m)
+    fit = ge.fit_general_stiffness(sig, u, min_samples=min_samples)
+    axes = ge.stiffness_axes(fit["stiffness"])
+    K, G, _ = fit_isotropic_moduli(sig, u, min_points=min_samples)
+    l1, l2, l3, _ = fit_cubic_moduli(sig, u, min_points=min_samples)
+    return {**fit, **axes,
+            "explained_general": ge.explained_fraction(fit["stiffness"], sig, u),
+            "explained_isotropic": ge.explained_fraction(ge.isotropic_stiffness(K, G), sig, u),
+            "explained_cubic": ge.explained_fraction(ge.cubic_stiffness(l1, l2, l3), sig, u)}
+
+
+def reversibility(strain: np.ndarray, probes: list[str]) -> np.ndarray:
+    """``1 − |u(restored)| / |u(reduced)|`` per RVE from probe strains ``(..., probe, ny, nx, 2, 2)``.
+
+    NaN without both probes or where the reduction's strain is zero.
+    """
+    if RESTORED not in probes or "reduced" not in probes:
+        return np.full(strain.shape[-4:-2], np.nan)
+    back = np.linalg.norm(strain[..., probes.index(RESTORED), :, :, :, :], axis=(-2, -1))
+    there = np.linalg.norm(strain[..., probes.index("reduced"), :, :, :, :], axis=(-2, -1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = 1.0 - back / there
+    return np.where(np.isfinite(out), out, np.nan)
+
+
+SCALARS = ("condition", "axis_deg", "E_max", "E_min", "anisotropy", "explained_general",
+           "explained_isotropic", "explained_cubic")
+META = {
+    "stiffness": ("general symmetric stiffness in Mandel notation (xx, yy, sqrt2 xy), dsigma_M = C du_M", "N/m"),
+    "condition": ("condition number of the fit's design matrix (strains only); above max_condition: not "
+                  "identified", "1"),
+    "axis_deg": ("direction of the largest uniaxial Young's modulus, from the vertical, counter-clockwise", "degree"),
+    "E_max": ("largest uniaxial Young's modulus over directions", "N/m"),
+    "E_min": ("smallest uniaxial Young's modulus over directions", "N/m"),
+    "anisotropy": ("E_max / E_min", "1"),
+    "explained_general": ("fraction of the stress increments explained by the general law", "1"),
+    "explained_isotropic": ("fraction of the stress increments explained by the isotropic law (Eq. 21 fit)", "1"),
+    "explained_cubic": ("fraction of the stress increments explained by the cubic law (Eq. 16 fit)", "1"),
+    "reversibility": ("1 - |u(restored)| / |u(reduced)|: the part of the reduction's strain that comes back", "1"),
+}
+
+
+#: Orientations of the ensemble fields copied next to the stiffness axis.
+AXES_FROM_FIELDS = ("fabric_orientation", "stress_orientation")
+
+
+def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
+                        ensemble: xr.Dataset | None = None) -> xr.Dataset:
+    """The general fit of the ensemble-mean probe increments, with standard errors over piles.
+
+    Parameters
+    ----------
+    piles : list of xarray.Dataset
+        Per-pile files of :func:`probe_increments`, all with the same probes
+        and grid.
+    params : dict
+        The analysis parameters (``moduli.min_points`` as the least number
+        of valid samples at m = 5).
+    ensemble : xarray.Dataset, optional
+        The protocol's ensemble fields: their fabric and stress orientations
+        (:data:`AXES_FROM_FIELDS`) are copied in, to compare with the
+        stiffness axis.
+    """
+    probes = [str(p) for p in piles[0]["probe"].values]
+    for ds in piles[1:]:
+        if [str(p) for p in ds["probe"].values] != probes or ds.sizes != piles[0].sizes:
+            raise InputError("general-fit: the piles' probe files differ in probes or grid "
+                             f"({probes} against {[str(p) for p in ds['probe'].values]})")
+    loading = [k for k, p in enumerate(probes) if p != RESTORED]
+    stress = np.stack([ds["stress_increment"].values for ds in piles])        # (pile, probe, y, x, 2, 2)
+    strain = np.stack([ds["strain_increment"].values for ds in piles])
+    mean_stress, _, _ = nan_mean_sem(stress)
+    mean_strain, _, _ = nan_mean_sem(strain)
+    out: dict[str, list] = {name: [] for name in ("stiffness", "stiffness_sem", "flag", "n_samples",
+                                                  *SCALARS, *[f"{s}_sem" for s in SCALARS])}
+    for m in POINTS:
+        need = max(ge.MIN_SAMPLES, 1 if m == 1 else params["moduli"]["min_points"])
+        whole = _fit(mean_stress[loading], mean_strain[loading], m, need)
+        each = [_fit(stress[k][loading], strain[k][loading], m, need) for k in range(len(piles))]
+        out["stiffness"].append(whole["stiffness"])
+        out["stiffness_sem"].append(nan_mean_sem(np.stack([e["stiffness"] for e in each]))[1])
+        out["flag"].append(whole["flag"])
+        out["n_samples"].append(whole["n_samples"])
+        for s in SCALARS:
+            out[s].append(whole[s])
+            out[f"{s}_sem"].append(nan_mean_sem(np.stack([e[s] for e in each]))[1])
+    rev_each = np.stack([reversibility(strain[k], probes) for k in range(len(piles))])
+    rev_mean, rev_sem, rev_count = nan_mean_sem(rev_each)
+    ref = piles[0]
+    coords = {"points": var("points", np.array(POINTS), "RVE points per fit (1: the RVE, 5: and its 4 "
+                                                       "grid neighbours)", "1"),
+              "y": ref["y"].variable, "x": ref["x"].variable,
+              "mandel_i": var("mandel_i", np.array(["xx", "yy", "xy"], dtype=object), "Mandel component", "1"),
+              "mandel_j": var("mandel_j", np.array(["xx", "yy", "xy"], dtype=object), "Mandel component", "1")}
+    data = {
+        "stiffness": var(("points", "y", "x", "mandel_i", "mandel_j"), np.array(out["stiffness"]),
+                         *META["stiffness"]),
+        "stiffness_sem": var(("points", "y", "x", "mandel_i", "mandel_j"), np.array(out["stiffness_sem"]),
+                             "standard error of stiffness over pile-by-pile fits", "N/m"),
+        "general_flag": var(("points", "y", "x"), np.array(out["flag"]), "general fit flags", "1",
+                            **ge.GENERAL_FLAGS),
+        "n_samples": var(("points", "y", "x"), np.array(out["n_samples"]), "valid samples (probes x points)",
+                         "1"),
+        "reversibility": var(("y", "x"), rev_mean, *META["reversibility"]),
+        "reversibility_sem": var(("y", "x"), rev_sem, "standard error of reversibility over piles", "1"),
+        "reversibility_count": var(("y", "x"), rev_count, "piles with a reversibility at this RVE", "1"),
+    }
+    for s in SCALARS:
+        ln, units = META[s]
+        data[s] = var(("points", "y", "x"), np.array(out[s]), ln, units)
+        data[f"{s}_sem"] = var(("points", "y", "x"), np.array(out[f"{s}_sem"]),
+                               f"standard error of {s} over pile-by-pile fits", units)
+    ds = xr.Dataset(data, coords=coords)
+    if ensemble is not None:
+        for name in AXES_FROM_FIELDS:
+            if name in ensemble:
+                if ensemble[name].shape != rev_mean.shape:
+                    raise InputError(f"general-fit: the ensemble's {name} is on another grid")
+                ds[name] = ensemble[name].variable
+    ds.attrs.update({"probes": " ".join(probes), "loading_probes": " ".join(probes[k] for k in loading),
+                     "n_seeds": len(piles), "max_condition": ge.MAX_CONDITION,
+                     "protocol": ref.attrs.get("protocol", ""), "rve_size": ref.attrs.get("rve_size", "")})
+    return ds
