@@ -1,7 +1,7 @@
 """workflow/rules/analysis.smk and its schema, driven by a stand-in Snakefile.
 
-The stand-in defines what common.smk provides (PROTOCOLS, seeds, ANALYSIS_CODE,
-PY) and scene.smk for the full study (every output, a gravity probe), validates the analysis section against the schema, includes the rules
+The stand-in defines what common.smk provides (PROTOCOLS, seeds, probe_stages,
+extra_probe_stages, ANALYSIS_CODE, PY) and scene.smk for the full study (every output, a gravity probe), validates the analysis section against the schema, includes the rules
 and asks for analysis_targets(). The dry run is fast; the full run is marked slow.
 """
 
@@ -46,6 +46,10 @@ def _project(tmp_path, analysis_cfg=None):
             return True
         def has_probes():
             return True
+        def probe_stages():
+            return ["reduced"]
+        def extra_probe_stages():
+            return []
         def field_quantities():
             return ["fabric", "strain"]
         wildcard_constraints:

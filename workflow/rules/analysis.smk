@@ -4,6 +4,7 @@
 # Expects from workflow/rules/common.smk:
 #   PROTOCOLS      list of protocol names of the study
 #   seeds(p)       list of int seeds of protocol p
+#   probe_stages(), extra_probe_stages()  the gravity reductions, and the tilts and restore
 #   ANALYSIS_CODE  list of the analysis/*.py files (an input: code edits rerun the analysis)
 #   PY, py_shell   the python executable and the helper that prefixes it to a shell command
 #   and the global wildcard_constraints of protocol and seed
