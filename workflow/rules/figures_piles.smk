@@ -76,6 +76,9 @@ rule film_pile:
         "logs/film_pile/{protocol}_seed{seed}.log",
     benchmark:
         "benchmarks/film_pile/{protocol}_seed{seed}.tsv"
+    # Seconds per film (10-20 s at full size): on the submitting machine
+    # under a cluster executor, like the pictures.
+    localrule: True
     threads: 1
     resources:
         mem_mb=1500,
