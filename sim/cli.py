@@ -91,9 +91,10 @@ def _parser():
     p.add_argument("--seed", required=True, type=int)
     p.add_argument("--out", required=True, help="state file of the poured pile (.nc)")
     p.add_argument("--checkpoint", help="checkpoint file to resume from and write to")
-    p.add_argument("--frames", help="also write frames of the pour for a film, every "
-                   "pour.frame_interval simulated seconds, to this file (.nc; "
-                   "python -m analysis film); empty: no frames")
+    p.add_argument("--frames", nargs="?", const=None, metavar="FILE",
+                   help="also write frames of the pour for a film, every "
+                   "pour.frame_interval simulated seconds, to FILE (.nc; python -m analysis "
+                   "film); without FILE, or empty, no frames")
 
     p = sub.add_parser("relax", help="relax a pile to rest")
     p.add_argument("--params", help=params_help)

@@ -101,3 +101,21 @@ def test_bad_input_is_refused_before_drawing(poured, tmp_path):
 def test_a_frame_interval_that_is_not_positive_is_refused():
     with pytest.raises(ValueError, match="pour.frame_interval"):
         SimConfig.from_dict({"pour": {"frame_interval": 0.0}})
+
+
+def test_the_pour_command_takes_frames_without_a_file_as_none(tmp_path):
+    """The workflow passes --frames with an empty value when the scene wants no
+    film, and Snakemake drops an empty quoted field: the command line then ends
+    in a bare --frames, which pours without frames."""
+    import json
+    import subprocess
+    import sys
+
+    params = json.dumps({"pour": {"n_particles": 3, "rate": 300.0, "progress_interval": 1e9},
+                         "model": {"integrator": "verlet"}})
+    out = tmp_path / "poured.nc"
+    proc = subprocess.run([sys.executable, "-m", "sim", "pour", "--params", params, "--protocol", "wedge",
+                           "--seed", "1", "--out", str(out), "--frames"], capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["poured.nc"]

@@ -37,8 +37,9 @@ rule pour:
         sim=sim_params("model", "particles", "pour", "physics"),
         bookkeeping=sim_bookkeeping(),
         checkpoint=lambda wildcards: pour_checkpoint(wildcards.protocol, wildcards.seed),
-        # empty: no frames; Unrecorded, so that a scene without film (whose
-        # pour rule has no frames) re-pours nothing that a scene with film poured
+        # empty: no frames (an empty :q field vanishes, leaving --frames without
+        # a value, which the simulator reads as none); Unrecorded, so that a
+        # scene without film re-pours nothing that a scene with film poured
         frames=lambda wildcards, output: Unrecorded(output.frames if wants("film") else ""),
     log:
         "logs/pour/{protocol}/seed{seed}.log",
