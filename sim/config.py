@@ -369,28 +369,24 @@ class ProbeParams:
     ramp_time: float = _default("probe", "ramp_time")
 
     def __post_init__(self):
-        schema = setting_schema("probe", "levels")
-        if not isinstance(self.levels, (list, tuple)):
-            raise ConfigError(f"probe.levels = {self.levels!r}: must be a list of numbers "
-                              "in (0, 1) (empty: no gravity probe)")
-        for lev in self.levels:
-            _check_value("probe", "levels[]", lev, schema["items"])
-        if schema.get("uniqueItems") and len(set(self.levels)) != len(self.levels):
-            raise ConfigError(f"probe.levels = {list(self.levels)!r}: must be unique")
-        object.__setattr__(self, "levels", tuple(float(v) for v in self.levels))
-        tilt_schema = setting_schema("probe", "tilts")
-        if not isinstance(self.tilts, (list, tuple)):
-            raise ConfigError(f"probe.tilts = {self.tilts!r}: must be a list of numbers "
-                              "in (0, 0.5) (empty: no tilted probe)")
-        for tilt in self.tilts:
-            _check_value("probe", "tilts[]", tilt, tilt_schema["items"])
-        if len(set(self.tilts)) != len(self.tilts):
-            raise ConfigError(f"probe.tilts = {list(self.tilts)!r}: must be unique")
-        object.__setattr__(self, "tilts", tuple(float(v) for v in self.tilts))
+        self._check_numbers("levels", "in (0, 1) (empty: no gravity probe)")
+        self._check_numbers("tilts", "in (0, 0.5) (empty: no tilted probe)")
         if self.restore and not self.levels:
             raise ConfigError("probe.restore = true with probe.levels = []: restoring "
                               "gravity needs a gravity reduction first (give a level)")
         _check_fields(self, "probe")
+
+    def _check_numbers(self, key, allowed):
+        """The list setting ``probe.<key>``: unique numbers within the schema's
+        bounds of its items, kept as a tuple of floats."""
+        values = getattr(self, key)
+        if not isinstance(values, (list, tuple)):
+            raise ConfigError(f"probe.{key} = {values!r}: must be a list of numbers {allowed}")
+        for value in values:
+            _check_value("probe", f"{key}[]", value, setting_schema("probe", key)["items"])
+        if len(set(values)) != len(values):
+            raise ConfigError(f"probe.{key} = {list(values)!r}: must be unique")
+        object.__setattr__(self, key, tuple(float(v) for v in values))
 
 
 @dataclass(frozen=True)
