@@ -108,11 +108,20 @@ def probe_stages():
     return [stage_for_level(level) for level in config["probe"]["levels"]]
 
 
+def tilt_stage(tilt):
+    """Stage name of the tilted-gravity probe with horizontal component
+    `tilt` g0: tiltpNN for tilt > 0, tiltmNN for tilt < 0, NN = round(100 |tilt|)."""
+    return f"tilt{'p' if tilt > 0 else 'm'}{round(100 * abs(float(tilt))):02d}"
+
+
+def signed_tilts():
+    """Every tilted probe's tilt (config probe.tilts, each with + and - sign)."""
+    return [sign * float(t) for t in config["probe"]["tilts"] for sign in (1.0, -1.0)]
+
+
 def tilt_stages():
-    """Stage names of the tilted-gravity probes (config probe.tilts): tiltpNN
-    and tiltmNN for +delta and -delta, NN = round(100 delta)."""
-    return [f"tilt{sign}{round(100 * float(t)):02d}" for t in config["probe"]["tilts"]
-            for sign in "pm"]
+    """Stage names of the tilted-gravity probes (config probe.tilts)."""
+    return [tilt_stage(t) for t in signed_tilts()]
 
 
 def extra_probe_stages():
@@ -131,10 +140,9 @@ def probe_change(stage):
     --level Delta, --tilt +-delta, or --restore."""
     if stage == "restored":
         return ["--restore"]
-    for t in config["probe"]["tilts"]:
-        for sign, factor in (("p", 1.0), ("m", -1.0)):
-            if stage == f"tilt{sign}{round(100 * float(t)):02d}":
-                return ["--tilt", repr(factor * float(t))]
+    for tilt in signed_tilts():
+        if stage == tilt_stage(tilt):
+            return ["--tilt", repr(tilt)]
     return ["--level", repr(level_for_stage(stage))]
 
 
