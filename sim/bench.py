@@ -10,9 +10,11 @@ and 2 threads: wall and CPU time of ``steps`` steps, medians of ``repeats``,
 giving ns per particle-step, ns per contact, the contacts per particle (of
 particle–particle contacts; the support's are counted apart) and the CPU
 cores used (CPU time / wall time).  A second, kernel-by-kernel timing gives
-the share of the predictor, the pair pass and the gather.  It prints a table
-and ends with one JSON line of the figures.  ``--state FILE`` times a saved
-pile instead (e.g. a poured full-size pile).
+the share of the predictor, the pair pass and the gather.  It prints a table,
+the parallel efficiency and the cost across sizes (:func:`derived_figures`,
+the figures the performance targets are stated in), and ends with one JSON
+line of all of them.  ``--state FILE`` times a saved pile instead (e.g. a
+poured full-size pile).
 
 ``python -m sim bench --scenes STATE`` times the steps of a saved pile under
 each scene variant of :data:`SCENE_VARIANTS` (the work each skips, against the
@@ -354,7 +356,50 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
                       f"{r['ns_per_contact']:>10.1f} {r['cores_used']:>5.2f} "
                       f"{r['share_predict']:>7.0%} {r['share_pairs']:>6.0%} "
                       f"{r['share_gather']:>6.0%}", flush=True)
+    derived = derived_figures(rows)
+    for r in derived["parallel_efficiency"]:
+        print(f"parallel efficiency, N = {r['n_particles']}, {r['integrator']}, "
+              f"{r['threads']} threads: {r['efficiency']:.0%}")
+    for r in derived["size_ratio"]:
+        print(f"cost per particle-step at N = {r['n_particles']} against N = "
+              f"{r['against_n']}, {r['integrator']}, {r['threads']} thread(s): {r['ratio']:.2f}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-    print(json.dumps({"bench": rows, "peak_rss_bytes": peak,
+    print(json.dumps({"bench": rows, **derived, "peak_rss_bytes": peak,
                       "threads_available": numba.config.NUMBA_NUM_THREADS}))
     return rows
+
+
+def derived_figures(rows):
+    """The figures the bench's targets are stated in, from the rows of :func:`measure`.
+
+    * parallel efficiency of each row on more than one thread: the 1-thread
+      time of the same pile and integrator over (threads × its time);
+    * cost across sizes: each row's ns per particle-step over that of the
+      smallest pile with the same integrator and threads (1.0: flat in N).
+
+    Parameters
+    ----------
+    rows : list of dict
+
+    Returns
+    -------
+    dict
+        ``parallel_efficiency`` and ``size_ratio``: lists of dicts.
+    """
+    def key(r, **change):
+        return (change.get("n", r["n_particles"]), r["integrator"],
+                change.get("threads", r["threads"]))
+
+    cost = {key(r): r["ns_per_particle_step"] for r in rows}
+    efficiency = [
+        {"n_particles": r["n_particles"], "integrator": r["integrator"],
+         "threads": r["threads"],
+         "efficiency": cost[key(r, threads=1)] / (r["threads"] * r["ns_per_particle_step"])}
+        for r in rows if r["threads"] > 1 and key(r, threads=1) in cost]
+    sizes = sorted({r["n_particles"] for r in rows})
+    ratio = [
+        {"n_particles": r["n_particles"], "against_n": sizes[0],
+         "integrator": r["integrator"], "threads": r["threads"],
+         "ratio": r["ns_per_particle_step"] / cost[key(r, n=sizes[0])]}
+        for r in rows if r["n_particles"] != sizes[0] and key(r, n=sizes[0]) in cost]
+    return {"parallel_efficiency": efficiency, "size_ratio": ratio}
