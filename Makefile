@@ -85,7 +85,8 @@ test: venv browser
 	$(PY) -m pytest
 
 bench: venv
-	$(PY) -m sim bench
+	mkdir -p logs
+	$(PY) -m sim bench --sizes 3000,10000,30000 2>&1 | tee logs/bench.log
 
 lint: venv
 	$(SNAKEMAKE) --lint
