@@ -154,10 +154,11 @@ def cmd_ensemble(args, params) -> None:
         ds = _read(p)
         _require(ds, p, ("stress", "n_particles", "solid_fraction"))
         dss.append(ds)
-    out = ensemble_fields(dss, list(args.fields))
+    out = ensemble_fields(dss, list(args.fields), params["ensemble"]["slip_strain_ratio"])
     write_dataset(out, args.out, title=f"ensemble fields, protocol {out.attrs.get('protocol', '')}, "
                   f"{len(dss)} piles", params=params)
-    _log(f"ensemble of {len(dss)} piles -> {args.out}")
+    _log(f"ensemble of {len(dss)} piles, {out.attrs['slip_left_out_total']} pile-RVEs left out as slipped "
+         f"(per pile: {out.attrs['slip_left_out_per_seed']}) -> {args.out}")
 
 
 def cmd_moduli(args, params) -> None:

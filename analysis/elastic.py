@@ -5,7 +5,9 @@ Data: by default the **ensemble-averaged** incremental fields
 the uncertainty ``<name>_sem`` is the standard error over seeds of the same
 fits done pile by pile (``analysis.moduli.uncertainty: pile_fits``) or the
 standard deviation of fits to bootstrap resamples of the seeds
-(``bootstrap``). The sign of both increments (unloading, reduced − relaxed)
+(``bootstrap``). The per-pile fields leave out the RVEs where a pile slipped
+under the probe, as the ensemble does (``analysis.ensemble.slip_strain_ratio``,
+:func:`analysis.ensemble.leave_out_slips`). The sign of both increments (unloading, reduced − relaxed)
 cancels in every modulus.
 
 Points: ``m = 1`` uses the RVE centre itself; ``m = 5`` uses the centre and
@@ -353,11 +355,14 @@ def moduli_dataset(ensemble, piles: list, params: dict[str, Any]):
 
     from .netcdf import var
 
+    from .ensemble import leave_out_slips
+
     mp = params["moduli"]
     sig = ensemble["stress_increment"].transpose("y", "x", "i", "j").values
     u = ensemble["strain_increment"].transpose("y", "x", "i", "j").values
     res = fit_all(sig, u, mp["min_points"], mp["degenerate_rtol"])
     if piles:
+        piles, _ = leave_out_slips(piles, params["ensemble"]["slip_strain_ratio"])
         ss = np.stack([p["stress_increment"].transpose("y", "x", "i", "j").values for p in piles])
         su = np.stack([p["strain_increment"].transpose("y", "x", "i", "j").values for p in piles])
         unc = fit_uncertainty(ss, su, mp["uncertainty"], mp["min_points"], mp["degenerate_rtol"],

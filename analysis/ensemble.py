@@ -13,6 +13,19 @@ not an average of angles); their ``_sem`` comes from the per-seed values
 (for angles, the per-seed deviations from the ensemble angle folded into
 (−90, 90], since axes have no sign).
 
+**Slips under the probe.** A pile may slip locally when gravity is reduced
+(a plastic event, not an elastic response); one such pile would dominate the
+means of the probe response over a handful of piles. With
+``analysis.ensemble.slip_strain_ratio`` = r (not null), a pile's RVE whose
+strain increment magnitude ``|u| = sqrt(sum_ij u_ij^2)`` exceeds r times the
+median ``|u|`` over that pile's RVEs counts as slipped (:func:`slipped`): its
+probe response (:data:`analysis.fields.PROBE_RESPONSE`) is left out there,
+so means, standard errors and counts of those variables are over the other
+piles; the stress at full gravity, fabric and geometry are kept. The
+variable ``slip_left_out`` holds, per RVE, how many piles were left out;
+the attributes ``slip_left_out_total`` and ``slip_left_out_per_seed`` (in the
+order of ``seeds``) sum it up. null leaves out nothing (a plain mean).
+
 All piles share one grid in absolute coordinates (``analysis.grid``), so
 piles of different widths need no interpolation; files with different grids
 or RVEs are refused.
@@ -26,9 +39,10 @@ import numpy as np
 import xarray as xr
 
 from .errors import InputError
-from .fields import ANGLES, DERIVED, derived_fields
+from .fields import ANGLES, DERIVED, PROBE_RESPONSE, derived_fields
 from .netcdf import var
 from .orientation import fold_axis_angle
+from .params import DEFAULTS
 
 FLAG_VARS = ("mask_reason", "strain_flag")
 
@@ -48,6 +62,67 @@ def nan_mean_sem(stack: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     return mean, sem, count
 
 
+def strain_magnitude(strain_increment: np.ndarray) -> np.ndarray:
+    """``|u| = sqrt(sum_ij u_ij^2)`` of tensors ``(..., 2, 2)`` (NaN where any component is)."""
+    u = np.asarray(strain_increment, dtype=float)
+    return np.sqrt(np.sum(u * u, axis=(-2, -1)))
+
+
+def slipped(strain_increment: np.ndarray, ratio: float | None) -> np.ndarray:
+    """Where one pile slipped under the probe: ``|u| > ratio * median(|u|)``.
+
+    Parameters
+    ----------
+    strain_increment : ndarray, shape (ny, nx, 2, 2)
+        One pile's strain increment (NaN at masked RVEs).
+    ratio : float or None
+        ``analysis.ensemble.slip_strain_ratio``; None: nothing has slipped.
+
+    Returns
+    -------
+    ndarray of bool, shape (ny, nx)
+        True at the RVEs whose strain increment magnitude exceeds ``ratio``
+        times the median magnitude over the pile's finite RVEs; False at
+        NaN RVEs and everywhere in a pile without a finite strain.
+    """
+    mag = strain_magnitude(strain_increment)
+    finite = np.isfinite(mag)
+    if ratio is None or not finite.any():
+        return np.zeros(mag.shape, dtype=bool)
+    return finite & (mag > ratio * np.median(mag[finite]))
+
+
+def leave_out_slips(datasets: list[xr.Dataset], ratio: float | None) -> tuple[list[xr.Dataset], np.ndarray]:
+    """Per-pile fields with the probe response set to NaN where the pile slipped.
+
+    Parameters
+    ----------
+    datasets : list of xarray.Dataset
+        Per-pile fields files (CONTRACT.md section 2) on one grid.
+    ratio : float or None
+        ``analysis.ensemble.slip_strain_ratio`` (see :func:`slipped`).
+
+    Returns
+    -------
+    kept : list of xarray.Dataset
+        Copies of ``datasets`` whose :data:`analysis.fields.PROBE_RESPONSE`
+        variables are NaN at the slipped RVEs (the inputs themselves when no
+        file has a strain increment).
+    left_out : ndarray of bool, shape (n_piles, ny, nx)
+        Which pile was left out at which RVE.
+    """
+    shape = (len(datasets), datasets[0].sizes["y"], datasets[0].sizes["x"])
+    if any("strain_increment" not in ds for ds in datasets):
+        return list(datasets), np.zeros(shape, dtype=bool)
+    left_out = np.stack([slipped(ds["strain_increment"].transpose("y", "x", "i", "j").values, ratio)
+                         for ds in datasets])
+    kept = []
+    for ds, out in zip(datasets, left_out):
+        keep = xr.DataArray(~out, dims=("y", "x"))
+        kept.append(ds.assign({name: ds[name].where(keep) for name in PROBE_RESPONSE if name in ds}))
+    return kept, left_out
+
+
 def _check_compatible(datasets: list[xr.Dataset], names: list[str]) -> None:
     ref = datasets[0]
     for ds, name in zip(datasets[1:], names[1:]):
@@ -64,12 +139,31 @@ def _check_compatible(datasets: list[xr.Dataset], names: list[str]) -> None:
             raise InputError(f"{name}: variables {sorted(missing)} are not in every file of the ensemble")
 
 
-def ensemble_fields(datasets: list[xr.Dataset], names: list[str] | None = None) -> xr.Dataset:
-    """Average per-pile fields datasets over seeds (see module docstring)."""
+def ensemble_fields(datasets: list[xr.Dataset], names: list[str] | None = None,
+                    slip_strain_ratio: float | None = DEFAULTS["ensemble"]["slip_strain_ratio"]) -> xr.Dataset:
+    """Average per-pile fields datasets over seeds (see module docstring).
+
+    Parameters
+    ----------
+    datasets : list of xarray.Dataset
+        Per-pile fields files on one grid.
+    names : list of str, optional
+        Their file names, for messages and the ``source_files`` attribute.
+    slip_strain_ratio : float or None
+        ``analysis.ensemble.slip_strain_ratio`` (default: the schema's); None
+        averages every pile-RVE.
+
+    Returns
+    -------
+    xarray.Dataset
+        Means, ``_sem`` and ``_count`` of every numeric field, the derived
+        fields, and ``slip_left_out``.
+    """
     if not datasets:
         raise InputError("an ensemble needs at least one fields file")
     names = names or [f"file {k}" for k in range(len(datasets))]
     _check_compatible(datasets, names)
+    datasets, left_out = leave_out_slips(datasets, slip_strain_ratio)
     ref = datasets[0]
     out = xr.Dataset(coords={k: ref[k].variable for k in ref.coords})
     averaged = [v for v in ref.data_vars if v not in FLAG_VARS and v not in DERIVED
@@ -99,4 +193,17 @@ def ensemble_fields(datasets: list[xr.Dataset], names: list[str] | None = None) 
     out.attrs["seeds"] = ",".join(str(ds.attrs.get("seed", "")) for ds in datasets)
     out.attrs["cell_methods"] = "seed: mean"
     out.attrs["source_files"] = ",".join(names)
+    _record_left_out(out, left_out, slip_strain_ratio)
     return out
+
+
+def _record_left_out(out: xr.Dataset, left_out: np.ndarray, ratio: float | None) -> None:
+    """``slip_left_out`` (per RVE) and its totals (attributes) on the ensemble ``out``."""
+    rule = ("none left out (analysis.ensemble.slip_strain_ratio = null)" if ratio is None else
+            f"{', '.join(PROBE_RESPONSE)} of a pile left out where its |strain_increment| exceeds {ratio:g} "
+            "times its median over the pile's RVEs (analysis.ensemble.slip_strain_ratio)")
+    out["slip_left_out"] = var(("y", "x"), left_out.sum(axis=0).astype(np.int32),
+                               "piles whose probe response is left out here (slipped under the probe)", "1",
+                               comment=rule)
+    out.attrs["slip_left_out_total"] = int(left_out.sum())
+    out.attrs["slip_left_out_per_seed"] = ",".join(str(int(n)) for n in left_out.sum(axis=(1, 2)))

@@ -36,6 +36,10 @@ TENSOR_FIELDS = ("stress", "stress_reduced", "stress_increment", "displacement_g
 # variables recomputed from (ensemble-mean) tensors rather than averaged
 DERIVED = ("fabric_trace", "fabric_deviatoric_fraction", "fabric_orientation", "stress_orientation",
            "stress_increment_orientation", "strain_orientation", "stress_fabric_angle")
+# variables that describe the response to the probe (relaxed -> reduced), left out
+# together where a pile slipped under the probe (analysis.ensemble)
+PROBE_RESPONSE = ("stress_reduced", "stress_increment", "displacement_gradient", "strain_increment",
+                  "strain_residual", "stress_increment_orientation", "strain_orientation")
 ANGLES = ("fabric_orientation", "stress_orientation", "stress_increment_orientation", "strain_orientation",
           "stress_fabric_angle")
 

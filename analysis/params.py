@@ -101,12 +101,13 @@ def _check_value(name: str, value: Any, spec: dict[str, Any]) -> None:
         if spec.get("nullable"):
             return
         raise ParamError(f"analysis.{name} = null is not allowed; expected a {kind}")
+    or_null = " or null" if spec.get("nullable") else ""
     if kind == _NUM:
         if not _is_number(value):
-            raise ParamError(f"analysis.{name} = {value!r} is not a finite number")
+            raise ParamError(f"analysis.{name} = {value!r} is not a finite number{or_null}")
     elif kind == _INT:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ParamError(f"analysis.{name} = {value!r} is not an integer")
+            raise ParamError(f"analysis.{name} = {value!r} is not an integer{or_null}")
     elif kind == _BOOL:
         if not isinstance(value, bool):
             raise ParamError(f"analysis.{name} = {value!r} is not true/false")

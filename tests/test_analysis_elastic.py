@@ -270,3 +270,34 @@ def test_moduli_dataset_holds_the_fit_of_the_mean_and_the_spread_of_the_piles():
     np.testing.assert_allclose(ds["bulk_modulus_sem"].values, np.std(K, ddof=1) / np.sqrt(3),
                                rtol=1e-9)
     assert ds.attrs["n_seeds"] == 3 and ds.attrs["uncertainty_method"] == "pile_fits"
+
+
+def test_per_pile_fits_leave_out_a_pile_where_it_slipped():
+    """Four exactly isotropic piles; the fourth slipped at one RVE (its strain
+    there 100 times its elastic size, its stress increment unchanged). The
+    standard error of K there (m = 1) is that of the three other piles' K; at
+    the other RVEs that of all four."""
+    import xarray as xr
+
+    from analysis.elastic import moduli_dataset
+    from analysis.netcdf import tensor_coords, var
+    from analysis.params import resolve_params
+
+    K = np.array([3.0e6, 3.4e6, 2.6e6, 3.1e6])
+    coords = {"y": var("y", [0.03, 0.045, 0.06], "y", "m"),
+              "x": var("x", [-0.015, 0.0, 0.015, 0.03], "x", "m"), **tensor_coords()}
+    piles = []
+    for k in K:
+        sigma, u = _isotropic_pile(np.random.default_rng(5), k, 1e6)
+        pile = xr.Dataset(coords=coords)
+        pile["stress_increment"] = var(("y", "x", "i", "j"), sigma, "dsigma", "N m-1")
+        pile["strain_increment"] = var(("y", "x", "i", "j"), u, "u", "1")
+        piles.append(pile)
+    piles[3]["strain_increment"].values[1, 2] *= 100.0
+    ensemble = (sum(piles[:3]) / 3).assign_attrs(n_seeds=4, protocol="wedge")
+    params = resolve_params({"moduli": {"min_points": 1}, "ensemble": {"slip_strain_ratio": 10.0}})
+    sem = moduli_dataset(ensemble, piles, params)["bulk_modulus_sem"].sel(points=1).values
+    kept = np.ones(sem.shape[1:], bool)
+    kept[1, 2] = False
+    np.testing.assert_allclose(sem[:, 1, 2], np.std(K[:3], ddof=1) / np.sqrt(3), rtol=1e-9)
+    np.testing.assert_allclose(sem[:, kept], np.std(K, ddof=1) / 2, rtol=1e-9)

@@ -10,6 +10,9 @@ Every value is a mean over the piles of a protocol with its standard error
 over piles (``_sem`` of the ensemble files; "n/a" with a single pile).  The
 measures:
 
+* **Slips left out**: the pile-RVEs whose probe response the ensemble left
+  out as slipped (``analysis.ensemble.slip_strain_ratio``), in all and per
+  pile, and where.
 * **Fig. 2, vertical strain dip**: at each height, ``u_yy`` at the centre
   (mean of the columns with ``|x| <= 1.5`` grid spacings) and the largest
   ``|u_yy|`` off the centre, with its x.
@@ -73,6 +76,22 @@ def strain_dip(ds, heights):
         out.append(f"| {100 * ds['y'].values[k]:.1f} | {_pm(c, sc)} | {_pm(float(row[j]), float(srow[j]))} "
                    f"at x = {100 * x[j]:.0f} cm |")
     return out
+
+
+def slips(ds):
+    """The pile-RVEs the ensemble ``ds`` left out as slipped under the probe, and where."""
+    ratio = json.loads(ds.attrs["config"])["ensemble"]["slip_strain_ratio"]
+    if ratio is None:
+        return "none left out (analysis.ensemble.slip_strain_ratio = null)"
+    n = ds["slip_left_out"].values
+    text = (f"{int(ds.attrs['slip_left_out_total'])} pile-RVEs left out as slipped under the probe "
+            f"(|u| above {ratio:g} times the pile's median; per seed {ds.attrs['seeds']}: "
+            f"{ds.attrs['slip_left_out_per_seed']})")
+    if not n.any():
+        return text
+    iy, ix = np.nonzero(n)
+    x, y = 100 * ds["x"].values[ix], 100 * ds["y"].values[iy]
+    return text + f", at y = {y.min():.1f}–{y.max():.1f} cm, x = {x.min():.1f}–{x.max():.1f} cm"
 
 
 def base_pressure(bp):
@@ -187,7 +206,7 @@ def main(argv=None):
     for p in args.protocols:
         with xr.open_dataset(f"{args.ensemble}/{p}/fields.nc") as ds:
             n = int(ds.attrs.get("n_seeds", 0))
-            out += [f"## {p} ({_piles(n)})", "", "Vertical strain increment u_yy (Fig. 2):", "",
+            out += [f"## {p} ({_piles(n)})", "", f"Slips: {slips(ds)}.", "", "Vertical strain increment u_yy (Fig. 2):", "",
                     "| y (cm) | centre | largest off the centre |", "|---|---|---|", *strain_dip(ds, args.heights),
                     "", "Fabric (Fig. 3): " + "; ".join(fabric(ds)) + "."]
         with xr.open_dataset(f"{args.ensemble}/{p}/base_pressure.nc") as bp:
