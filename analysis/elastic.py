@@ -353,9 +353,8 @@ def moduli_dataset(ensemble, piles: list, params: dict[str, Any]):
     """``moduli.nc`` (CONTRACT.md section 3) from the ensemble fields and the per-pile fields."""
     import xarray as xr
 
-    from .netcdf import var
-
     from .ensemble import leave_out_slips
+    from .netcdf import var
 
     mp = params["moduli"]
     sig = ensemble["stress_increment"].transpose("y", "x", "i", "j").values
