@@ -218,3 +218,42 @@ def as_state(state: dict, path: str = "<synthetic>"):
     from analysis.states import state_from_dataset
 
     return state_from_dataset(to_dataset(state), path)
+
+
+def mapped_hex_lattice(n: int, apothem: float, mapping: np.ndarray, compression: float = 0.0):
+    """Translates of one centrally symmetric hexagon tiling the plane, pressed together.
+
+    The regular hexagon of :func:`hexagon_nodes` and its triangular lattice
+    (neighbours at ``2 apothem`` along 0°, 60°, 120°) are mapped by the
+    linear ``mapping`` (2 × 2, positive determinant): the result still tiles
+    the plane, face to face, but its faces differ in length and their normals
+    are no longer along the branch vectors.  Centres on an ``n × n`` patch
+    around the origin, then brought closer by the factor ``1 − compression``,
+    so that every pair of face neighbours overlaps by the depth
+    ``compression × (n · l)`` and no other pair touches.
+
+    Returns
+    -------
+    x, y : numpy.ndarray
+        Centres.
+    pairs : numpy.ndarray
+        ``(k, 2)`` face-neighbour pairs ``(i, j)``, each once.
+    nodes : numpy.ndarray
+        ``(6, 2)`` corners of the mapped hexagon about its centre, counter-clockwise.
+    lattice : numpy.ndarray
+        ``(3, 2)`` branch vectors ``x_j − x_i`` of the three neighbour
+        directions of the pairs (before the compression).
+    """
+    mapping = np.asarray(mapping, float)
+    d = 2.0 * apothem
+    a = np.array([[d, 0.0], [0.5 * d, 0.5 * np.sqrt(3.0) * d]]) @ mapping.T       # rows: lattice vectors
+    lattice = np.array([a[0], a[1], a[1] - a[0]])
+    ii, jj = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    index = ii * n + jj
+    frac = np.column_stack([ii.ravel(), jj.ravel()]) - (n - 1) / 2.0
+    centres = (1.0 - compression) * frac @ a
+    pairs = []
+    for di, dj in ((1, 0), (0, 1), (-1, 1)):
+        ok = (ii + di >= 0) & (ii + di < n) & (jj + dj < n)
+        pairs.append(np.column_stack([index[ok], (ii[ok] + di) * n + jj[ok] + dj]))
+    return centres[:, 0], centres[:, 1], np.concatenate(pairs), hexagon_nodes(apothem) @ mapping.T, lattice
