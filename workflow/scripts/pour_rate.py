@@ -18,7 +18,12 @@ Two rates differ beyond seed scatter in a quantity when their means are more
 than twice their combined standard error apart.  Writes the table to
 ``docs/reproduction/pour_rate.md`` and the numbers to ``pour_rate.json`` there.
 
-Usage: ``.venv/bin/python workflow/scripts/pour_rate.py [--rates 100 200 400] [--cores 2]``
+With ``--keep-recorded`` the rates not run now are taken from the
+``pour_rate.json`` already there (a rate run now replaces its record), so a
+rate can be added without pouring the others again; the JSON keeps, per
+rate, the commit it was run at (``runs``), and the table names them.
+
+Usage: ``.venv/bin/python workflow/scripts/pour_rate.py [--rates 100 200 400] [--cores 2] [--keep-recorded]``
 """
 
 import argparse
@@ -101,7 +106,7 @@ def table(results: dict, rates: list) -> str:
     difference between two rates in combined standard errors."""
     rows = ["| protocol | quantity | " + " | ".join(f"{r:g}/s" for r in rates) + " | max |Δ|/SE |",
             "|---|---|" + "---|" * (len(rates) + 1)]
-    for protocol, by_rate in results.items():
+    for protocol, by_rate in results["piles"].items():
         for q, label in QUANTITIES.items():
             stats = [mean_sem([p[q] for p in by_rate[f"{r:g}"]]) for r in rates]
             z = max((abs(a[0] - b[0]) / np.hypot(a[1], b[1])
@@ -115,21 +120,31 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rates", nargs="+", type=float, default=[100.0, 200.0, 400.0])
     ap.add_argument("--cores", type=int, default=2)
+    ap.add_argument("--keep-recorded", action="store_true",
+                    help="take the rates not run now from the recorded pour_rate.json")
     args = ap.parse_args()
     cfg = yaml.safe_load((REPO / "config" / "pour_rate.yaml").read_text())
     params = parse_params(json.dumps(cfg["analysis"]))
-    results = {p: {} for p in cfg["protocols"]}
+    out = REPO / "docs" / "reproduction"
+    results = {"piles": {p: {} for p in cfg["protocols"]}, "runs": {}}
+    if args.keep_recorded:
+        results = json.loads((out / "pour_rate.json").read_text())
+    commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True,
+                            text=True, check=True).stdout.strip()
     for rate in args.rates:
         work = run_rate(rate, args.cores)
         for p, v in cfg["protocols"].items():
-            results[p][f"{rate:g}"] = [pile_values(work, p, s, params) for s in v["seeds"]]
-    out = REPO / "docs" / "reproduction"
+            results["piles"][p][f"{rate:g}"] = [pile_values(work, p, s, params) for s in v["seeds"]]
+        results["runs"][f"{rate:g}"] = commit
     (out / "pour_rate.json").write_text(json.dumps(results, indent=1) + "\n")
+    rates = sorted(float(r) for r in results["runs"])
     n = {p: len(v["seeds"]) for p, v in cfg["protocols"].items()}
+    runs = ", ".join(f"{r:g}/s at `{results['runs'][f'{r:g}']}`" for r in rates)
     text = (f"# Pour rate: piles of {cfg['pour']['n_particles']} particles, seeds per protocol {n}\n\n"
             "Made by `workflow/scripts/pour_rate.py` (config/pour_rate.yaml); mean ± standard error "
             "over seeds; the last column is the largest difference between two rates over their "
-            "combined standard error (> 2: differs beyond seed scatter).\n\n" + table(results, args.rates))
+            f"combined standard error (> 2: differs beyond seed scatter). Run: {runs}.\n\n"
+            + table(results, rates))
     (out / "pour_rate.md").write_text(text)
     print(text)
 
