@@ -141,8 +141,8 @@ def cmd_general_fit(args, params) -> None:
     write_dataset(ds, args.out, title="General 2D elastic fit of the probe increments, and reversibility",
                   params=params)
     ok = int((ds["general_flag"].sel(points=5).values == 0).sum())
-    _log(f"general-fit: {len(piles)} piles, probes {ds.attrs['loading_probes']}; m = 5 identified and positive definite at {ok} RVEs "
-         f"-> {args.out}")
+    _log(f"general-fit: {len(piles)} piles, probes {ds.attrs['loading_probes']}; m = 5 identified and positive "
+         f"definite at {ok} RVEs; {ds.attrs['slip_left_out_total']} pile-probe-RVEs left out as slips -> {args.out}")
 
 
 def cmd_ensemble(args, params) -> None:

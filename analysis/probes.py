@@ -22,6 +22,15 @@ Over the piles of a protocol (``python -m analysis general-fit``):
   (Frobenius norms of the strain increments from the relaxed pile), 1 where
   the pile comes back to its relaxed shape (elastic), 0 where it keeps all
   of the reduction's strain; per pile, then mean and standard error.
+
+Slips.  Where a pile slipped under a loading probe (its strain increment
+more than ``analysis.ensemble.slip_strain_ratio`` times that pile's median
+for that probe, :func:`analysis.ensemble.slipped`), that pile's increments of
+that probe are left out of the fits there, as the paper's fits leave them
+out (:func:`analysis.ensemble.leave_out_slips`): a slip is not an elastic
+response.  The reversibility keeps every pile: a slip is exactly what it
+should show (it comes back little).  ``slip_left_out`` counts the piles left
+out per probe and RVE.
 """
 
 from __future__ import annotations
@@ -33,7 +42,7 @@ import xarray as xr
 
 from . import general_elastic as ge
 from .elastic import fit_cubic_moduli, fit_isotropic_moduli, gather_points
-from .ensemble import nan_mean_sem
+from .ensemble import nan_mean_sem, slipped
 from .errors import InputError
 from .fields import rve_quantities
 from .netcdf import tensor_coords, var
@@ -152,7 +161,8 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
         and grid.
     params : dict
         The analysis parameters (``moduli.min_points`` as the least number
-        of valid samples at m = 5).
+        of valid samples at m = 5; ``ensemble.slip_strain_ratio``, see the
+        module docstring).
     ensemble : xarray.Dataset, optional
         The protocol's ensemble fields: their fabric and stress orientations
         (:data:`AXES_FROM_FIELDS`) are copied in, to compare with the
@@ -166,6 +176,12 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
     loading = [k for k, p in enumerate(probes) if p != RESTORED]
     stress = np.stack([ds["stress_increment"].values for ds in piles])        # (pile, probe, y, x, 2, 2)
     strain = np.stack([ds["strain_increment"].values for ds in piles])
+    rev_each = np.stack([reversibility(strain[k], probes) for k in range(len(piles))])
+    ratio = params["ensemble"]["slip_strain_ratio"]
+    left_out = np.array([[slipped(strain[k, p], ratio) for p in range(len(probes))] for k in range(len(piles))])
+    left_out[:, [p for p in range(len(probes)) if p not in loading]] = False
+    stress = np.where(left_out[..., None, None], np.nan, stress)
+    strain = np.where(left_out[..., None, None], np.nan, strain)
     mean_stress, _, _ = nan_mean_sem(stress)
     mean_strain, _, _ = nan_mean_sem(strain)
     out: dict[str, list] = {name: [] for name in ("stiffness", "stiffness_sem", "flag", "n_samples",
@@ -181,12 +197,12 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
         for s in SCALARS:
             out[s].append(whole[s])
             out[f"{s}_sem"].append(nan_mean_sem(np.stack([e[s] for e in each]))[1])
-    rev_each = np.stack([reversibility(strain[k], probes) for k in range(len(piles))])
     rev_mean, rev_sem, rev_count = nan_mean_sem(rev_each)
     ref = piles[0]
     coords = {"points": var("points", np.array(POINTS), "RVE points per fit (1: the RVE, 5: and its 4 "
                                                        "grid neighbours)", "1"),
               "y": ref["y"].variable, "x": ref["x"].variable,
+              "probe": var("probe", np.array(probes, dtype=object), "probe stage", "1"),
               "mandel_i": var("mandel_i", np.array(["xx", "yy", "xy"], dtype=object), "Mandel component", "1"),
               "mandel_j": var("mandel_j", np.array(["xx", "yy", "xy"], dtype=object), "Mandel component", "1")}
     data = {
@@ -201,6 +217,8 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
         "reversibility": var(("y", "x"), rev_mean, *META["reversibility"]),
         "reversibility_sem": var(("y", "x"), rev_sem, "standard error of reversibility over piles", "1"),
         "reversibility_count": var(("y", "x"), rev_count, "piles with a reversibility at this RVE", "1"),
+        "slip_left_out": var(("probe", "y", "x"), left_out.sum(axis=0).astype(np.int32),
+                             "piles left out of the fits at this RVE for this probe: they slipped", "1"),
     }
     for s in SCALARS:
         ln, units = META[s]
@@ -216,5 +234,7 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
                 ds[name] = ensemble[name].variable
     ds.attrs.update({"probes": " ".join(probes), "loading_probes": " ".join(probes[k] for k in loading),
                      "n_seeds": len(piles), "max_condition": ge.MAX_CONDITION,
+                     "slip_strain_ratio": "none" if ratio is None else float(ratio),
+                     "slip_left_out_total": int(left_out.sum()),
                      "protocol": ref.attrs.get("protocol", ""), "rve_size": ref.attrs.get("rve_size", "")})
     return ds

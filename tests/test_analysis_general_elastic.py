@@ -174,6 +174,7 @@ def test_the_ensemble_fit_recovers_the_stiffness_with_its_scatter_and_the_revers
     reduction's strain: the fit of the ensemble means is C, identified, with
     standard errors zero to rounding (every pile's fit is C too); the general
     law explains everything, the isotropic one less; reversibility 0.7."""
+    from analysis.params import parse_params
     from analysis.probes import general_fit_dataset
 
     c = random_stiffness()
@@ -187,7 +188,7 @@ def test_the_ensemble_fit_recovers_the_stiffness_with_its_scatter_and_the_revers
         stress = stress_of(c, strain)
         stress[3] = 0.0                                                        # unloaded again
         piles.append(probe_file(stress, strain, probes))
-    ds = general_fit_dataset(piles, {"moduli": {"min_points": 3}})
+    ds = general_fit_dataset(piles, parse_params('{"moduli": {"min_points": 3}}'))
     assert ds.attrs["loading_probes"] == "reduced tiltp05 tiltm05" and ds.attrs["n_seeds"] == 5
     for m in (1, 5):
         fit = ds.sel(points=m)
@@ -199,6 +200,49 @@ def test_the_ensemble_fit_recovers_the_stiffness_with_its_scatter_and_the_revers
         assert (inner["explained_isotropic"].values < inner["explained_general"].values).all()
     np.testing.assert_allclose(ds["reversibility"].values, 0.7, rtol=1e-12)
     assert (ds["reversibility_count"].values == 5).all()
+
+
+def test_a_pile_that_slipped_under_a_probe_is_left_out_of_the_fit_there_but_not_of_the_reversibility():
+    """Four piles of one material; one of them slips at one RVE under the
+    tilt (a strain 60 times its median there, with a stress that does not
+    follow C).  With the slip rule (ratio 10) that pile's tilt is left out
+    there, counted in slip_left_out, and the fit of the other samples is C
+    again; without it (null) the fit there is not C.  The reversibility
+    keeps the slipped pile: the slip comes back only to 0.3 there."""
+    from analysis.params import parse_params
+    from analysis.probes import general_fit_dataset
+
+    c = random_stiffness()
+    probes = ["reduced", "tiltp05", "tiltm05", "restored"]
+    shapes = sym(RNG.normal(scale=1e-4, size=(3, 1, 1, 2, 2)))
+    piles = []
+    for k in range(4):
+        strain = shapes * (1 + 0.05 * RNG.normal(size=(3, 3, 4, 1, 1)))
+        strain = np.concatenate([strain, 0.1 * strain[:1]])                  # restored: 0.9 comes back
+        stress = stress_of(c, strain)
+        stress[3] = 0.0
+        if k == 2:                                                            # pile 2 slips at (1, 2) ...
+            strain[1, 1, 2] *= 60.0
+            stress[1, 1, 2] *= 3.0
+            strain[0, 1, 2] = 60.0 * strain[0, 1, 2]                           # ... under the reduction too,
+            stress[0, 1, 2] = 3.0 * stress[0, 1, 2]
+            strain[3, 1, 2] = 0.7 * strain[0, 1, 2]                            # and keeps most of it
+        piles.append(probe_file(stress, strain, probes))
+    ds = general_fit_dataset(piles, parse_params('{"moduli": {"min_points": 3}}'))
+    out = ds["slip_left_out"]
+    assert int(out.sel(probe="tiltp05").values[1, 2]) == 1 and int(out.sel(probe="reduced").values[1, 2]) == 1
+    assert int(out.sum()) == 2 and ds.attrs["slip_left_out_total"] == 2
+    assert int(out.sel(probe="restored").sum()) == 0
+    fit = ds.sel(points=1)
+    np.testing.assert_allclose(fit["stiffness"].values[1, 2], c, rtol=1e-8)
+    expected_rev = np.array([0.9, 0.9, 0.3, 0.9])
+    assert float(ds["reversibility"].values[1, 2]) == pytest.approx(expected_rev.mean(), rel=1e-12)
+    assert float(ds["reversibility"].values[1, 1]) == pytest.approx(0.9, rel=1e-12)
+    plain = general_fit_dataset(piles, parse_params('{"moduli": {"min_points": 3}, '
+                                                    '"ensemble": {"slip_strain_ratio": null}}'))
+    assert int(plain["slip_left_out"].sum()) == 0
+    got = plain.sel(points=1)["stiffness"].values[1, 2]
+    assert not np.allclose(got, c, rtol=1e-2)
 
 
 def test_probe_increments_are_the_imposed_strains_of_each_probe():
@@ -344,9 +388,9 @@ def test_a_lattice_of_hexagons_has_the_affine_voigt_stiffness():
         probes[stage] = as_state(lattice_state(x + du[:, 0], y + du[:, 1], pairs, nodes, x, y, Y, mu))
     size = 0.05
     params = parse_params('{"grid": {"x_min": -0.02, "x_max": 0.02, "y_min": 0.13, "y_max": 0.17, '
-                          '"spacing": 0.01}, "rve": {"size": %r, "min_particles": 10}}' % size)
-    fit = general_fit_dataset([probe_increments(as_state(relaxed), probes, params)],
-                              {"moduli": {"min_points": 3}}).sel(points=1)
+                          '"spacing": 0.01}, "rve": {"size": %r, "min_particles": 10}, '
+                          '"moduli": {"min_points": 3}}' % size)
+    fit = general_fit_dataset([probe_increments(as_state(relaxed), probes, params)], params).sel(points=1)
     assert (fit["general_flag"] == 0).all() and float(fit["condition"].max()) < 10
     for iy, cy in enumerate(fit["y"].values):
         for ix, cx in enumerate(fit["x"].values):
