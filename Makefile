@@ -51,10 +51,12 @@ progress: venv
 
 # The study's ensembles, fits and figures, and the table of finished piles,
 # rebuilt from the per-pile results committed under docs/reproduction/ alone
-# (no state file, no simulation): docs/reproduction/figures/, piles.md.
+# (no state file, no simulation): docs/reproduction/figures/, piles.md; with
+# the extra probes' scene, the general fit of the piles whose probes are there.
 reproduction: venv
 	mkdir -p logs
-	$(SNAKEMAKE) reproduction --cores all --profile $(PROFILE) --config committed=docs/reproduction \
+	$(SNAKEMAKE) reproduction --cores all --profile $(PROFILE) \
+	    --configfile config/config.yaml config/scenes/elastic_probes.yaml --config committed=docs/reproduction \
 	    'outputs=[fields,strain,fabric,fits,figures]' 2>&1 | tee logs/make-reproduction.log
 
 # The study's HTML report (snakemake --report, one self-contained page): every

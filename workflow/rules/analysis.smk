@@ -388,7 +388,7 @@ rule analysis_probes:
 rule analysis_general_fit:
     # The general 2D elastic fit of all loading probes over the piles, and reversibility.
     input:
-        probes=lambda wc: [f"results/fields/{wc.protocol}/seed{s}.probes.nc" for s in seeds(wc.protocol)],
+        probes=lambda wc: [pile_result(wc.protocol, s, "probes") for s in analysis_seeds(wc.protocol, "probes")],
         ensemble="results/ensemble/{protocol}/fields.nc",
         code=ANALYSIS_CODE,
     output:
@@ -413,7 +413,7 @@ rule analysis_general_fit:
 
 rule analysis_figure_general:
     input:
-        data=expand("results/ensemble/{protocol}/general_moduli.nc", protocol=PROTOCOLS),
+        data=expand("results/ensemble/{protocol}/general_moduli.nc", protocol=general_fit_protocols()),
         code=ANALYSIS_CODE,
     output:
         png=report("results/figures/general_fit.png", caption="../report/analysis/general_fit.rst",
@@ -421,7 +421,7 @@ rule analysis_figure_general:
         pdf="results/figures/general_fit.pdf",
     params:
         cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: _labelled(input.data, PROTOCOLS),
+        inputs=lambda wc, input: _labelled(input.data, general_fit_protocols()),
     log:
         "logs/analysis/figures/general_fit.log",
     localrule: True

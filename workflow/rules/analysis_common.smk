@@ -17,6 +17,10 @@ PILE_RESULTS = {"fields": ("{protocol}/seed{seed}.nc", "{protocol}/seed{seed}.fi
                 "base_pressure": ("{protocol}/seed{seed}.base_pressure.nc", "{protocol}/seed{seed}.base_pressure.nc"),
                 "convergence": ("{protocol}/seed{seed}.convergence.nc", "{protocol}/seed{seed}.convergence.nc"),
                 "summary": ("{protocol}/seed{seed}.summary.json", "{protocol}/seed{seed}.summary.json")}
+# With the extra probes (probe.tilts, probe.restore) a pile also has the
+# increments of every probe (rule analysis_probes), recorded with the rest.
+if extra_probe_stages():
+    PILE_RESULTS["probes"] = ("{protocol}/seed{seed}.probes.nc", "{protocol}/seed{seed}.probes.nc")
 # Folder of committed per-pile results that the analysis reads instead of
 # computing them from state files (config `committed`; None: compute them).
 COMMITTED = REPO / config["committed"] if config["committed"] else None
@@ -43,6 +47,17 @@ def analysis_seeds(protocol, kind="fields"):
             "or leave the outputs that need it out"
         )
     return found
+
+
+def general_fit_protocols():
+    """The protocols of the general fit: none without the extra probes; all of
+    the study, or under `committed` those with at least one pile's probes file
+    there."""
+    if not extra_probe_stages():
+        return []
+    if COMMITTED is None:
+        return PROTOCOLS
+    return [p for p in PROTOCOLS if any(os.path.exists(pile_result(p, s, "probes")) for s in seeds(p))]
 
 
 def _analysis_setting(section, key, default):
@@ -83,8 +98,8 @@ def analysis_targets():
     if wants("figures"):
         targets += [f"results/figures/{stem}.{ext}" for stem, output in ANALYSIS_FIGURES.items()
                     if wants(output) for ext in ("png", "pdf")]
-    if wants("fits") and extra_probe_stages() and COMMITTED is None:
-        targets += [f"results/ensemble/{p}/general_moduli.nc" for p in PROTOCOLS]
+    if wants("fits") and general_fit_protocols():
+        targets += [f"results/ensemble/{p}/general_moduli.nc" for p in general_fit_protocols()]
         if wants("figures"):
             targets += [f"results/figures/general_fit.{ext}" for ext in ("png", "pdf")]
     return targets

@@ -35,7 +35,8 @@ if not config["committed"]:
     rule record_pile:
         # Copies a finished pile's compact results into docs/reproduction/
         # (commit them by hand); the fields, balance checks, base pressure,
-        # convergence data, summary and the pour's benchmark.
+        # convergence data, summary and the pour's benchmark, and with the
+        # extra probes (config/scenes/elastic_probes.yaml) their increments.
         input:
             **{kind: pile_result("{protocol}", "{seed}", kind) for kind in PILE_RESULTS},
             pour="benchmarks/pour/{protocol}/seed{seed}.tsv",
@@ -59,7 +60,8 @@ if config["committed"]:
         input:
             analysis_targets(),
             figures=expand(str(COMMITTED / "figures" / "{stem}.png"),
-                           stem=[stem for stem, output in ANALYSIS_FIGURES.items() if wants(output)]),
+                           stem=[stem for stem, output in ANALYSIS_FIGURES.items() if wants(output)]
+                           + (["general_fit"] if wants("fits") and general_fit_protocols() else [])),
             table=str(COMMITTED / "piles.md"),
             numbers=str(COMMITTED / "numbers.md"),
         localrule: True
@@ -99,12 +101,15 @@ if config["committed"]:
             convergence=[pile_result(p, s, "convergence") for p in PROTOCOLS
                          for s in analysis_seeds(p, "convergence")],
             checks=[pile_result(p, s, "checks") for p in PROTOCOLS for s in analysis_seeds(p, "checks")],
+            general=expand("results/ensemble/{protocol}/general_moduli.nc",
+                           protocol=general_fit_protocols() if wants("fits") else []),
             script="workflow/scripts/reproduction_numbers.py",
         output:
             str(COMMITTED / "numbers.md"),
         params:
             protocols=PROTOCOLS,
             heights=config["analysis"]["figures"]["heights"],
+            general=lambda wc, input: _labelled(input.general, general_fit_protocols()),
         log:
             "logs/reproduction/numbers.log",
         localrule: True
@@ -114,5 +119,5 @@ if config["committed"]:
             py_shell(
                 "{input.script:q} --ensemble results/ensemble --protocols {params.protocols:q} "
                 "--convergence {input.convergence:q} --checks {input.checks:q} --heights {params.heights:q} "
-                "> {output:q} 2> {log:q}"
+                "--general {params.general:q} > {output:q} 2> {log:q}"
             )

@@ -36,6 +36,15 @@ measures:
   largest over piles and points).
 * **Balance laws**: the largest ``|support reaction / weight − 1|`` over the
   piles, relaxed, reduced and for the increment.
+* **Extra probes** (``--general``, the ``general_moduli.nc`` of the protocols
+  with tilted and restored probes): per m, the RVEs whose general fit is
+  identified (condition number at most ``max_condition``) and positive
+  definite among those with enough samples for a fit, and their median
+  condition number; at m = 5 the median fractions of
+  the stress increments that the general, cubic and isotropic laws explain,
+  the median anisotropy ``E_max / E_min`` and the mean angle between the
+  stiffness axis and the fabric and stress axes; the reversibility of the
+  reduction (median and 10–90 % range over RVEs); the slips left out.
 """
 
 import argparse
@@ -192,6 +201,44 @@ def balance(paths):
             f"{worst['relaxed']:.2g}, reduced {worst['reduced']:.2g}; increment {inc}")
 
 
+def _axis_gap(a, b):
+    """Angles between axes a and b (degrees), folded into [0, 90]."""
+    return np.abs((a - b + 90.0) % 180.0 - 90.0)
+
+
+def general_fit(gm):
+    """Lines of the extra probes' measures for one protocol's general_moduli.nc."""
+    out = [f"{_piles(int(gm.attrs.get('n_seeds', 0)))}, loading probes {gm.attrs.get('loading_probes', '?')}, "
+           f"slips left out {int(gm['slip_left_out'].sum())} pile-probe-RVEs"]
+    flags = gm["general_flag"].attrs
+    few = int(dict(zip(flags["flag_meanings"].split(), flags["flag_masks"]))["insufficient_samples"])
+    for m in (1, 5):
+        fit = gm.sel(points=m)
+        tried = (fit["general_flag"].values & few) == 0           # enough samples for a fit
+        ok = fit["general_flag"].values == 0
+        out.append(f"m = {m}: identified and positive definite at {int(ok.sum())} of {int(tried.sum())} "
+                   f"RVEs, median condition number {np.median(fit['condition'].values[tried]):.3g}")
+    fit = gm.sel(points=5)
+    ok = fit["general_flag"].values == 0
+    if ok.any():
+        expl = ", ".join(f"{law} {np.median(fit[f'explained_{law}'].values[ok]):.2f}"
+                         for law in ("general", "cubic", "isotropic"))
+        out.append(f"m = 5, over those RVEs: median fraction of the stress increments explained: {expl}; "
+                   f"median anisotropy E_max/E_min {np.median(fit['anisotropy'].values[ok]):.3g}")
+        axis = np.where(ok, fit["axis_deg"].values, np.nan)
+        for name in ("fabric_orientation", "stress_orientation"):
+            if name in gm:
+                gap = _axis_gap(axis, gm[name].values)
+                out.append(f"mean angle between the stiffness axis and the {name.split('_')[0]} axis "
+                           f"{_mean_deg(gap)} over {int(np.isfinite(gap).sum())} RVEs")
+    rev = gm["reversibility"].values
+    if np.isfinite(rev).any():
+        lo, med, hi = np.nanpercentile(rev, [10, 50, 90])
+        out.append(f"reversibility 1 − |u(restored)|/|u(reduced)|: median {med:.2f} (10–90 %: {lo:.2f} – {hi:.2f}) "
+                   f"over {int(np.isfinite(rev).sum())} RVEs")
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--ensemble", required=True, help="folder of results/ensemble/{protocol}/")
@@ -199,6 +246,8 @@ def main(argv=None):
     ap.add_argument("--convergence", nargs="+", required=True, help="the convergence files of the piles")
     ap.add_argument("--checks", nargs="+", required=True, help="checks.json of every pile")
     ap.add_argument("--heights", nargs="+", type=float, required=True, help="rows of Fig. 2, m")
+    ap.add_argument("--general", nargs="*", default=[], metavar="PROTOCOL=FILE",
+                    help="general_moduli.nc of the protocols with the extra probes")
     args = ap.parse_args(argv)
     out = ["# Numbers of the reproduction", "",
            "Made by `workflow/scripts/reproduction_numbers.py` from the ensembles (`make reproduction`); "
@@ -220,6 +269,10 @@ def main(argv=None):
             "Deviation from the value in the largest RVE, %: median / largest over the piles and points.", "",
             "| RVE side (cm) | particles | σ_yy | Δσ_yy |", "|---|---|---|---|", *rows, ""]
     out += ["## Balance laws", "", balance(args.checks) + ".", ""]
+    for item in args.general:
+        p, path = item.split("=", 1)
+        with xr.open_dataset(path) as gm:
+            out += [f"## Extra probes, {p}: the general elastic fit", "", *[f"- {line}." for line in general_fit(gm)], ""]
     sys.stdout.write("\n".join(out))
 
 

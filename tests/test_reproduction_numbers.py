@@ -1,0 +1,56 @@
+"""The extra probes' numbers of the reproduction report
+(workflow/scripts/reproduction_numbers.py) on a small general_moduli file
+whose medians, counts and axis angles are known by hand."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from analysis.general_elastic import GENERAL_FLAGS
+
+SCRIPT = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "reproduction_numbers.py"
+spec = importlib.util.spec_from_file_location("reproduction_numbers", SCRIPT)
+numbers = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(numbers)
+
+
+def test_axis_gap_folds_axes_half_a_turn_apart():
+    a = np.array([80.0, -80.0, 10.0, 0.0, 45.0])
+    b = np.array([-80.0, 80.0, 10.0, 90.0, -45.0])
+    np.testing.assert_allclose(numbers._axis_gap(a, b), [20.0, 20.0, 0.0, 90.0, 90.0])
+
+
+def general_file():
+    """Two RVEs in a row, m = 1 and 5: at m = 1 the first has too few samples
+    and the second is not identified; at m = 5 the first is identified, the
+    second not."""
+    flag = np.array([[[2, 1]], [[0, 1]]], np.int32)     # (points, y, x): 1 not identified, 2 too few samples
+    cond = np.array([[[np.inf, 300.0]], [[12.0, 150.0]]])
+    one = np.ones((2, 1, 2))
+    return xr.Dataset(
+        {"general_flag": (("points", "y", "x"), flag, GENERAL_FLAGS),
+         "condition": (("points", "y", "x"), cond),
+         "explained_general": (("points", "y", "x"), 0.9 * one), "explained_cubic": (("points", "y", "x"), 0.8 * one),
+         "explained_isotropic": (("points", "y", "x"), 0.7 * one),
+         "anisotropy": (("points", "y", "x"), np.array([[[np.nan, np.nan]], [[1.5, np.nan]]])),
+         "axis_deg": (("points", "y", "x"), np.array([[[np.nan, np.nan]], [[85.0, 10.0]]])),
+         "fabric_orientation": (("y", "x"), np.array([[-85.0, 0.0]])),
+         "stress_orientation": (("y", "x"), np.array([[55.0, 0.0]])),
+         "reversibility": (("y", "x"), np.array([[0.5, 0.9]])),
+         "slip_left_out": (("probe", "y", "x"), np.array([[[1, 0]], [[0, 2]]], np.int32))},
+        coords={"points": [1, 5], "y": [0.05], "x": [0.0, 0.02], "probe": ["reduced", "tiltp05"]},
+        attrs={"n_seeds": 3, "loading_probes": "reduced tiltp05"})
+
+
+def test_general_fit_lines_count_only_identified_rves():
+    lines = numbers.general_fit(general_file())
+    assert lines[0] == "3 piles, loading probes reduced tiltp05, slips left out 3 pile-probe-RVEs"
+    assert lines[1] == "m = 1: identified and positive definite at 0 of 1 RVEs, median condition number 300"
+    assert lines[2] == "m = 5: identified and positive definite at 1 of 2 RVEs, median condition number 81"
+    assert "general 0.90, cubic 0.80, isotropic 0.70" in lines[3] and "E_max/E_min 1.5" in lines[3]
+    # the second RVE's axis (10°) is not identified: only 85° against −85° (10°) and 55° (30°) count
+    assert lines[4] == "mean angle between the stiffness axis and the fabric axis 10.0° over 1 RVEs"
+    assert lines[5] == "mean angle between the stiffness axis and the stress axis 30.0° over 1 RVEs"
+    assert lines[6].startswith("reversibility 1 − |u(restored)|/|u(reduced)|: median 0.70 (10–90 %: 0.54 – 0.86)")
