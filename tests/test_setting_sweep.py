@@ -1,0 +1,41 @@
+"""The parameter studies on medium piles (workflow/scripts/setting_sweep.py):
+the settings they lay over the study, the comparison table against numbers
+worked by hand, and a bad setting refused before anything is poured."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "setting_sweep.py"
+spec = importlib.util.spec_from_file_location("setting_sweep", SCRIPT)
+sweep = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(sweep)
+
+
+def test_overlay_and_merge_change_only_the_swept_setting():
+    assert sweep.overlay("pour.rate", 400.0) == {"pour": {"rate": 400.0}}
+    base = {"pour": {"rate": 100.0, "n_particles": 3500}, "threads": 2}
+    assert sweep.merged(base, sweep.overlay("pour.rate", 400.0)) == \
+        {"pour": {"rate": 400.0, "n_particles": 3500}, "threads": 2}
+    assert base["pour"]["rate"] == 100.0
+    assert [sweep.label(v) for v in (100.0, 0.25, False, 3)] == ["100", "0.25", "False", "3"]
+
+
+def test_table_gives_means_standard_errors_and_the_largest_gap():
+    piles = {"wedge": {"1": [{q: v for q in sweep.QUANTITIES} for v in (1.0, 2.0, 3.0)],
+                       "2": [{q: v for q in sweep.QUANTITIES} for v in (5.0, 6.0, 7.0)]}}
+    text = sweep.table({"piles": piles}, ["1", "2"])
+    # means 2 and 6, standard errors 1/sqrt(3) each: gap 4 / sqrt(2/3) = 4.9
+    row = next(line for line in text.splitlines() if "angle of repose" in line)
+    assert row == f"| wedge | angle of repose (deg) | 2 ± 0.58 | 6 ± 0.58 | {4 / np.sqrt(2 / 3):.1f} |"
+
+
+@pytest.mark.parametrize("setting, value, words", [("pour.rate", -5, ["pour.rate", "-5", "minimum"]),
+                                                    ("pour.rat", 100, ["rat", "rate"]),
+                                                    ("physics.rotation", "maybe", ["physics.rotation", "boolean"])])
+def test_a_bad_setting_is_refused_by_name_before_any_pile(setting, value, words):
+    with pytest.raises(SystemExit) as err:
+        sweep.check_values(setting, [100.0, value] if setting == "pour.rate" else [value])
+    assert all(w in str(err.value) for w in words)
