@@ -17,7 +17,8 @@ per protocol, with the seed mean and its standard error:
 Two values differ beyond seed scatter in a quantity when their means are more
 than twice their combined standard error apart.  Writes the table to
 ``docs/reproduction/{name}.md`` and the numbers to ``{name}.json`` there; the
-JSON keeps, per value, the commit it was run at (``runs``).  With
+JSON keeps, per value, the commit it was run at (``runs``), and a ``note``
+written there by hand goes into the table's heading.  With
 ``--keep-recorded`` the values not run now are taken from that JSON (a value
 run now replaces its record), so a value can be added without pouring the
 others again, and without ``--values`` only the table is written again.
@@ -195,7 +196,8 @@ def main() -> None:
             f"Made by `workflow/scripts/setting_sweep.py --setting {args.setting} --name {args.name}` "
             "(config/medium_piles.yaml); mean ± standard error over seeds; the last column is the largest "
             "difference between two values over their combined standard error (> 2: differs beyond seed "
-            f"scatter). Run: {runs}.\n\n" + table(results, keys))
+            f"scatter). Run: {runs}." + (f" Note: {results['note']}." if results.get("note") else "")
+            + "\n\n" + table(results, keys))
     (out / f"{args.name}.md").write_text(text)
     print(text)
 
