@@ -54,3 +54,31 @@ def test_general_fit_lines_count_only_identified_rves():
     assert lines[4] == "mean angle between the stiffness axis and the fabric axis 10.0° over 1 RVEs"
     assert lines[5] == "mean angle between the stiffness axis and the stress axis 30.0° over 1 RVEs"
     assert lines[6].startswith("reversibility 1 − |u(restored)|/|u(reduced)|: median 0.70 (10–90 %: 0.54 – 0.86)")
+
+
+def test_opposite_tilts_of_a_linear_pile_cancel_and_equal_ones_do_not():
+    """Per RVE: opposite increments give 0, equal ones 1, one twice the other
+    and opposite 1/3; the probes file of a pile without tilts gives None."""
+    plus = np.zeros((1, 3, 2, 2))
+    plus[..., 0, 0] = 1.0
+    minus = np.stack([-plus[0, 0], plus[0, 0], -2.0 * plus[0, 0]])[None]
+    data = np.stack([plus, minus])                                          # (probe, y, x, 2, 2)
+    pr = xr.Dataset({"strain_increment": (("probe", "y", "x", "i", "j"), data)},
+                    coords={"probe": ["tiltp05", "tiltm05"]})
+    np.testing.assert_allclose(numbers.tilt_asymmetry(pr, "strain_increment"), [[0.0, 1.0, 1.0 / 3.0]])
+    assert numbers.tilt_asymmetry(pr.sel(probe=["tiltp05"]), "strain_increment") is None
+
+
+def test_reversibility_by_depth_counts_from_the_top_filled_rve_of_each_column():
+    """Two columns whose tops stand at different heights: depth is measured
+    from each column's own top (rows 2.25 cm apart, none on a band's edge),
+    and the bands take the right RVEs."""
+    y = 0.01 + 0.0225 * np.arange(7)
+    rev = np.full((7, 2), np.nan)
+    rev[:, 0] = [1.0, 0.98, 0.96, 0.90, 0.8, 0.5, 0.1]   # top at row 6: depths 13.5, 11.25, 9, 6.75, 4.5, 2.25, 0 cm
+    rev[:5, 1] = [0.94, 0.98, 0.86, 0.7, 0.2]            # top at row 4: depths 9, 6.75, 4.5, 2.25, 0 cm
+    gm = xr.Dataset({"reversibility": (("y", "x"), rev)}, coords={"y": y, "x": [0.0, 0.1]})
+    lines = numbers.reversibility_by_depth(gm)
+    # 0-3 cm: 0.5, 0.1, 0.7, 0.2; 3-6 cm: 0.8, 0.86; 6-10 cm: 0.96, 0.90, 0.94, 0.98; over 10 cm: 1.0, 0.98
+    assert lines == ["0–3 cm median 0.35 (10 %: 0.13, 4 RVEs)", "3–6 cm median 0.83 (10 %: 0.81, 2 RVEs)",
+                     "6–10 cm median 0.95 (10 %: 0.91, 4 RVEs)", "over 10 cm median 0.99 (10 %: 0.98, 2 RVEs)"]

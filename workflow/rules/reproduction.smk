@@ -103,6 +103,8 @@ if config["committed"]:
             checks=[pile_result(p, s, "checks") for p in PROTOCOLS for s in analysis_seeds(p, "checks")],
             general=expand("results/ensemble/{protocol}/general_moduli.nc",
                            protocol=general_fit_protocols() if wants("fits") else []),
+            probes=[pile_result(p, s, "probes") for p in (general_fit_protocols() if wants("fits") else [])
+                    for s in analysis_seeds(p, "probes")],
             script="workflow/scripts/reproduction_numbers.py",
         output:
             str(COMMITTED / "numbers.md"),
@@ -110,6 +112,8 @@ if config["committed"]:
             protocols=PROTOCOLS,
             heights=config["analysis"]["figures"]["heights"],
             general=lambda wc, input: _labelled(input.general, general_fit_protocols()),
+            probes=[f"{p}={pile_result(p, s, 'probes')}" for p in (general_fit_protocols() if wants("fits") else [])
+                    for s in analysis_seeds(p, "probes")],
         log:
             "logs/reproduction/numbers.log",
         localrule: True
@@ -119,5 +123,5 @@ if config["committed"]:
             py_shell(
                 "{input.script:q} --ensemble results/ensemble --protocols {params.protocols:q} "
                 "--convergence {input.convergence:q} --checks {input.checks:q} --heights {params.heights:q} "
-                "--general {params.general:q} > {output:q} 2> {log:q}"
+                "--general {params.general:q} --probes {params.probes:q} > {output:q} 2> {log:q}"
             )

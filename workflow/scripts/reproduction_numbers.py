@@ -44,7 +44,12 @@ measures:
   the stress increments that the general, cubic and isotropic laws explain,
   the median anisotropy ``E_max / E_min`` and the mean angle between the
   stiffness axis and the fabric and stress axes; the reversibility of the
-  reduction (median and 10–90 % range over RVEs); the slips left out.
+  reduction (median and 10–90 % range over RVEs), also by depth below the
+  surface (the top filled RVE of each grid column); the slips left out.
+  With ``--probes`` (each pile's ``probes.nc``), per pile: how far the two
+  opposite tilts are from opposite increments,
+  ``|Δ(+) + Δ(−)| / (|Δ(+)| + |Δ(−)|)`` per RVE (0 in a linear pile), for the
+  strain and the stress, median and 10–90 % range.
 """
 
 import argparse
@@ -235,7 +240,57 @@ def general_fit(gm):
     if np.isfinite(rev).any():
         lo, med, hi = np.nanpercentile(rev, [10, 50, 90])
         out.append(f"reversibility 1 − |u(restored)|/|u(reduced)|: median {med:.2f} (10–90 %: {lo:.2f} – {hi:.2f}) "
-                   f"over {int(np.isfinite(rev).sum())} RVEs")
+                   f"over {int(np.isfinite(rev).sum())} RVEs; by depth below the surface: "
+                   + "; ".join(reversibility_by_depth(gm)))
+    return out
+
+
+#: Depth bands (m below the top filled RVE of each grid column) of the reversibility.
+DEPTHS = (0.0, 0.03, 0.06, 0.10, np.inf)
+
+
+def reversibility_by_depth(gm):
+    """Median reversibility (and its 10 % quantile) per band of :data:`DEPTHS`."""
+    rev, y = gm["reversibility"].values, gm["y"].values
+    filled = np.isfinite(rev)
+    top = np.array([y[filled[:, j]].max() if filled[:, j].any() else np.nan for j in range(rev.shape[1])])
+    depth = top[None, :] - y[:, None]
+    out = []
+    for lo, hi in zip(DEPTHS[:-1], DEPTHS[1:]):
+        band = filled & (depth >= lo) & (depth < hi)
+        name = f"over {100 * lo:g} cm" if np.isinf(hi) else f"{100 * lo:g}–{100 * hi:g} cm"
+        if band.any():
+            out.append(f"{name} median {np.median(rev[band]):.2f} (10 %: {np.percentile(rev[band], 10):.2f}, "
+                       f"{int(band.sum())} RVEs)")
+    return out
+
+
+def tilt_asymmetry(pr, name):
+    """``|Δ(+) + Δ(−)| / (|Δ(+)| + |Δ(−)|)`` per RVE of the increment ``name`` of a pile's
+    opposite tilts (the first pair of tiltpNN / tiltmNN stages); None without one."""
+    probes = [str(p) for p in pr["probe"].values]
+    plus = [p for p in probes if p.startswith("tiltp")]
+    minus = [p.replace("tiltp", "tiltm") for p in plus]
+    if not plus or minus[0] not in probes:
+        return None
+    a, b = pr[name].sel(probe=plus[0]).values, pr[name].sel(probe=minus[0]).values
+    norm_a, norm_b = np.linalg.norm(a, axis=(-2, -1)), np.linalg.norm(b, axis=(-2, -1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.linalg.norm(a + b, axis=(-2, -1)) / (norm_a + norm_b)
+
+
+def tilts(paths):
+    """One line per pile's probes file: the asymmetry of its opposite tilts."""
+    out = []
+    for path in paths:
+        with xr.open_dataset(path) as pr:
+            parts = []
+            for name, label in (("strain_increment", "strain"), ("stress_increment", "stress")):
+                r = tilt_asymmetry(pr, name)
+                if r is not None and np.isfinite(r).any():
+                    lo, med, hi = np.nanpercentile(r, [10, 50, 90])
+                    parts.append(f"{label} {med:.2f} ({lo:.2f} – {hi:.2f})")
+            out.append(f"seed {pr.attrs.get('seed', '?')}: " + ("; ".join(parts) if parts else "no pair of opposite tilts"))
     return out
 
 
@@ -248,6 +303,8 @@ def main(argv=None):
     ap.add_argument("--heights", nargs="+", type=float, required=True, help="rows of Fig. 2, m")
     ap.add_argument("--general", nargs="*", default=[], metavar="PROTOCOL=FILE",
                     help="general_moduli.nc of the protocols with the extra probes")
+    ap.add_argument("--probes", nargs="*", default=[], metavar="PROTOCOL=FILE",
+                    help="the probes.nc of every pile with the extra probes")
     args = ap.parse_args(argv)
     out = ["# Numbers of the reproduction", "",
            "Made by `workflow/scripts/reproduction_numbers.py` from the ensembles (`make reproduction`); "
@@ -273,6 +330,10 @@ def main(argv=None):
         p, path = item.split("=", 1)
         with xr.open_dataset(path) as gm:
             out += [f"## Extra probes, {p}: the general elastic fit", "", *[f"- {line}." for line in general_fit(gm)], ""]
+        mine = [f for q, f in (item.split("=", 1) for item in args.probes) if q == p]
+        if mine:
+            out += ["Opposite tilts, |Δ(+) + Δ(−)| / (|Δ(+)| + |Δ(−)|) per RVE (0: linear), median (10 – 90 %):", "",
+                    *[f"- {line}." for line in tilts(mine)], ""]
     sys.stdout.write("\n".join(out))
 
 
