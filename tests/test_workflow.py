@@ -650,18 +650,21 @@ def words(text):
 
 
 def check_reproduction_from_recorded_piles(root):
-    """Record every finished smoke pile (rule record_pile), delete the states and
+    """Record every finished smoke pile (rule record_pile) with the extra
+    probes' scene, as make reproduction reads them, delete the states and
     per-pile results, and rebuild the study from the records alone (make
-    reproduction): no simulation runs, and the ensembles, fits and base
-    pressure are those of the full run, bit for bit."""
+    reproduction): no simulation runs, and the ensembles, fits, base pressure
+    and general fit are those of the full run, bit for bit."""
     import xarray as xr
 
+    scene = scene_args("elastic_probes")
     # the stress-only scene rewrote the fields without strain: the full study first
-    proc = snakemake(root, "--cores", "2", *SMOKE, "--show-failed-logs", timeout=600)
+    proc = snakemake(root, "--cores", "2", *scene, "--show-failed-logs", timeout=600)
     assert proc.returncode == 0, proc.output[-20000:]
     records = [f"docs/reproduction/{p}/seed{s}.summary.json" for p, s in smoke_piles()]
-    proc = snakemake(root, "--cores", "2", *SMOKE, *records, "--show-failed-logs", timeout=600)
+    proc = snakemake(root, "--cores", "2", *scene, *records, "--show-failed-logs", timeout=600)
     assert proc.returncode == 0, proc.output[-20000:]
+    assert all((root / f"docs/reproduction/{p}/seed{s}.probes.nc").exists() for p, s in smoke_piles())
     # convergence of every recorded pile, base pressure and summary per pile
     assert job_counts(proc.output)["record_pile"] == len(smoke_piles())
     full = root / "full_study"
@@ -669,23 +672,24 @@ def check_reproduction_from_recorded_piles(root):
     shutil.rmtree(root / "results")
     committed = ["--config", "committed=docs/reproduction",
                  "outputs=[fields,strain,fabric,fits,figures]"]
-    proc = snakemake(root, "reproduction", "--cores", "2", *SMOKE, *committed, "--show-failed-logs",
+    proc = snakemake(root, "reproduction", "--cores", "2", *scene, *committed, "--show-failed-logs",
                      timeout=600)
     assert proc.returncode == 0, proc.output[-20000:]
     counts = job_counts(proc.output)
     assert not set(counts) & {*PILE_RULES, "analysis_fields", "analysis_base_pressure_pile",
-                              "analysis_convergence", "draw_pile"}, counts
+                              "analysis_convergence", "analysis_probes", "draw_pile"}, counts
     docs = root / "docs" / "reproduction"
     assert {f.name for f in (docs / "figures").glob("*.png")} == {
         "fig1_convergence.png", "fig2_vertical_strain.png", "fig3_fabric.png", "fig4_moduli.png",
-        "fig5_invariants.png", "base_pressure.png"}
+        "fig5_invariants.png", "base_pressure.png", "general_fit.png"}
     table = (docs / "piles.md").read_text()
     for p, s in smoke_piles():
         assert f"| {p} seed{s} |" in table
     numbers = (docs / "numbers.md").read_text()
     assert "## wedge (2 piles)" in numbers and "## layered (2 piles)" in numbers
+    assert "## Extra probes, wedge" in numbers and "## Extra probes, layered" in numbers
     for p in ("wedge", "layered"):
-        for name in ("fields.nc", "moduli.nc", "invariants.nc", "base_pressure.nc"):
+        for name in ("fields.nc", "moduli.nc", "invariants.nc", "base_pressure.nc", "general_moduli.nc"):
             with xr.open_dataset(root / "results" / "ensemble" / p / name) as again, \
                     xr.open_dataset(full / p / name) as first:
                 assert set(again.data_vars) == set(first.data_vars)
