@@ -54,6 +54,14 @@ if not config["committed"]:
 
 if config["committed"]:
 
+    def _general_protocols():
+        """The protocols whose general fit the reproduction rebuilds and reports."""
+        return general_fit_protocols() if wants("fits") else []
+
+    def _recorded_probes():
+        """(protocol, probes file) of every recorded pile with the extra probes."""
+        return [(p, pile_result(p, s, "probes")) for p in _general_protocols() for s in analysis_seeds(p, "probes")]
+
     rule reproduction:
         # make reproduction: the figures and the per-pile table, from the
         # committed per-pile results only.
@@ -61,7 +69,7 @@ if config["committed"]:
             analysis_targets(),
             figures=expand(str(COMMITTED / "figures" / "{stem}.png"),
                            stem=[stem for stem, output in ANALYSIS_FIGURES.items() if wants(output)]
-                           + (["general_fit"] if wants("fits") and general_fit_protocols() else [])),
+                           + (["general_fit"] if _general_protocols() else [])),
             table=str(COMMITTED / "piles.md"),
             numbers=str(COMMITTED / "numbers.md"),
         localrule: True
@@ -101,19 +109,16 @@ if config["committed"]:
             convergence=[pile_result(p, s, "convergence") for p in PROTOCOLS
                          for s in analysis_seeds(p, "convergence")],
             checks=[pile_result(p, s, "checks") for p in PROTOCOLS for s in analysis_seeds(p, "checks")],
-            general=expand("results/ensemble/{protocol}/general_moduli.nc",
-                           protocol=general_fit_protocols() if wants("fits") else []),
-            probes=[pile_result(p, s, "probes") for p in (general_fit_protocols() if wants("fits") else [])
-                    for s in analysis_seeds(p, "probes")],
+            general=expand("results/ensemble/{protocol}/general_moduli.nc", protocol=_general_protocols()),
+            probes=[path for _, path in _recorded_probes()],
             script="workflow/scripts/reproduction_numbers.py",
         output:
             str(COMMITTED / "numbers.md"),
         params:
             protocols=PROTOCOLS,
             heights=config["analysis"]["figures"]["heights"],
-            general=lambda wc, input: _labelled(input.general, general_fit_protocols()),
-            probes=[f"{p}={pile_result(p, s, 'probes')}" for p in (general_fit_protocols() if wants("fits") else [])
-                    for s in analysis_seeds(p, "probes")],
+            general=lambda wc, input: _labelled(input.general, _general_protocols()),
+            probes=[f"{p}={path}" for p, path in _recorded_probes()],
         log:
             "logs/reproduction/numbers.log",
         localrule: True
