@@ -178,8 +178,10 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
     strain = np.stack([ds["strain_increment"].values for ds in piles])
     rev_each = np.stack([reversibility(strain[k], probes) for k in range(len(piles))])
     ratio = params["ensemble"]["slip_strain_ratio"]
-    left_out = np.array([[slipped(strain[k, p], ratio) for p in range(len(probes))] for k in range(len(piles))])
-    left_out[:, [p for p in range(len(probes)) if p not in loading]] = False
+    left_out = np.zeros(strain.shape[:4], dtype=bool)                      # (pile, probe, y, x)
+    for k in range(len(piles)):
+        for p in loading:
+            left_out[k, p] = slipped(strain[k, p], ratio)
     stress = np.where(left_out[..., None, None], np.nan, stress)
     strain = np.where(left_out[..., None, None], np.nan, strain)
     mean_stress, _, _ = nan_mean_sem(stress)
