@@ -39,7 +39,7 @@ def analysis_seeds(protocol, kind="fields"):
     study, or under `committed` those of them whose file is there."""
     if COMMITTED is None:
         return seeds(protocol)
-    found = [s for s in seeds(protocol) if os.path.exists(pile_result(protocol, s, kind))]
+    found = recorded_seeds(protocol, kind)
     if not found:
         raise ValueError(
             f"committed = {config['committed']!r}: no pile of protocol {protocol} (seeds "
@@ -47,6 +47,11 @@ def analysis_seeds(protocol, kind="fields"):
             "or leave the outputs that need it out"
         )
     return found
+
+
+def recorded_seeds(protocol, kind):
+    """The seeds of the study whose `kind` result is there (computed or committed)."""
+    return [s for s in seeds(protocol) if os.path.exists(pile_result(protocol, s, kind))]
 
 
 def general_fit_protocols():
@@ -57,7 +62,7 @@ def general_fit_protocols():
         return []
     if COMMITTED is None:
         return PROTOCOLS
-    return [p for p in PROTOCOLS if any(os.path.exists(pile_result(p, s, "probes")) for s in seeds(p))]
+    return [p for p in PROTOCOLS if recorded_seeds(p, "probes")]
 
 
 def _analysis_setting(section, key, default):
