@@ -65,6 +65,19 @@ def general_fit_protocols():
     return [p for p in PROTOCOLS if recorded_seeds(p, "probes")]
 
 
+def reported_general_protocols():
+    """The protocols whose general fit is built and reported: those of
+    general_fit_protocols() when the scene wants the fits, else none."""
+    return general_fit_protocols() if wants("fits") else []
+
+
+def reported_probes():
+    """(protocol, probes file) of every pile whose extra probes enter the
+    reported general fit."""
+    return [(p, pile_result(p, s, "probes")) for p in reported_general_protocols()
+            for s in analysis_seeds(p, "probes")]
+
+
 def _analysis_setting(section, key, default):
     return (ANALYSIS_CFG.get(section) or {}).get(key, default)
 

@@ -3,8 +3,9 @@
 # per-pile table rebuilt from those files alone (`make reproduction`: config
 # `committed`, rule reproduction), without a state file or a simulation.
 # Expects pile(), probe_stages(), PY_SIM, py_shell, REPO (common.smk),
-# pile_result(), analysis_seeds(), PILE_RESULTS, COMMITTED, ANALYSIS_FIGURES and
-# analysis_targets() (analysis_common.smk), wants() (scene.smk).
+# pile_result(), PILE_RESULTS, COMMITTED, ANALYSIS_FIGURES, analysis_targets(),
+# reported_general_protocols() and reported_probes() (analysis_common.smk),
+# wants() (scene.smk).
 
 RECORD = "docs/reproduction"
 # The files of a recorded pile, under RECORD/{protocol}/: PILE_RESULTS' kinds,
@@ -54,14 +55,6 @@ if not config["committed"]:
 
 if config["committed"]:
 
-    def _general_protocols():
-        """The protocols whose general fit the reproduction rebuilds and reports."""
-        return general_fit_protocols() if wants("fits") else []
-
-    def _recorded_probes():
-        """(protocol, probes file) of every recorded pile with the extra probes."""
-        return [(p, pile_result(p, s, "probes")) for p in _general_protocols() for s in analysis_seeds(p, "probes")]
-
     rule reproduction:
         # make reproduction: the figures and the per-pile table, from the
         # committed per-pile results only.
@@ -69,7 +62,7 @@ if config["committed"]:
             analysis_targets(),
             figures=expand(str(COMMITTED / "figures" / "{stem}.png"),
                            stem=[stem for stem, output in ANALYSIS_FIGURES.items() if wants(output)]
-                           + (["general_fit"] if _general_protocols() else [])),
+                           + (["general_fit"] if reported_general_protocols() else [])),
             table=str(COMMITTED / "piles.md"),
             numbers=str(COMMITTED / "numbers.md"),
         localrule: True
@@ -109,16 +102,16 @@ if config["committed"]:
             convergence=[pile_result(p, s, "convergence") for p in PROTOCOLS
                          for s in analysis_seeds(p, "convergence")],
             checks=[pile_result(p, s, "checks") for p in PROTOCOLS for s in analysis_seeds(p, "checks")],
-            general=expand("results/ensemble/{protocol}/general_moduli.nc", protocol=_general_protocols()),
-            probes=[path for _, path in _recorded_probes()],
+            general=expand("results/ensemble/{protocol}/general_moduli.nc", protocol=reported_general_protocols()),
+            probes=[path for _, path in reported_probes()],
             script="workflow/scripts/reproduction_numbers.py",
         output:
             str(COMMITTED / "numbers.md"),
         params:
             protocols=PROTOCOLS,
             heights=config["analysis"]["figures"]["heights"],
-            general=lambda wc, input: _labelled(input.general, _general_protocols()),
-            probes=[f"{p}={path}" for p, path in _recorded_probes()],
+            general=lambda wc, input: _labelled(input.general, reported_general_protocols()),
+            probes=[f"{p}={path}" for p, path in reported_probes()],
         log:
             "logs/reproduction/numbers.log",
         localrule: True
