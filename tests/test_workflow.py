@@ -17,6 +17,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import numba
 import numpy as np
 import pytest
 import yaml
@@ -31,14 +32,41 @@ PILE_RULES = ("compile_kernels", "pour", "relax", "probe")
 
 
 def copy_workflow(dest, with_sim=True):
-    """Copy what the workflow needs (no results, no caches) to `dest`."""
+    """Copy what the workflow needs (no results) to `dest`, with the kernels
+    this test session has compiled so far (share_compiled_kernels)."""
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
     dest.mkdir(parents=True, exist_ok=True)
     shutil.copy2(REPO / "Snakefile", dest / "Snakefile")
     names = ["workflow", "config", "analysis"] + (["sim"] if with_sim else [])
     for name in names:
         shutil.copytree(REPO / name, dest / name, ignore=ignore)
+    if with_sim:
+        share_compiled_kernels(dest)
     return dest
+
+
+def share_compiled_kernels(dest):
+    """Copy the Numba cache of the repository's sim/ to the copy in `dest`,
+    where the workflow keeps it (`.numba_cache`, workflow/rules/common.smk), so
+    that its rule compile_kernels loads the kernels instead of compiling them
+    again (about 30 s per copy on 2 cores).
+
+    sim/__init__.py files the cache under a folder named by a digest of the
+    sources, the same for the copy; under it Numba names a folder per source
+    folder by a hash of its absolute path, and takes an entry as fresh when
+    its source file's modification time and size match, which shutil.copy2
+    keeps. Compiling into an empty cache is tested by test_kernel_cache.py.
+    """
+    from numba.core.caching import _CacheLocator
+
+    cache = Path(numba.config.CACHE_DIR)  # set by importing sim
+    for folder in sorted({path.parent for path in (REPO / "sim").rglob("*.py")}):
+        ours = cache / _CacheLocator.get_suitable_cache_subpath(str(folder / "_.py"))
+        copied = dest / folder.relative_to(REPO)
+        theirs = dest / ".numba_cache" / cache.name / _CacheLocator.get_suitable_cache_subpath(
+            str(copied / "_.py"))
+        if ours.is_dir():
+            shutil.copytree(ours, theirs, dirs_exist_ok=True)
 
 
 def snakemake(cwd, *args, timeout=300):
