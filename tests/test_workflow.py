@@ -55,7 +55,7 @@ def share_compiled_kernels(dest):
     sources, the same for the copy; under it Numba names a folder per source
     folder by a hash of its absolute path, and takes an entry as fresh when
     its source file's modification time and size match, which shutil.copy2
-    keeps. Compiling into an empty cache is tested by test_kernel_cache.py.
+    keeps. A fresh clone's first tests still compile into its empty cache.
     """
     from numba.core.caching import _CacheLocator
 
