@@ -116,8 +116,9 @@ def analysis_targets():
     if wants("figures"):
         targets += [f"results/figures/{stem}.{ext}" for stem, output in ANALYSIS_FIGURES.items()
                     if wants(output) for ext in ("png", "pdf")]
-    if wants("fits") and general_fit_protocols():
-        targets += [f"results/ensemble/{p}/general_moduli.nc" for p in general_fit_protocols()]
+    general = reported_general_protocols()
+    if general:
+        targets += [f"results/ensemble/{p}/general_moduli.nc" for p in general]
         if wants("figures"):
             targets += [f"results/figures/general_fit.{ext}" for ext in ("png", "pdf")]
     return targets
