@@ -82,3 +82,22 @@ def test_reversibility_by_depth_counts_from_the_top_filled_rve_of_each_column():
     # 0-3 cm: 0.5, 0.1, 0.7, 0.2; 3-6 cm: 0.8, 0.86; 6-10 cm: 0.96, 0.90, 0.94, 0.98; over 10 cm: 1.0, 0.98
     assert lines == ["0–3 cm median 0.35 (10 %: 0.13, 4 RVEs)", "3–6 cm median 0.83 (10 %: 0.81, 2 RVEs)",
                      "6–10 cm median 0.95 (10 %: 0.91, 4 RVEs)", "over 10 cm median 0.99 (10 %: 0.98, 2 RVEs)"]
+
+
+def test_per_pile_reversibility_and_its_standard_error_over_piles(tmp_path):
+    """Two piles whose restored strain is 0.2 and 0.5 of the reduction's in
+    every RVE (reversibility 0.8 and 0.5): their medians, and the mean 0.65
+    with the standard error 0.3 / sqrt(2) / sqrt(2) = 0.15 over the two piles."""
+    reduced = np.zeros((2, 3, 2, 2))
+    reduced[..., 1, 1] = -1e-4
+    reduced[..., 0, 0] = 2e-5
+    paths = []
+    for seed, back in ((1, 0.2), (2, 0.5)):
+        data = np.stack([reduced, back * reduced])                          # (probe, y, x, 2, 2)
+        pr = xr.Dataset({"strain_increment": (("probe", "y", "x", "i", "j"), data)},
+                        coords={"probe": ["reduced", "restored"]}, attrs={"seed": seed})
+        paths.append(tmp_path / f"seed{seed}.probes.nc")
+        pr.to_netcdf(paths[-1])
+    lines = numbers.per_pile_probes(paths)
+    assert lines == ["seed 1: median reversibility 0.80", "seed 2: median reversibility 0.50",
+                     "median reversibility, mean over the 2 piles: 0.65 ± 0.15"]

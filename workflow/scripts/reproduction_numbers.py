@@ -46,18 +46,25 @@ measures:
   stiffness axis and the fabric and stress axes; the reversibility of the
   reduction (median and 10–90 % range over RVEs), also by depth below the
   surface (the top filled RVE of each grid column); the slips left out.
-  With ``--probes`` (each pile's ``probes.nc``), per pile: how far the two
-  opposite tilts are from opposite increments,
-  ``|Δ(+) + Δ(−)| / (|Δ(+)| + |Δ(−)|)`` per RVE (0 in a linear pile), for the
-  strain and the stress, median and 10–90 % range.
+  With ``--probes`` (each pile's ``probes.nc``), per pile: its median
+  reversibility over its RVEs, and the mean of those medians with its
+  standard error over the piles; how far the two opposite tilts are from
+  opposite increments, ``|Δ(+) + Δ(−)| / (|Δ(+)| + |Δ(−)|)`` per RVE (0 in a
+  linear pile), for the strain and the stress, median and 10–90 % range.
 """
 
 import argparse
 import json
 import sys
 
+from pathlib import Path
+
 import numpy as np
 import xarray as xr
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from analysis.probes import reversibility  # noqa: E402
 
 
 def _pm(v, s, spec=".3g"):
@@ -279,18 +286,28 @@ def tilt_asymmetry(pr, name):
         return np.linalg.norm(a + b, axis=(-2, -1)) / (norm_a + norm_b)
 
 
-def tilts(paths):
-    """One line per pile's probes file: the asymmetry of its opposite tilts."""
-    out = []
+def per_pile_probes(paths):
+    """Lines for the piles' probes files: per pile its median reversibility
+    (:func:`analysis.probes.reversibility` over its RVEs) and the asymmetry of
+    its opposite tilts; last, the mean of the piles' median reversibilities
+    and its standard error over the piles."""
+    out, medians = [], []
     for path in paths:
         with xr.open_dataset(path) as pr:
             parts = []
+            rev = reversibility(pr["strain_increment"].values, [str(p) for p in pr["probe"].values])
+            if np.isfinite(rev).any():
+                medians.append(float(np.nanmedian(rev)))
+                parts.append(f"median reversibility {medians[-1]:.2f}")
             for name, label in (("strain_increment", "strain"), ("stress_increment", "stress")):
                 r = tilt_asymmetry(pr, name)
                 if r is not None and np.isfinite(r).any():
                     lo, med, hi = np.nanpercentile(r, [10, 50, 90])
-                    parts.append(f"{label} {med:.2f} ({lo:.2f} – {hi:.2f})")
-            out.append(f"seed {pr.attrs.get('seed', '?')}: " + ("; ".join(parts) if parts else "no pair of opposite tilts"))
+                    parts.append(f"opposite tilts, {label} {med:.2f} ({lo:.2f} – {hi:.2f})")
+            out.append(f"seed {pr.attrs.get('seed', '?')}: " + ("; ".join(parts) if parts else "no reduction and restoration, no pair of opposite tilts"))
+    if medians:
+        sem = np.std(medians, ddof=1) / np.sqrt(len(medians)) if len(medians) > 1 else np.nan
+        out.append(f"median reversibility, mean over the {_piles(len(medians))}: {_pm(np.mean(medians), sem, '.2f')}")
     return out
 
 
@@ -332,8 +349,9 @@ def main(argv=None):
             out += [f"## Extra probes, {p}: the general elastic fit", "", *[f"- {line}." for line in general_fit(gm)], ""]
         mine = [f for q, f in (item.split("=", 1) for item in args.probes) if q == p]
         if mine:
-            out += ["Opposite tilts, |Δ(+) + Δ(−)| / (|Δ(+)| + |Δ(−)|) per RVE (0: linear), median (10 – 90 %):", "",
-                    *[f"- {line}." for line in tilts(mine)], ""]
+            out += ["Per pile: the median reversibility over its RVEs; opposite tilts, "
+                    "|Δ(+) + Δ(−)| / (|Δ(+)| + |Δ(−)|) per RVE (0: linear), median (10 – 90 %):", "",
+                    *[f"- {line}." for line in per_pile_probes(mine)], ""]
     sys.stdout.write("\n".join(out))
 
 
