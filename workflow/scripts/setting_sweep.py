@@ -6,7 +6,9 @@ Snakemake working directory ``results/sweeps/{name}/{value}/``, then compares
 per protocol, with the seed mean and its standard error:
 
 * the angle of repose: mean of both flank angles of the relaxed pile
-  (``python -m sim summary``);
+  (``python -m sim summary``), and the pile's height and base width from the
+  same summary (a steeper flank fit need not mean a higher pile: long feet
+  widen the base);
 * the solid fraction of the core: mean of the RVE field over ``|x| <= 3 cm``,
   ``y <= 5 cm``;
 * the base-pressure dip: ``1 - p(0) / max p``, with ``p(0)`` the mean normal
@@ -50,6 +52,8 @@ from analysis.params import parse_params  # noqa: E402
 MEDIUM = REPO / "config" / "medium_piles.yaml"
 QUANTITIES = {
     "angle_deg": "angle of repose (deg)",
+    "height": "height (m)",
+    "width": "base width (m)",
     "solid_fraction": "core solid fraction",
     "dip": "base-pressure dip 1 − p(0)/max p",
     "youngs_modulus": "core E (N/m)",
