@@ -15,8 +15,8 @@ spec.loader.exec_module(shapes)
 
 
 def test_a_particle_in_flight_is_not_in_contact_and_leaves_the_flanks_alone():
-    """A triangle of touching discs with 30 deg flanks (each disc touching its
-    neighbour, the bottom row the support) and one disc falling above its apex:
+    """A triangle of discs with 30 deg flanks (each disc resting on the one
+    below it, the bottom row on the support) and one disc falling above its apex:
     the mask keeps the triangle, whose flanks are 30 deg and whose top is the
     apex, 0.3 m x tan 30 deg, and drops the disc 5 cm above it."""
     r, slope = 0.002, np.tan(np.radians(30.0))
