@@ -1,7 +1,9 @@
 """Does one setting change the piles?  (issue 11: the pour rate, the pile shape)
 
-Runs the medium piles of ``config/medium_piles.yaml`` (merged over the study's
-``config/config.yaml``) at each value of one setting, each value in its own
+Runs the piles of ``--piles`` (``config/medium_piles.yaml``, 800 particles, by
+default; ``config/sweep_piles.yaml``, 1600, for the unknown parameters of
+issue 25), merged over the study's ``config/config.yaml``, at each value of
+one setting, each value in its own
 Snakemake working directory ``results/sweeps/{name}/{value}/``, then compares
 per protocol, with the seed mean and its standard error:
 
@@ -30,7 +32,8 @@ runs.
 Usage::
 
     .venv/bin/python workflow/scripts/setting_sweep.py --setting pour.rate \\
-        --values 100 200 400 --name pour_rate [--cores 2] [--keep-recorded]
+        --values 100 200 400 --name pour_rate [--cores 2] [--keep-recorded] \\
+        [--piles config/sweep_piles.yaml]
 """
 
 import argparse
@@ -78,18 +81,18 @@ def overlay(setting: str, value) -> dict:
     return out
 
 
-def run_value(name: str, setting: str, value, cores: int) -> Path:
-    """Pour, relax, probe and analyse the medium piles at one value; their working directory."""
+def run_value(name: str, setting: str, value, cores: int, piles: Path) -> Path:
+    """Pour, relax, probe and analyse the piles of ``piles`` at one value; their working directory."""
     work = REPO / "results" / "sweeps" / name / label(value)
     work.mkdir(parents=True, exist_ok=True)
     (work / "setting.yaml").write_text(yaml.safe_dump(overlay(setting, value)))
-    cfg = yaml.safe_load(MEDIUM.read_text())
+    cfg = yaml.safe_load(piles.read_text())
     summaries = [f"results/fields/{p}/seed{s}.summary.json" for p, v in cfg["protocols"].items()
                  for s in v["seeds"]]
     cmd = [sys.executable, "-m", "snakemake", "all", *summaries, "-s", str(REPO / "Snakefile"),
            "--directory", str(work), "--cores", str(cores),
            "--profile", str(REPO / "workflow" / "profiles" / "default"),
-           "--configfile", str(REPO / "config" / "config.yaml"), str(MEDIUM), str(work / "setting.yaml")]
+           "--configfile", str(REPO / "config" / "config.yaml"), str(piles), str(work / "setting.yaml")]
     print(f"{setting} = {label(value)}: {' '.join(cmd)}", flush=True)
     subprocess.run(cmd, check=True)
     return work
@@ -103,11 +106,11 @@ def merged(base: dict, layer: dict) -> dict:
     return out
 
 
-def check_values(setting: str, values: list) -> None:
+def check_values(setting: str, values: list, piles: Path = MEDIUM) -> None:
     """Refuse a setting or value that the workflow would refuse, before any pile is poured."""
     from workflow.validation import ConfigurationError, validate_config
 
-    study = merged(yaml.safe_load((REPO / "config" / "config.yaml").read_text()), yaml.safe_load(MEDIUM.read_text()))
+    study = merged(yaml.safe_load((REPO / "config" / "config.yaml").read_text()), yaml.safe_load(piles.read_text()))
     for value in values:
         try:
             validate_config(merged(study, overlay(setting, value)))
@@ -169,13 +172,16 @@ def main() -> None:
                          "only write the table of the recorded ones again")
     ap.add_argument("--name", required=True, help="the study's name: results/sweeps/NAME, docs/reproduction/NAME.md")
     ap.add_argument("--cores", type=int, default=2)
+    ap.add_argument("--piles", type=Path, default=MEDIUM,
+                    help="the piles' settings, merged over config/config.yaml (default: config/medium_piles.yaml)")
     ap.add_argument("--keep-recorded", action="store_true",
                     help="take the values not run now from the recorded docs/reproduction/NAME.json")
     args = ap.parse_args()
     if not args.values and not args.keep_recorded:
         ap.error("--values: give at least one value (or --keep-recorded to rewrite the table)")
-    check_values(args.setting, args.values)
-    cfg = yaml.safe_load(MEDIUM.read_text())
+    piles = args.piles.resolve()
+    check_values(args.setting, args.values, piles)
+    cfg = yaml.safe_load(piles.read_text())
     params = parse_params(json.dumps(cfg["analysis"]))
     out = REPO / "docs" / "reproduction"
     record = out / f"{args.name}.json"
@@ -188,7 +194,7 @@ def main() -> None:
     commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True,
                             text=True, check=True).stdout.strip()
     for value in args.values:
-        work = run_value(args.name, args.setting, value, args.cores)
+        work = run_value(args.name, args.setting, value, args.cores, piles)
         for p, v in cfg["protocols"].items():
             results["piles"][p][label(value)] = [pile_values(work, p, s, params) for s in v["seeds"]]
         results["runs"][label(value)] = commit
@@ -198,7 +204,7 @@ def main() -> None:
     runs = ", ".join(f"{k} at `{results['runs'][k]}`" for k in keys)
     text = (f"# {args.setting}: piles of {cfg['pour']['n_particles']} particles, seeds per protocol {n}\n\n"
             f"Made by `workflow/scripts/setting_sweep.py --setting {args.setting} --name {args.name}` "
-            "(config/medium_piles.yaml); mean ± standard error over seeds; the last column is the largest "
+            f"(--piles {piles.relative_to(REPO)}); mean ± standard error over seeds; the last column is the largest "
             "difference between two values over their combined standard error (> 2: differs beyond seed "
             f"scatter). Run: {runs}." + (f" Note: {results['note']}." if results.get("note") else "")
             + "\n\n" + table(results, keys))
