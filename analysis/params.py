@@ -8,7 +8,7 @@ by construction (tests/test_settings_single_source.py probes it).  The schema
 is a file of the repository, not of the package: ``analysis`` works from a
 checkout or an editable install (``pip install -e .``).  What a schema cannot
 express (an ordered grid, a grid of at most 10^6 points, the raster pixel
-against the RVE size, the bins inside the base-pressure range) is checked in
+against the RVE size, the bins inside the base-pressure range, the order of the history windows) is checked in
 :func:`resolve_params`.
 
 The command line receives the section as JSON text (``--params``); it is
@@ -189,6 +189,13 @@ def resolve_params(user: dict[str, Any] | None) -> dict[str, Any]:
     if b["bin_width"] > b["x_max"] - b["x_min"]:
         raise ParamError(f"analysis.base_pressure.bin_width = {b['bin_width']} is wider than the range "
                          f"[{b['x_min']}, {b['x_max']}]")
+    h = out["history"]
+    if not h["centre"] < h["shoulder_inner"] < h["shoulder_outer"]:
+        raise ParamError(f"analysis.history: the windows must be ordered centre < shoulder_inner < shoulder_outer; "
+                         f"got {h['centre']}, {h['shoulder_inner']}, {h['shoulder_outer']} (m)")
+    if not h["flank_inner"] < h["flank_outer"]:
+        raise ParamError(f"analysis.history.flank_inner = {h['flank_inner']} must be < "
+                         f"flank_outer = {h['flank_outer']} (m)")
     return out
 
 

@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from analysis.params import resolve_params
+
 SCRIPT = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "setting_sweep.py"
 spec = importlib.util.spec_from_file_location("setting_sweep", SCRIPT)
 sweep = importlib.util.module_from_spec(spec)
@@ -24,9 +26,10 @@ def test_overlay_and_merge_change_only_the_swept_setting():
 
 
 def test_table_gives_means_standard_errors_and_the_largest_gap():
-    piles = {"wedge": {"1": [{q: v for q in sweep.QUANTITIES} for v in (1.0, 2.0, 3.0)],
-                       "2": [{q: v for q in sweep.QUANTITIES} for v in (5.0, 6.0, 7.0)]}}
-    text = sweep.table({"piles": piles}, ["1", "2"])
+    quantities = sweep.quantities(resolve_params({}))
+    piles = {"wedge": {"1": [{q: v for q in quantities} for v in (1.0, 2.0, 3.0)],
+                       "2": [{q: v for q in quantities} for v in (5.0, 6.0, 7.0)]}}
+    text = sweep.table({"piles": piles}, ["1", "2"], quantities)
     # means 2 and 6, standard errors 1/sqrt(3) each: gap 4 / sqrt(2/3) = 4.9
     row = next(line for line in text.splitlines() if "angle of repose" in line)
     assert row == f"| wedge | angle of repose (deg) | 2 ± 0.58 | 6 ± 0.58 | {4 / np.sqrt(2 / 3):.1f} |"

@@ -295,6 +295,11 @@ ANALYSIS_COMPANIONS = {
     ("base_pressure", "x_min"): lambda v: {"x_max": v + 1},
     ("base_pressure", "x_max"): lambda v: {"x_min": v - 1},
     ("base_pressure", "bin_width"): lambda v: {"x_min": -v, "x_max": v},
+    ("history", "centre"): lambda v: {"shoulder_inner": 2 * v, "shoulder_outer": 3 * v},
+    ("history", "shoulder_inner"): lambda v: {"centre": v / 2, "shoulder_outer": 2 * v},
+    ("history", "shoulder_outer"): lambda v: {"centre": v / 4, "shoulder_inner": v / 2},
+    ("history", "flank_inner"): lambda v: {"flank_outer": 2 * v + 1},
+    ("history", "flank_outer"): lambda v: {"flank_inner": v / 2},
 }
 
 

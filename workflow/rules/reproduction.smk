@@ -102,6 +102,9 @@ if config["committed"]:
             convergence=[pile_result(p, s, "convergence") for p in PROTOCOLS
                          for s in analysis_seeds(p, "convergence")],
             checks=[pile_result(p, s, "checks") for p in PROTOCOLS for s in analysis_seeds(p, "checks")],
+            fields=[pile_result(p, s, "fields") for p in PROTOCOLS for s in analysis_seeds(p, "fields")],
+            base_pressure=[pile_result(p, s, "base_pressure") for p in PROTOCOLS
+                           for s in analysis_seeds(p, "base_pressure")],
             general=expand("results/ensemble/{protocol}/general_moduli.nc", protocol=reported_general_protocols()),
             probes=[path for _, path in reported_probes()],
             script="workflow/scripts/reproduction_numbers.py",
@@ -112,6 +115,10 @@ if config["committed"]:
             heights=config["analysis"]["figures"]["heights"],
             general=lambda wc, input: _labelled(input.general, reported_general_protocols()),
             probes=[f"{p}={path}" for p, path in reported_probes()],
+            fields=[f"{p}={pile_result(p, s, 'fields')}" for p in PROTOCOLS for s in analysis_seeds(p, "fields")],
+            base_pressure=[f"{p}={pile_result(p, s, 'base_pressure')}" for p in PROTOCOLS
+                           for s in analysis_seeds(p, "base_pressure")],
+            cfg=ANALYSIS_PARAMS,
         log:
             "logs/reproduction/numbers.log",
         localrule: True
@@ -121,5 +128,6 @@ if config["committed"]:
             py_shell(
                 "{input.script:q} --ensemble results/ensemble --protocols {params.protocols:q} "
                 "--convergence {input.convergence:q} --checks {input.checks:q} --heights {params.heights:q} "
-                "--general {params.general:q} --probes {params.probes:q} > {output:q} 2> {log:q}"
+                "--general {params.general:q} --probes {params.probes:q} --fields {params.fields:q} "
+                "--base-pressure {params.base_pressure:q} --params {params.cfg:q} > {output:q} 2> {log:q}"
             )

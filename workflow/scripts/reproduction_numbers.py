@@ -13,13 +13,14 @@ measures:
 * **Slips left out**: the pile-RVEs whose probe response the ensemble left
   out as slipped (``analysis.ensemble.slip_strain_ratio``), in all and per
   pile, and where.
-* **Fig. 2, vertical strain dip**: at each height, ``u_yy`` at the centre
-  (mean of the columns with ``|x| <= 1.5`` grid spacings) and the largest
-  ``|u_yy|`` off the centre, with its x.
-* **Base pressure dip**: per pile, the mean normal force density under the
-  centre (``|x| < 6 cm``) over its mean in the ring ``6 <= |x| < 24 cm``
-  (below 1: a dip), mean and standard error over piles; bins of 2 cm alone
-  scatter by tens of percent with the force chains.
+* **Fig. 2, vertical strain**: at each height, ``u_yy`` of the ensemble in
+  the centre and shoulder windows of ``analysis.history`` (mean of the
+  columns; error: the mean of their standard errors).
+* **Construction history** (``--fields``, ``--base-pressure``): the
+  pre-registered statistics of :mod:`analysis.history`, per pile, then wedge
+  against layered with the standard error of the difference, ``z``, the
+  minimum detectable difference and the piles needed for a 5 and a 10 %
+  difference; how many comparisons were made.
 * **Base pressure**: the normal force density at the centre (two bins next
   to x = 0) and its maximum, with the x of the maximum.
 * **Fig. 3, fabric**: range of the trace and of the deviatoric fraction over
@@ -64,6 +65,9 @@ import xarray as xr
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+from analysis.history import (UNITS, bonferroni_z, compare, detection_factor, pile_history,  # noqa: E402
+                              primary_names, windows)
+from analysis.params import parse_params  # noqa: E402
 from analysis.probes import reversibility  # noqa: E402
 
 
@@ -76,10 +80,16 @@ def _row_index(ds, h):
     return int(np.argmin(np.abs(ds["y"].values - h)))
 
 
-def strain_dip(ds, heights):
-    """Lines of the Fig. 2 measure for one protocol's ensemble fields."""
+def strain_profile(ds, heights, history):
+    """Lines of Fig. 2 for one protocol's ensemble fields: ``u_yy`` in the centre and
+    shoulder windows of ``analysis.history`` at each height.
+
+    A window's value is the mean of its columns, its error the mean of their
+    standard errors (neighbouring RVEs share most of their particles, so their
+    errors are not independent); the test of a dip is the per-pile contrast of
+    :func:`history`, not this table."""
     x = ds["x"].values
-    dx = float(np.median(np.diff(x)))
+    centre, shoulders = windows(x, history)
     u = ds["strain_increment"].sel(i="y", j="y").values
     su = ds["strain_increment_sem"].sel(i="y", j="y").values
     out = []
@@ -88,14 +98,11 @@ def strain_dip(ds, heights):
         row, srow = u[k], su[k]
         if not np.isfinite(row).any():
             continue
-        centre = np.abs(x) <= 1.5 * dx
-        c = float(np.nanmean(row[centre])) if np.isfinite(row[centre]).any() else np.nan
-        ok = np.isfinite(srow[centre])
-        sc = float(np.sqrt(np.sum(srow[centre][ok] ** 2)) / ok.sum()) if ok.any() else np.nan
-        off = np.where(~centre & np.isfinite(row), np.abs(row), -np.inf)
-        j = int(np.argmax(off))
-        out.append(f"| {100 * ds['y'].values[k]:.1f} | {_pm(c, sc)} | {_pm(float(row[j]), float(srow[j]))} "
-                   f"at x = {100 * x[j]:.0f} cm |")
+        cells = []
+        for w in (centre, shoulders):
+            ok = w & np.isfinite(row)
+            cells.append(_pm(float(row[ok].mean()), float(np.nanmean(srow[ok]))) if ok.any() else "n/a")
+        out.append(f"| {100 * ds['y'].values[k]:.1f} | {cells[0]} | {cells[1]} |")
     return out
 
 
@@ -122,16 +129,6 @@ def base_pressure(bp):
     j = int(np.nanargmax(p))
     return (f"centre {_pm(float(p[c].mean()), float(np.sqrt((s[c] ** 2).sum()) / 2))} N/m, maximum "
             f"{_pm(float(p[j]), float(s[j]))} N/m at x = {100 * x[j]:.0f} cm ({_piles(int(bp.attrs['n_seeds']))})")
-
-
-def base_pressure_dip(bp, centre=0.06, ring=0.24):
-    """Per-pile ratio of the centre's mean normal force density to the ring's, as mean ± SE."""
-    x = np.abs(bp["x"].values)
-    per_seed = bp["normal_force_density_per_seed"].values
-    ratio = per_seed[:, x < centre].mean(axis=1) / per_seed[:, (x >= centre) & (x < ring)].mean(axis=1)
-    se = float(np.std(ratio, ddof=1) / np.sqrt(ratio.size)) if ratio.size > 1 else float("nan")
-    return (f"centre (|x| < {100 * centre:.0f} cm) / ring ({100 * centre:.0f}–{100 * ring:.0f} cm) "
-            f"{_pm(float(ratio.mean()), se)} (per pile: {', '.join(f'{r:.3f}' for r in ratio)})")
 
 
 def _piles(n):
@@ -311,6 +308,86 @@ def per_pile_probes(paths):
     return out
 
 
+#: Differences whose power is given: relative contrasts 5 and 10 %, the angle 2 and 5 degrees.
+DELTAS = {"": (0.05, 0.10), "deg": (2.0, 5.0)}
+
+
+def _history_cell(name, m, se):
+    if UNITS.get(name) == "deg":
+        return _pm(m, se, ".2f") + "°"
+    if not np.isfinite(m):
+        return "n/a"
+    return f"{100 * m:+.1f} ± " + ("n/a" if not np.isfinite(se) else f"{100 * se:.1f}") + " %"
+
+
+def history_values(fields, bases, params, heights):
+    """Per protocol, each pile's history statistics (:func:`analysis.history.pile_history`).
+
+    ``fields`` and ``bases`` are ``PROTOCOL=FILE`` items; a pile's base pressure
+    is used where its file is among ``bases`` (the same seed)."""
+    by_seed = {}
+    for item in bases:
+        p, path = item.split("=", 1)
+        by_seed[(p, Path(path).name.split(".")[0])] = path
+    out = {}
+    for item in fields:
+        p, path = item.split("=", 1)
+        bp_path = by_seed.get((p, Path(path).name.split(".")[0]))
+        with xr.open_dataset(path) as ds:
+            bp = xr.open_dataset(bp_path) if bp_path else None
+            try:
+                out.setdefault(p, []).append(pile_history(ds.load(), params, heights, bp))
+            finally:
+                if bp is not None:
+                    bp.close()
+    return out
+
+
+def history(values, params, heights, a="wedge", b="layered"):
+    """Lines of the pre-registered history statistics: ``a`` against ``b``."""
+    h = params["history"]
+    primary = primary_names(h)
+    names = list(dict.fromkeys(k for piles in values.values() for v in piles for k in v))
+    rows = []
+    for name in primary + [n for n in names if n not in primary]:
+        c = compare([v.get(name, np.nan) for v in values.get(a, [])], [v.get(name, np.nan) for v in values.get(b, [])],
+                    deltas=DELTAS[UNITS.get(name, "")])
+        if c["a"][3] + c["b"][3] == 0:
+            continue
+        unit = UNITS.get(name, "")
+        scale = 1.0 if unit else 100.0
+        d1, d2 = DELTAS[unit]
+        need = "n/a" if not np.isfinite(c["n_2se"][d1]) else \
+            f"{c['n_2se'][d1]:.0f} / {c['n_2se'][d2]:.0f} ({c['n_power'][d1]:.0f} / {c['n_power'][d2]:.0f})"
+        rows.append(f"| {'**' + name + '**' if name in primary else name} | {_history_cell(name, *c['a'][:2])} "
+                    f"({c['a'][3]}; {c['z_a']:+.1f}) | {_history_cell(name, *c['b'][:2])} ({c['b'][3]}; {c['z_b']:+.1f}) | "
+                    f"{_history_cell(name, c['diff'], c['se'])} | {c['z']:+.1f} | "
+                    f"{scale * c['mdd_2se']:.2g} / {scale * c['mdd_power']:.2g} | {need} |")
+    k = detection_factor()
+    return [
+        f"Windows (analysis.history, fixed before the piles they decide): centre |x| <= {100 * h['centre']:g} cm, "
+        f"shoulders {100 * h['shoulder_inner']:g}–{100 * h['shoulder_outer']:g} cm; core |x| <= "
+        f"{100 * h['shoulder_outer']:g} cm, y <= {100 * h['core_height']:g} cm; flanks "
+        f"{100 * h['flank_inner']:g}–{100 * h['flank_outer']:g} cm, y <= {100 * h['flank_height']:g} cm. "
+        "Per pile (analysis/history.py), then the mean ± standard error over piles, "
+        "(piles; mean in SE from 0), the difference {a} − {b} with its standard error and z = difference / SE.".format(a=a, b=b),
+        "",
+        f"Power: the minimum detectable difference with these piles, 2 SE (a difference that size stands at "
+        f"2 SE) / {k:.2f} SE (seen at two-sided 5 % with 80 % probability), in % (degrees for the angle); "
+        "piles per protocol that put a difference of 5 / 10 % (2 / 5 degrees for the angle) at 2 SE "
+        "(in brackets: that see it with 80 % probability), from the measured scatter.",
+        "",
+        f"| statistic | {a} | {b} | {a} − {b} | z | detectable | piles for 5 / 10 % |",
+        "|---|---|---|---|---|---|---|",
+        *rows,
+        "",
+        f"{len(rows)} statistics, each compared three ways ({a} and {b} against 0, {a} − {b}): {3 * len(rows)} "
+        f"comparisons. The {len(primary)} in bold are the primary ones, one per question; over them a "
+        f"family-wise 5 % asks |z| > {bonferroni_z(len(primary)):.2f} "
+        "(Bonferroni) for each difference.",
+    ]
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--ensemble", required=True, help="folder of results/ensemble/{protocol}/")
@@ -322,7 +399,13 @@ def main(argv=None):
                     help="general_moduli.nc of the protocols with the extra probes")
     ap.add_argument("--probes", nargs="*", default=[], metavar="PROTOCOL=FILE",
                     help="the probes.nc of every pile with the extra probes")
+    ap.add_argument("--fields", nargs="*", default=[], metavar="PROTOCOL=FILE",
+                    help="every pile's fields.nc (the history statistics)")
+    ap.add_argument("--base-pressure", nargs="*", default=[], metavar="PROTOCOL=FILE",
+                    help="every pile's base_pressure.nc")
+    ap.add_argument("--params", default=None, help="the analysis section as JSON (the history windows)")
     args = ap.parse_args(argv)
+    params = parse_params(args.params)
     out = ["# Numbers of the reproduction", "",
            "Made by `workflow/scripts/reproduction_numbers.py` from the ensembles (`make reproduction`); "
            "mean ± standard error over piles.", ""]
@@ -330,14 +413,20 @@ def main(argv=None):
         with xr.open_dataset(f"{args.ensemble}/{p}/fields.nc") as ds:
             n = int(ds.attrs.get("n_seeds", 0))
             out += [f"## {p} ({_piles(n)})", "", f"Slips: {slips(ds)}.", "", "Vertical strain increment u_yy (Fig. 2):", "",
-                    "| y (cm) | centre | largest off the centre |", "|---|---|---|", *strain_dip(ds, args.heights),
+                    f"| y (cm) | centre (|x| <= {100 * params['history']['centre']:g} cm) | shoulders "
+                    f"({100 * params['history']['shoulder_inner']:g}–{100 * params['history']['shoulder_outer']:g} cm) |",
+                    "|---|---|---|", *strain_profile(ds, args.heights, params["history"]),
                     "", "Fabric (Fig. 3): " + "; ".join(fabric(ds)) + "."]
         with xr.open_dataset(f"{args.ensemble}/{p}/base_pressure.nc") as bp:
-            out += ["", f"Base pressure: {base_pressure(bp)}; {base_pressure_dip(bp)}."]
+            out += ["", f"Base pressure: {base_pressure(bp)}."]
         with xr.open_dataset(f"{args.ensemble}/{p}/moduli.nc") as md:
             out += ["", f"Moduli (Fig. 4): {moduli(md)}."]
         with xr.open_dataset(f"{args.ensemble}/{p}/invariants.nc") as inv:
             out += ["", "tr Δσ against tr ε (Fig. 5): " + "; ".join(invariants(inv)) + ".", ""]
+    if args.fields:
+        out += ["## Construction history: centre against shoulders, pre-registered", "",
+                *history(history_values(args.fields, args.base_pressure, params, args.heights), params, args.heights),
+                ""]
     rows, points = convergence(args.convergence)
     out += [f"## RVE convergence (Fig. 1; {len(args.convergence)} piles, {points} points in all)", "",
             "Deviation from the value in the largest RVE, %: median / largest over the piles and points.", "",

@@ -50,19 +50,39 @@ REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
 from analysis.elastic import moduli_dataset  # noqa: E402
+from analysis.history import pile_history, primary_names  # noqa: E402
 from analysis.params import parse_params  # noqa: E402
 
 MEDIUM = REPO / "config" / "medium_piles.yaml"
-QUANTITIES = {
+SHAPE = {
     "angle_deg": "angle of repose (deg)",
     "height": "height (m)",
     "width": "base width (m)",
     "solid_fraction": "core solid fraction",
-    "dip": "base-pressure dip 1 − p(0)/max p",
+}
+#: The pre-registered history statistics (analysis/history.py), per pile: the primary five.
+HISTORY = {
+    "strain": "strain u_yy centre/shoulders − 1 at {h} cm",
+    "base_pressure_column": "base pressure centre/shoulders against a uniform pile − 1",
+    "solid_fraction@": "solid fraction centre/shoulders − 1 at {h} cm",
+    "gravity_gap": "gravity scaling Δσ_xx/σ_xx ÷ Δσ_yy/σ_yy − 1",
+    "stress_fabric": "stress–fabric angle on the flanks (deg)",
+}
+MODULI = {
     "youngs_modulus": "core E (N/m)",
     "bulk_modulus": "core K (N/m)",
 }
+COST = {"cpu_s": "CPU s per pile (pour, relax, probe)"}
 CORE_X, CORE_Y = 0.03, 0.05
+
+
+def quantities(params: dict) -> dict:
+    """The compared quantities, ``{key: heading}``: the pile's shape, the primary
+    history statistics under ``params["history"]``, the core moduli and the CPU time."""
+    h = params["history"]
+    keys = primary_names(h)
+    cm = f"{100 * h['primary_height']:g}"
+    return {**SHAPE, **{k: text.format(h=cm) for k, text in zip(keys, HISTORY.values())}, **MODULI, **COST}
 
 
 def label(value) -> str:
@@ -118,6 +138,19 @@ def check_values(setting: str, values: list, piles: Path = MEDIUM) -> None:
             raise SystemExit(f"setting_sweep.py --setting {setting} --values ... {label(value)}: {exc}") from None
 
 
+def cpu_seconds(work: Path, protocol: str, seed: int) -> float:
+    """CPU seconds of the pile's simulation jobs (pour, relax, probes) from Snakemake's benchmark files."""
+    files = [work / "benchmarks" / rule / protocol / f"seed{seed}.tsv" for rule in ("pour", "relax")]
+    files += sorted((work / "benchmarks" / "probe" / protocol).glob(f"seed{seed}_*.tsv"))
+    total = 0.0
+    for f in files:
+        if not f.exists():
+            return float("nan")
+        header, row = f.read_text().splitlines()[:2]
+        total += float(dict(zip(header.split("\t"), row.split("\t")))["cpu_time"])
+    return total
+
+
 def pile_values(work: Path, protocol: str, seed: int, params: dict) -> dict:
     """The compared quantities of one pile."""
     stem = work / "results" / "fields" / protocol / f"seed{seed}"
@@ -125,18 +158,16 @@ def pile_values(work: Path, protocol: str, seed: int, params: dict) -> dict:
     rel = next(line for line in lines if line["stage"] == "relaxed")
     out = {"angle_deg": 0.5 * (rel["flank_left_deg"] + rel["flank_right_deg"]),
            "height": rel["height"], "width": rel["width"]}
-    with xr.open_dataset(f"{stem}.nc") as f:
+    with xr.open_dataset(f"{stem}.nc") as f, xr.open_dataset(f"{stem}.base_pressure.nc") as bp:
+        f = f.load()
         core = (np.abs(f["x"]) <= CORE_X) & (f["y"] <= CORE_Y)
         out["solid_fraction"] = float(f["solid_fraction"].where(core).mean())
-        mod = moduli_dataset(f.load(), [], params)
+        out.update(pile_history(f, params, params["figures"]["heights"], bp.load()))
+        mod = moduli_dataset(f, [], params)
     core = (np.abs(mod["x"]) <= CORE_X) & (mod["y"] <= CORE_Y)
     for k in ("youngs_modulus", "bulk_modulus"):
         out[k] = float(mod[k].sel(fit="average", points=5).where(core).mean())
-    with xr.open_dataset(f"{stem}.base_pressure.nc") as bp:
-        p = bp["normal_force_density_per_seed"].values[0]
-        x = bp["x"].values
-        centre = np.argsort(np.abs(x))[:2]
-        out["dip"] = float(1.0 - np.mean(p[centre]) / np.max(p))
+    out["cpu_s"] = cpu_seconds(work, protocol, seed)
     return out
 
 
@@ -149,19 +180,60 @@ def mean_sem(values: list) -> tuple:
     return float(a.mean()), sem, int(a.size)
 
 
-def table(results: dict, keys: list) -> str:
+def table(results: dict, keys: list, quantities: dict) -> str:
     """Markdown: per protocol and quantity, mean ± SE at each value, and the largest
-    difference between two values in combined standard errors."""
+    difference between two values in combined standard errors (rows no pile has are left out)."""
     rows = ["| protocol | quantity | " + " | ".join(keys) + " | max |Δ|/SE |",
             "|---|---|" + "---|" * (len(keys) + 1)]
     for protocol, by_value in results["piles"].items():
-        for q, text in QUANTITIES.items():
-            stats = [mean_sem([p[q] for p in by_value[k]]) for k in keys]
+        for q, text in quantities.items():
+            stats = [mean_sem([p.get(q, np.nan) for p in by_value[k]]) for k in keys]
+            if not any(n for _, _, n in stats):
+                continue
             z = max((abs(a[0] - b[0]) / np.hypot(a[1], b[1])
                      for i, a in enumerate(stats) for b in stats[i + 1:]), default=float("nan"))
             cells = " | ".join(f"{m:.4g} ± {s:.2g}" for m, s, _ in stats)
             rows.append(f"| {protocol} | {text} | {cells} | {z:.1f} |")
     return "\n".join(rows) + "\n"
+
+
+def history_table(results: dict, keys: list, quantities: dict, a: str = "wedge", b: str = "layered") -> str:
+    """Markdown: at each value, ``a − b`` in each history statistic, ± its standard error (z)."""
+    if not {a, b} <= set(results["piles"]):
+        return ""
+    names = [q for q in quantities if q not in SHAPE and q not in MODULI and q not in COST]
+    rows = [f"| {a} − {b} | " + " | ".join(keys) + " |", "|---|" + "---|" * len(keys)]
+    for q in names:
+        cells = []
+        for k in keys:
+            (ma, sa, _), (mb, sb, _) = (mean_sem([p.get(q, np.nan) for p in results["piles"][x][k]]) for x in (a, b))
+            se = np.hypot(sa, sb)
+            cells.append(f"{ma - mb:+.3g} ± {se:.2g} ({(ma - mb) / se:+.1f})" if se > 0 else "n/a")
+        if any(c != "n/a" and "nan" not in c for c in cells):
+            rows.append(f"| {quantities[q]} | " + " | ".join(cells) + " |")
+    return "\n".join(rows) + "\n" if len(rows) > 2 else ""
+
+
+def _order(key: str) -> tuple:
+    """Numbers in increasing order, then the rest as given (``sorted`` is stable)."""
+    value = yaml.safe_load(key)
+    number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    return (0, value) if number else (1, 0)
+
+
+def same_run(spec: str) -> tuple:
+    """``VALUE=NAME/OTHER`` → (value, NAME, OTHER): the value's piles are those of sweep
+    NAME at OTHER, refused unless both give the same configuration."""
+    value_text, _, run = spec.partition("=")
+    name, _, other = run.partition("/")
+    if not (value_text and name and other):
+        raise SystemExit(f"--same {spec!r}: expected VALUE=NAME/VALUE, e.g. 0.02=friction/0.5")
+    return yaml.safe_load(value_text), name, other
+
+
+def _configuration(piles: Path, layer: dict) -> dict:
+    study = merged(yaml.safe_load((REPO / "config" / "config.yaml").read_text()), yaml.safe_load(piles.read_text()))
+    return merged(study, layer)
 
 
 def main() -> None:
@@ -176,8 +248,14 @@ def main() -> None:
                     help="the piles' settings, merged over config/config.yaml (default: config/medium_piles.yaml)")
     ap.add_argument("--keep-recorded", action="store_true",
                     help="take the values not run now from the recorded docs/reproduction/NAME.json")
+    ap.add_argument("--from", dest="runs", type=Path, default=None, metavar="DIR",
+                    help="read the values' piles from DIR/NAME/VALUE/ (results/sweeps of a clone that ran "
+                         "them at a fixed commit, which is recorded) instead of pouring them here")
+    ap.add_argument("--same", nargs="*", default=[], metavar="VALUE=NAME/VALUE",
+                    help="a value whose piles are another sweep's run of the same configuration "
+                         "(e.g. the study's value, poured once for every sweep)")
     args = ap.parse_args()
-    if not args.values and not args.keep_recorded:
+    if not args.values and not args.same and not args.keep_recorded:
         ap.error("--values: give at least one value (or --keep-recorded to rewrite the table)")
     piles = args.piles.resolve()
     check_values(args.setting, args.values, piles)
@@ -191,15 +269,28 @@ def main() -> None:
         if results.get("setting", args.setting) != args.setting:
             raise SystemExit(f"--keep-recorded: {record} is a sweep of {results['setting']}, not {args.setting}")
         results["setting"] = args.setting
-    commit = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True,
-                            text=True, check=True).stdout.strip()
-    for value in args.values:
-        work = run_value(args.name, args.setting, value, args.cores, piles)
+    commit = subprocess.run(["git", "-C", str(args.runs or REPO), "rev-parse", "--short", "HEAD"],
+                            capture_output=True, text=True, check=True).stdout.strip()
+    root = args.runs or REPO / "results" / "sweeps"
+    values = list(args.values)
+    works = {label(v): root / args.name / label(v) for v in values} if args.runs else {}
+    for spec in args.same:
+        value, name, other = same_run(spec)
+        run = root / name / other
+        if _configuration(piles, overlay(args.setting, value)) != \
+                _configuration(piles, yaml.safe_load((run / "setting.yaml").read_text())):
+            raise SystemExit(f"--same {spec}: {run} was run with another configuration than "
+                             f"{args.setting} = {label(value)}")
+        check_values(args.setting, [value], piles)
+        works[label(value)] = run
+        values.append(value)
+    for value in values:
+        work = works.get(label(value)) or run_value(args.name, args.setting, value, args.cores, piles)
         for p, v in cfg["protocols"].items():
             results["piles"][p][label(value)] = [pile_values(work, p, s, params) for s in v["seeds"]]
         results["runs"][label(value)] = commit
     record.write_text(json.dumps(results, indent=1) + "\n")
-    keys = list(results["runs"])
+    keys = sorted(results["runs"], key=_order)
     n = {p: len(v["seeds"]) for p, v in cfg["protocols"].items()}
     runs = ", ".join(f"{k} at `{results['runs'][k]}`" for k in keys)
     text = (f"# {args.setting}: piles of {cfg['pour']['n_particles']} particles, seeds per protocol {n}\n\n"
@@ -207,7 +298,11 @@ def main() -> None:
             f"(--piles {piles.relative_to(REPO)}); mean ± standard error over seeds; the last column is the largest "
             "difference between two values over their combined standard error (> 2: differs beyond seed "
             f"scatter). Run: {runs}." + (f" Note: {results['note']}." if results.get("note") else "")
-            + "\n\n" + table(results, keys))
+            + "\n\n" + table(results, keys, quantities(params)))
+    versus = history_table(results, keys, quantities(params))
+    if versus:
+        text += ("\nWedge against layered at each value, in the history statistics (docs/reproduction/numbers.md "
+                 "defines them): the difference of the means ± its standard error (in standard errors).\n\n" + versus)
     (out / f"{args.name}.md").write_text(text)
     print(text)
 

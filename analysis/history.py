@@ -1,0 +1,251 @@
+"""Does the construction history show in a pile?  Statistics fixed before the data.
+
+The paper's central finding is that a point-source (wedge) pile carries its
+history: a pressure minimum, a density maximum and a dip of the vertical
+strain increment near the centre, none of which a line-source (layered) pile
+shows.  This module turns that into numbers that can decide it: each
+statistic is one number per pile, computed in windows fixed beforehand
+(``analysis.history``), and the protocols are compared by the mean over
+their piles with its standard error (:func:`compare`), with the smallest
+difference the comparison could have seen (its power).
+
+Windows, by the centre ``x`` of a grid column or base bin (``x = 0`` on the
+pouring axis): the *centre* ``|x| <= centre``; the *shoulders*
+``shoulder_inner <= |x| <= shoulder_outer`` on both sides (fixed, so that no
+column is picked by its value); the *core* ``|x| <= shoulder_outer``,
+``y <= core_height``; the *flanks* ``flank_inner <= |x| <= flank_outer``,
+``y <= flank_height``.  Per pile (:func:`pile_history`):
+
+* ``strain@h``: ``mean u_yy(centre) / mean u_yy(shoulders) - 1`` in the grid
+  row nearest each height ``h`` (the Fig. 2 layers); below 0: a dip;
+* ``solid_fraction@h``: ``mean phi(centre) / mean phi(shoulders) - 1``;
+  above 0: denser at the centre;
+* ``base_pressure``: ``mean p(centre) / mean p(shoulders) - 1`` of the normal
+  force density on the support.  A heap of uniform density already presses
+  most where it is highest, so this is not zero without a history; hence
+* ``base_pressure_column``: the same with each bin's pressure over the
+  pressure ``p_u(x) = W h(x) / integral h dx`` that a pile of uniform density
+  with the pile's own measured surface ``h(x)`` and weight ``W`` would put
+  there (every column carrying its own weight); below 0: the centre carries
+  less than its column relative to the shoulders, a dip against the heap;
+* ``centre_column``: ``mean p(centre) / mean p_u(centre) - 1``, the centre's
+  load against its own column;
+* ``gravity_xx``, ``gravity_yy``: medians over the core RVEs of
+  ``dsigma_xx / sigma_xx`` and ``dsigma_yy / sigma_yy`` under the probe (a
+  stress proportional to gravity gives ``-Delta`` in both), and
+  ``gravity_gap = gravity_xx / gravity_yy - 1`` (0 when both scale with g;
+  the paper's Sect. 3 finds sigma_xx changing less);
+* ``stress_fabric``: the mean over the flank RVEs of ``sign(x)`` times the
+  angle from the fabric's major axis to the most compressive stress axis
+  (degrees; mirrored so that a tilt symmetric about the axis adds up);
+  0 when the axes are collinear on average.
+
+Probe responses of RVEs that slipped (``analysis.ensemble.slip_strain_ratio``)
+are left out, as in the ensembles.  The five *primary* statistics, one per
+question, are listed in :data:`PRIMARY`; the others are secondary.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import Any
+
+import numpy as np
+import xarray as xr
+from scipy.stats import norm
+
+from .ensemble import leave_out_slips
+
+#: The primary statistics, one per question (``{h}`` is ``analysis.history.primary_height``).
+PRIMARY = ("strain@{h}", "base_pressure_column", "solid_fraction@{h}", "gravity_gap", "stress_fabric")
+
+#: Unit of each statistic's kind: a relative contrast (shown in %) or an angle (degrees).
+UNITS = {"stress_fabric": "deg"}
+
+
+def _nanmean(a: np.ndarray) -> float:
+    a = np.asarray(a, float)
+    a = a[np.isfinite(a)]
+    return float(a.mean()) if a.size else math.nan
+
+
+def _nanmedian(a: np.ndarray) -> float:
+    a = np.asarray(a, float)
+    a = a[np.isfinite(a)]
+    return float(np.median(a)) if a.size else math.nan
+
+
+def height_key(h: float) -> str:
+    """The suffix of a per-layer statistic: ``4.5`` (cm) for 0.045 m."""
+    return f"{100 * h:g}"
+
+
+def primary_names(history: dict[str, Any]) -> list[str]:
+    """The names of the primary statistics under the settings ``history``."""
+    return [name.format(h=height_key(history["primary_height"])) for name in PRIMARY]
+
+
+def windows(x: np.ndarray, history: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """Masks of the centre and the shoulders over the positions ``x`` (m)."""
+    ax = np.abs(np.asarray(x, float))
+    eps = 1e-9  # grid coordinates carry rounding; a window edge on a column keeps it
+    centre = ax <= history["centre"] + eps
+    shoulders = (ax >= history["shoulder_inner"] - eps) & (ax <= history["shoulder_outer"] + eps)
+    return centre, shoulders
+
+
+def row_contrast(row: np.ndarray, x: np.ndarray, history: dict[str, Any]) -> float:
+    """``mean(centre) / mean(shoulders) - 1`` of one grid row (NaN where a window is empty)."""
+    centre, shoulders = windows(x, history)
+    c, s = _nanmean(row[centre]), _nanmean(row[shoulders])
+    return c / s - 1.0 if np.isfinite(c) and np.isfinite(s) and s != 0 else math.nan
+
+
+def uniform_pile_pressure(x_bins: np.ndarray, x_surface: np.ndarray, surface: np.ndarray,
+                          weight: float) -> np.ndarray:
+    """The pressure a pile of uniform density would put on the support at ``x_bins``.
+
+    Each column carries its own weight: ``p_u(x) = W h(x) / integral h dx``, with
+    ``h`` the measured free surface (NaN, outside the pile, counts as 0) linearly
+    interpolated between its grid columns and ``W`` the pile's weight per unit
+    length (N/m), so that ``p_u`` integrates to ``W`` over the surface's extent.
+    """
+    h = np.where(np.isfinite(surface), surface, 0.0)
+    area = float(np.trapezoid(h, x_surface))
+    if not area > 0:
+        return np.full(np.shape(x_bins), math.nan)
+    return weight * np.interp(x_bins, x_surface, h, left=0.0, right=0.0) / area
+
+
+def base_pressure_stats(bp: xr.Dataset, fields: xr.Dataset, history: dict[str, Any]) -> dict[str, float]:
+    """``base_pressure``, ``base_pressure_column`` and ``centre_column`` of one pile."""
+    x = bp["x"].values
+    p = bp["normal_force_density_per_seed"].values[0]
+    pu = uniform_pile_pressure(x, fields["x"].values, fields["surface_height"].values, float(bp["weight"].values[0]))
+    centre, shoulders = windows(x, history)
+    pc, ps = _nanmean(p[centre]), _nanmean(p[shoulders])
+    uc, us = _nanmean(pu[centre]), _nanmean(pu[shoulders])
+    return {"base_pressure": pc / ps - 1.0,
+            "base_pressure_column": (pc / uc) / (ps / us) - 1.0,
+            "centre_column": pc / uc - 1.0}
+
+
+def gravity_scaling(fields: xr.Dataset, history: dict[str, Any]) -> dict[str, float]:
+    """``gravity_xx``, ``gravity_yy`` and ``gravity_gap`` over the core RVEs of one pile."""
+    x, y = fields["x"].values, fields["y"].values
+    core = (np.abs(x)[None, :] <= history["shoulder_outer"] + 1e-9) & (y[:, None] <= history["core_height"] + 1e-9)
+    out = {}
+    for k in ("x", "y"):
+        s = fields["stress"].sel(i=k, j=k).transpose("y", "x").values
+        d = fields["stress_increment"].sel(i=k, j=k).transpose("y", "x").values
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out[f"gravity_{k}{k}"] = _nanmedian(np.where(core & (s < 0), d / s, np.nan))
+    out["gravity_gap"] = out["gravity_xx"] / out["gravity_yy"] - 1.0
+    return out
+
+
+def stress_fabric_angle(fields: xr.Dataset, history: dict[str, Any]) -> float:
+    """Mean of ``sign(x)`` times the stress-fabric angle over the flank RVEs of one pile (degrees)."""
+    x, y = fields["x"].values, fields["y"].values
+    ax = np.abs(x)
+    flank = ((ax >= history["flank_inner"] - 1e-9) & (ax <= history["flank_outer"] + 1e-9))[None, :] \
+        & (y[:, None] <= history["flank_height"] + 1e-9)
+    a = fields["stress_fabric_angle"].transpose("y", "x").values * np.sign(x)[None, :]
+    return _nanmean(np.where(flank, a, np.nan))
+
+
+def pile_history(fields: xr.Dataset, params: dict[str, Any], heights: list[float],
+                 bp: xr.Dataset | None = None) -> dict[str, float]:
+    """Every history statistic of one pile.
+
+    Parameters
+    ----------
+    fields : xarray.Dataset
+        The pile's RVE fields (``fields.nc``).
+    params : dict
+        The resolved analysis settings (``analysis.params.resolve_params``):
+        ``history`` gives the windows, ``ensemble.slip_strain_ratio`` the slips.
+    heights : list of float
+        Layers (m) of the per-layer statistics; ``history.primary_height`` is
+        added when missing.
+    bp : xarray.Dataset, optional
+        The pile's ``base_pressure.nc``; without it the base-pressure
+        statistics are left out.
+
+    Returns
+    -------
+    dict
+        ``{name: value}``, relative contrasts as fractions, the angle in degrees.
+    """
+    h = params["history"]
+    (fields,), _ = leave_out_slips([fields], params["ensemble"]["slip_strain_ratio"])
+    x, y = fields["x"].values, fields["y"].values
+    u = fields["strain_increment"].sel(i="y", j="y").transpose("y", "x").values
+    phi = fields["solid_fraction"].transpose("y", "x").values
+    phi = np.where(fields["mask_reason"].transpose("y", "x").values == 0, phi, np.nan)
+    out = {}
+    for z in sorted(set(heights) | {h["primary_height"]}):
+        k = int(np.argmin(np.abs(y - z)))
+        out[f"strain@{height_key(z)}"] = row_contrast(u[k], x, h)
+        out[f"solid_fraction@{height_key(z)}"] = row_contrast(phi[k], x, h)
+    if bp is not None:
+        out.update(base_pressure_stats(bp, fields, h))
+    out.update(gravity_scaling(fields, h))
+    out["stress_fabric"] = stress_fabric_angle(fields, h)
+    return out
+
+
+def mean_sem(values) -> tuple[float, float, float, int]:
+    """Mean, standard error, standard deviation and count of the finite ``values``."""
+    a = np.asarray(values, float)
+    a = a[np.isfinite(a)]
+    if a.size == 0:
+        return math.nan, math.nan, math.nan, 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sd = float(a.std(ddof=1)) if a.size > 1 else math.nan
+    return float(a.mean()), sd / math.sqrt(a.size), sd, int(a.size)
+
+
+def piles_needed(sd_a: float, sd_b: float, delta: float, z: float) -> float:
+    """Piles per protocol for a difference ``delta`` to stand ``z`` standard errors
+    from zero, ``z^2 (sd_a^2 + sd_b^2) / delta^2`` (equal numbers in both)."""
+    if not (np.isfinite(sd_a) and np.isfinite(sd_b)):
+        return math.nan
+    return float(math.ceil(z * z * (sd_a ** 2 + sd_b ** 2) / delta ** 2))
+
+
+def detection_factor(level: float = 0.05, power: float = 0.8) -> float:
+    """``z_{1-level/2} + z_power``: a difference of this many standard errors is seen
+    at the two-sided ``level`` with probability ``power`` (2.80 for 5 % and 80 %)."""
+    return float(norm.ppf(1 - level / 2) + norm.ppf(power))
+
+
+def bonferroni_z(comparisons: int, level: float = 0.05) -> float:
+    """The |z| each of ``comparisons`` tests must pass for a family-wise two-sided ``level``."""
+    return float(norm.ppf(1 - level / (2 * comparisons)))
+
+
+def compare(a, b, deltas=(0.05, 0.10), level: float = 0.05, power: float = 0.8) -> dict[str, Any]:
+    """Protocol ``a`` against protocol ``b`` in one per-pile statistic.
+
+    Returns the mean, standard error, SD and count of each; the difference
+    ``a - b``, its standard error ``sqrt(se_a^2 + se_b^2)`` and ``z`` (the
+    difference in standard errors); each mean against zero in standard
+    errors; the *minimum detectable difference*: ``2 se`` (a difference of
+    that size stands at 2 SE) and ``(z_{1-level/2} + z_power) se`` (seen at the
+    two-sided ``level`` with probability ``power``); and, for each of
+    ``deltas``, the piles per protocol that put it at 2 SE
+    (``n_2se``) and that see it with that power (``n_power``).
+    """
+    ma, sa, da, na = mean_sem(a)
+    mb, sb, db, nb = mean_sem(b)
+    se = math.hypot(sa, sb)
+    k = detection_factor(level, power)
+    return {"a": (ma, sa, da, na), "b": (mb, sb, db, nb), "diff": ma - mb, "se": se,
+            "z": (ma - mb) / se if se > 0 else math.nan,
+            "z_a": ma / sa if sa > 0 else math.nan, "z_b": mb / sb if sb > 0 else math.nan,
+            "mdd_2se": 2 * se, "mdd_power": k * se, "k_power": k,
+            "n_2se": {d: piles_needed(da, db, d, 2.0) for d in deltas},
+            "n_power": {d: piles_needed(da, db, d, k) for d in deltas}}
