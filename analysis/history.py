@@ -146,7 +146,10 @@ def gravity_scaling(fields: xr.Dataset, history: dict[str, Any]) -> dict[str, fl
 
 
 def stress_fabric_angle(fields: xr.Dataset, history: dict[str, Any]) -> float:
-    """Mean of ``sign(x)`` times the stress-fabric angle over the flank RVEs of one pile (degrees)."""
+    """Mean of ``sign(x)`` times the stress-fabric angle over the flank RVEs of one pile (degrees);
+    NaN for fields made without the fabric (``outputs`` without ``fabric``)."""
+    if "stress_fabric_angle" not in fields:
+        return math.nan
     x, y = fields["x"].values, fields["y"].values
     ax = np.abs(x)
     flank = ((ax >= history["flank_inner"] - 1e-9) & (ax <= history["flank_outer"] + 1e-9))[None, :] \

@@ -1,0 +1,144 @@
+"""Is the probe response linear in the gravity reduction, and does a ramp remove the slips?  (issue 25, item 4)
+
+Reads the ``probes.nc`` of piles probed by ``config/scenes/probe_levels.yaml``
+(reductions of 5, 10 and 15 % and the restoration after the 10 % one, gravity
+changed at once) and by ``config/scenes/probe_levels_ramp.yaml`` (the same
+over ``probe.ramp_time``), each in its own Snakemake working directory, and
+per pile computes:
+
+* the compliance at each level: the median over the core RVEs
+  (``analysis.history``: ``|x| <= shoulder_outer``, ``y <= core_height``) of
+  ``u_yy / Delta``; its *linearity* ``c(Delta) / c(10 %) - 1`` (0 for a pile
+  that answers in proportion; above 0 at 15 %: softer under the larger load);
+* the slips: RVEs whose ``|u|`` exceeds ``analysis.ensemble.slip_strain_ratio``
+  times that probe's median over the pile (:func:`analysis.ensemble.slipped`);
+* the reversibility ``1 - |u(restored)| / |u(reduced)|``, median over RVEs;
+* with both modes, the ramp's compliance at 10 % over the step's, minus 1.
+
+Then the mean and standard error over each protocol's piles.  Prints Markdown
+and writes it (``--out``) with the numbers as JSON beside it.
+
+Usage::
+
+    .venv/bin/python workflow/scripts/probe_levels.py --piles config/sweep_piles.yaml \\
+        --step DIR --ramp DIR --out docs/reproduction/probe_levels.md
+"""
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from analysis.ensemble import slipped  # noqa: E402
+from analysis.history import mean_sem  # noqa: E402
+from analysis.params import parse_params  # noqa: E402
+from analysis.probes import reversibility  # noqa: E402
+
+LEVELS = {"reduced05": 0.05, "reduced": 0.10, "reduced15": 0.15}
+
+
+def level_of(stage: str) -> float:
+    """The reduction of a probe stage (``reduced`` is 10 %, ``reducedNN`` NN %)."""
+    return LEVELS[stage]
+
+
+def pile_levels(pr: xr.Dataset, params: dict) -> dict:
+    """The per-pile numbers of one ``probes.nc`` (see the module's docstring)."""
+    h = params["history"]
+    probes = [str(p) for p in pr["probe"].values]
+    x, y = pr["x"].values, pr["y"].values
+    core = (np.abs(x)[None, :] <= h["shoulder_outer"] + 1e-9) & (y[:, None] <= h["core_height"] + 1e-9)
+    strain = pr["strain_increment"].transpose("probe", "y", "x", "i", "j").values
+    ratio = params["ensemble"]["slip_strain_ratio"]
+    out = {"compliance": {}, "slips": {}}
+    for k, stage in enumerate(probes):
+        u = strain[k]
+        out["slips"][stage] = int(slipped(u, ratio).sum())
+        if stage in LEVELS:
+            uyy = np.where(core, u[..., 1, 1], np.nan) / level_of(stage)
+            finite = uyy[np.isfinite(uyy)]
+            out["compliance"][stage] = float(np.median(finite)) if finite.size else float("nan")
+    base = out["compliance"].get("reduced", float("nan"))
+    out["linearity"] = {s: c / base - 1.0 for s, c in out["compliance"].items() if s != "reduced"}
+    rev = reversibility(strain, probes)
+    out["reversibility"] = float(np.nanmedian(rev)) if np.isfinite(rev).any() else float("nan")
+    return out
+
+
+def _pm(values, scale=1.0, spec=".1f") -> str:
+    m, se, _, n = mean_sem(values)
+    if n == 0:
+        return "n/a"
+    return f"{format(scale * m, spec)} ± " + ("n/a" if not np.isfinite(se) else format(scale * se, spec))
+
+
+def report(results: dict, ramp_time: float) -> str:
+    """Markdown tables of ``results[mode][protocol] = [pile numbers]``."""
+    modes = list(results)
+    rows = ["| protocol | mode | linearity at 5 % | linearity at 15 % | compliance at 10 % (1) | "
+            "slips at 5 / 10 / 15 % / restored (per pile) | reversibility |",
+            "|---|---|---|---|---|---|---|"]
+    for protocol in results[modes[0]]:
+        for mode in modes:
+            piles = results[mode].get(protocol, [])
+            slips = " / ".join(",".join(str(p["slips"].get(s, 0)) for p in piles)
+                               for s in ("reduced05", "reduced", "reduced15", "restored"))
+            rows.append(f"| {protocol} | {mode} | {_pm([p['linearity'].get('reduced05') for p in piles], 100)} % | "
+                        f"{_pm([p['linearity'].get('reduced15') for p in piles], 100)} % | "
+                        f"{_pm([p['compliance'].get('reduced') for p in piles], 1, '.4g')} | {slips} | "
+                        f"{_pm([p['reversibility'] for p in piles], 1, '.3f')} |")
+    text = "\n".join(rows) + "\n"
+    if {"step", "ramp"} <= set(modes):
+        text += ("\nRamp against step, per pile: the ramp's compliance at 10 % over the step's − 1 (mean ± SE, %): "
+                 + "; ".join(f"{p} {_pm([r['compliance']['reduced'] / s['compliance']['reduced'] - 1 for r, s in zip(results['ramp'][p], results['step'][p])], 100)} %"
+                             for p in results["step"] if p in results["ramp"])
+                 + f" (ramp over {ramp_time:g} s).\n")
+    return text
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--piles", type=Path, required=True, help="the piles' settings (their protocols, seeds, analysis)")
+    ap.add_argument("--step", type=Path, help="working directory of the step probes")
+    ap.add_argument("--ramp", type=Path, help="working directory of the ramp probes")
+    ap.add_argument("--out", type=Path, help="Markdown file to write (and its .json beside it)")
+    args = ap.parse_args(argv)
+    if not (args.step or args.ramp):
+        ap.error("give --step DIR, --ramp DIR or both")
+    cfg = yaml.safe_load(args.piles.read_text())
+    params = parse_params(json.dumps(cfg.get("analysis", {})))
+    ramp_time = yaml.safe_load((Path(__file__).resolve().parents[2] / "config" / "config.yaml").read_text())[
+        "probe"]["ramp_time"]
+    results = {}
+    for mode, work in (("step", args.step), ("ramp", args.ramp)):
+        if work is None:
+            continue
+        results[mode] = {}
+        for protocol, v in cfg["protocols"].items():
+            for seed in v["seeds"]:
+                path = work / "results" / "fields" / protocol / f"seed{seed}.probes.nc"
+                if not path.exists():
+                    raise SystemExit(f"--{mode} {work}: {path} is missing; run the probes first")
+                with xr.open_dataset(path) as pr:
+                    results[mode].setdefault(protocol, []).append(pile_levels(pr.load(), params))
+    n = {p: len(v["seeds"]) for p, v in cfg["protocols"].items()}
+    text = (f"# Probe levels and ramp: piles of {cfg['pour']['n_particles']} particles, seeds per protocol {n}\n\n"
+            "Made by `workflow/scripts/probe_levels.py` from the probes of `config/scenes/probe_levels.yaml` "
+            "(step) and `config/scenes/probe_levels_ramp.yaml` (ramp); mean ± standard error over piles. "
+            "Linearity: the core's median u_yy/Δ at 5 and 15 % over that at 10 %, − 1 (0: linear); compliance: "
+            "the core's median u_yy/Δ at 10 %; slips: RVEs above the slip rule per probe, pile by pile; "
+            "reversibility: median over RVEs of 1 − |u(restored)|/|u(reduced)|.\n\n" + report(results, ramp_time))
+    print(text)
+    if args.out:
+        args.out.write_text(text)
+        args.out.with_suffix(".json").write_text(json.dumps(results, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
