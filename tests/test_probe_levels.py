@@ -60,3 +60,20 @@ def test_the_report_sets_ramp_against_step_pile_by_pile():
     ramp = levels.pile_levels(_probes(lambda d: 0.8 * d / 0.10), PARAMS)   # 20 % stiffer
     text = levels.report({"step": {"wedge": [step, step]}, "ramp": {"wedge": [ramp, ramp]}}, 0.1)
     assert "wedge -20.0 ± 0.0 %" in text
+
+
+@pytest.mark.parametrize("scene", ["probe_levels.yaml", "probe_levels_ramp.yaml"])
+def test_the_probe_level_scenes_are_valid_over_the_sweep_piles_and_keep_the_papers_reduction_first(scene):
+    import yaml
+
+    from workflow.validation import validate_config
+
+    root = Path(__file__).resolve().parents[1] / "config"
+    merged = {}
+    for layer in (root / "config.yaml", root / "sweep_piles.yaml", root / "scenes" / scene):
+        for key, value in yaml.safe_load(layer.read_text()).items():
+            merged[key] = {**merged[key], **value} if isinstance(value, dict) and isinstance(merged.get(key), dict) \
+                else value
+    validate_config(merged)
+    assert merged["probe"]["levels"][0] == 0.10 and sorted(merged["probe"]["levels"]) == [0.05, 0.10, 0.15]
+    assert merged["probe"]["restore"] and merged["probe"]["mode"] == ("ramp" if "ramp" in scene else "step")
