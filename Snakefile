@@ -1,6 +1,6 @@
 # Sand piles of soft convex polygons: Roul, Schinner & Kassner,
 # Granular Matter (2010). Thin entry point: configuration, its validation and
-# the rule files; see README.md for the stages and CONTRACT.md for the files.
+# the rule files; see README.md for the stages and docs/formats.md for the files.
 
 import sys
 

@@ -1,6 +1,6 @@
 """Micro-to-macro analysis of particle states: RVE fields, ensembles, elastic fits.
 
-Reads particle-state files only through the data contract (CONTRACT.md §1)
+Reads particle-state files only through the data contract (docs/formats.md#state-files)
 and never imports the simulator. Modules, one concern each:
 
 ``states``        read and validate contract state files
@@ -10,8 +10,8 @@ and never imports the simulator. Modules, one concern each:
 ``fabric``        Eqs 10–12 (fabric tensor)
 ``orientation``   principal values and axis angles
 ``solid_fraction``, ``surface``  packing fraction, free surface and depth
-``fields``        the per-pile fields file (CONTRACT.md §2)
-``ensemble``      seed averages with standard errors (CONTRACT.md §3)
+``fields``        the per-pile fields file (docs/formats.md#fields)
+``ensemble``      seed averages with standard errors (docs/formats.md#ensemble-fields)
 ``elastic``       Eqs 16–22 (isotropic and cubic fits)
 ``invariants``    Sect. 6 (trace of stress vs trace of strain)
 ``base_pressure`` forces per unit length on the support

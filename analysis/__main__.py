@@ -258,7 +258,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="python -m analysis",
         description="Micro-to-macro analysis of polygon piles (Roul, Schinner & Kassner 2010): RVE fields, "
                     "ensembles, elastic fits, invariants, base pressure, figures. Reads particle states through "
-                    "CONTRACT.md section 1 only.")
+                    "docs/formats.md#state-files only.")
     p.add_argument("--version", action="version", version=f"analysis {__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -270,7 +270,7 @@ def build_parser() -> argparse.ArgumentParser:
         return sp
 
     add("params", "validate --params and print the effective parameters as JSON", cmd_params)
-    sp = add("fields", "per-pile RVE fields (CONTRACT.md section 2) and balance-law checks", cmd_fields)
+    sp = add("fields", "per-pile RVE fields (docs/formats.md#fields) and balance-law checks", cmd_fields)
     sp.add_argument("--relaxed", required=True, help="state file at full gravity")
     sp.add_argument("--reduced", help="state file at reduced gravity (without it: no stress increment, no strain)")
     sp.add_argument("--quantities", nargs="*", choices=QUANTITIES,

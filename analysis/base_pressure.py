@@ -1,4 +1,4 @@
-"""Forces per unit length on the support (``base_pressure.nc``, CONTRACT.md section 3).
+"""Forces per unit length on the support (``base_pressure.nc``, docs/formats.md#base-pressure).
 
 The support contacts are those with ``contact_j = -1``; ``force_x, force_y``
 act on the particle, so the support receives ``(-force_x, -force_y)``.

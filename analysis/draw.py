@@ -1,6 +1,6 @@
 """Pictures of particle states (``python -m analysis draw``).
 
-Reads a particle-state file through the contract (CONTRACT.md section 1,
+Reads a particle-state file through the contract (docs/formats.md#state-files,
 :func:`analysis.states.load_state`), so it draws any state that follows it:
 
 * the polygons to scale (equal aspect), their corners in the lab frame
@@ -76,7 +76,7 @@ def draw_state(path_in: str, path_out: str, color_by: str = "pressure", forces: 
     Parameters
     ----------
     path_in, path_out : str
-        State file (CONTRACT.md section 1) and picture.
+        State file (docs/formats.md#state-files) and picture.
     color_by : {"pressure", "none"}
         Colour the particles by their Eq. 2 pressure (N/m), or grey.
     forces : bool
@@ -146,7 +146,7 @@ def draw_state(path_in: str, path_out: str, color_by: str = "pressure", forces: 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of ``python -m analysis draw``."""
-    parser.add_argument("--input", required=True, help="particle-state file (.nc, CONTRACT.md section 1)")
+    parser.add_argument("--input", required=True, help="particle-state file (.nc, docs/formats.md#state-files)")
     parser.add_argument("--out", required=True, help="picture to write (.png, .pdf, .svg)")
     parser.add_argument("--color-by", choices=COLOUR_BY, default="pressure",
                         help="colour particles by their Eq. 2 pressure, or not at all")

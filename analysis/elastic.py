@@ -27,7 +27,7 @@ Two ways of fitting, as in the paper, plus their average:
 
 Notes on the paper's formulas (documented, tested in tests/test_analysis_elastic.py):
 
-* ``E = 3G − G²/K`` (``youngs_modulus``, as in the paper and CONTRACT.md) is
+* ``E = 3G − G²/K`` (``youngs_modulus``, as in the paper and docs/formats.md) is
   the 3D relation with the 2D Lamé constant ``lambda = K − G``; the 2D
   Young's modulus of an isotropic sheet is ``4KG/(K + G)``
   (``youngs_modulus_2d``), which is what ``E_p`` and ``E_b`` reduce to in the
@@ -350,7 +350,7 @@ META: dict[str, tuple[str, str]] = {
 
 
 def moduli_dataset(ensemble, piles: list, params: dict[str, Any]):
-    """``moduli.nc`` (CONTRACT.md section 3) from the ensemble fields and the per-pile fields."""
+    """``moduli.nc`` (docs/formats.md#elastic-moduli) from the ensemble fields and the per-pile fields."""
     import xarray as xr
 
     from .ensemble import leave_out_slips

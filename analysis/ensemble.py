@@ -1,4 +1,4 @@
-"""Seed averages of per-pile fields (CONTRACT.md section 3, ``fields.nc``).
+"""Seed averages of per-pile fields (docs/formats.md#ensemble-fields, ``fields.nc``).
 
 Every numeric field of the per-pile files is averaged over seeds with
 ``nanmean`` (a pile whose RVE is masked at a point does not enter that
@@ -98,7 +98,7 @@ def leave_out_slips(datasets: list[xr.Dataset], ratio: float | None) -> tuple[li
     Parameters
     ----------
     datasets : list of xarray.Dataset
-        Per-pile fields files (CONTRACT.md section 2) on one grid.
+        Per-pile fields files (docs/formats.md#fields) on one grid.
     ratio : float or None
         ``analysis.ensemble.slip_strain_ratio`` (see :func:`slipped`).
 

@@ -1,7 +1,7 @@
 """Standard error of the headline results against compute time as seeds are added (issue #5).
 
-Headline results of one pile, read from the analysis outputs (CONTRACT.md
-section 3) of the configured study:
+Headline results of one pile, read from the analysis outputs
+(docs/formats.md#ensembles) of the configured study:
 
 ``bulk_modulus``, ``shear_modulus`` (N/m)
     Isotropic fit (paper Eqs 21–22, :func:`analysis.elastic.fit_all`) to the

@@ -11,7 +11,7 @@ class ParamError(AnalysisError, ValueError):
 
 
 class StateError(AnalysisError, ValueError):
-    """A particle-state file that does not follow CONTRACT.md section 1."""
+    """A particle-state file that does not follow docs/formats.md#state-files."""
 
 
 class InputError(AnalysisError, ValueError):

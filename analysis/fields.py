@@ -1,4 +1,4 @@
-"""The per-pile fields file (CONTRACT.md section 2).
+"""The per-pile fields file (docs/formats.md#fields).
 
 :func:`rve_quantities` computes everything for an arbitrary list of RVE
 centres (used for the grid and for the convergence study);
@@ -193,7 +193,7 @@ ANGLE_COMMENT = ("angles from the vertical (+y), positive counter-clockwise (upp
 
 
 def compute_fields(relaxed: State, reduced: State | None, params: dict[str, Any], quantities=None) -> xr.Dataset:
-    """The per-pile fields of CONTRACT.md section 2 on the configured grid.
+    """The per-pile fields of docs/formats.md#fields on the configured grid.
 
     ``reduced`` (None: no stress increment, no strain) and ``quantities``
     as in :func:`rve_quantities`.

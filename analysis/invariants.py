@@ -2,7 +2,7 @@
 
 The paper plots −tr(Δσ) against −tr(u) for the loading step from reduced to
 full gravity (both positive: compression). Our increments are defined the
-other way round (reduced − relaxed, CONTRACT.md), so the paper's quantities
+other way round (reduced − relaxed, docs/formats.md), so the paper's quantities
 are exactly ``trace_stress_increment = tr(stress_increment)`` and
 ``trace_strain_increment = tr(strain_increment)`` of the ensemble fields.
 

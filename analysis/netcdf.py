@@ -42,7 +42,7 @@ def check_cf(ds: xr.Dataset) -> None:
 
 
 def finalize(ds: xr.Dataset, title: str, params: dict[str, Any] | None, command: str | None = None) -> xr.Dataset:
-    """Set the global attributes required by CONTRACT.md and check CF metadata."""
+    """Set the global attributes required by docs/formats.md#conventions and check CF metadata."""
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     cmd = command if command is not None else " ".join([os.path.basename(sys.executable), "-m", "analysis"] + sys.argv[1:])
     ds.attrs["Conventions"] = CONVENTIONS

@@ -1,4 +1,4 @@
-"""Reading particle-state files through the data contract (CONTRACT.md section 1).
+"""Reading particle-state files through the data contract (docs/formats.md#state-files).
 
 The analysis never imports the simulator: everything it knows about a pile
 comes from these files. :func:`load_state` checks names, dimensions, finiteness
@@ -28,7 +28,7 @@ DIMS = {**{v: "particle" for v in PARTICLE_VARS}, **{v: "node" for v in NODE_VAR
 
 @dataclass(frozen=True)
 class State:
-    """One particle state as plain numpy arrays (names as in CONTRACT.md section 1)."""
+    """One particle state as plain numpy arrays (names as in docs/formats.md#state-files)."""
 
     path: str
     x: np.ndarray
@@ -100,7 +100,7 @@ def state_from_dataset(ds: xr.Dataset, path: str = "<dataset>") -> State:
     """Validate a contract dataset and return it as a :class:`State`."""
     missing = [v for v in DIMS if v not in ds.variables]
     if missing:
-        raise _fail(path, f"missing variable(s) {', '.join(missing)} required by CONTRACT.md section 1")
+        raise _fail(path, f"missing variable(s) {', '.join(missing)} required by docs/formats.md#state-files")
     arrays: dict[str, np.ndarray] = {}
     for name, dim in DIMS.items():
         da = ds[name]
@@ -124,7 +124,7 @@ def state_from_dataset(ds: xr.Dataset, path: str = "<dataset>") -> State:
         arrays[name] = a
     for a in REQUIRED_ATTRS:
         if a not in ds.attrs:
-            raise _fail(path, f"missing global attribute {a!r} required by CONTRACT.md section 1")
+            raise _fail(path, f"missing global attribute {a!r} required by docs/formats.md#state-files")
     try:
         g = float(ds.attrs["gravity"])
     except (TypeError, ValueError):
@@ -165,7 +165,7 @@ def state_from_dataset(ds: xr.Dataset, path: str = "<dataset>") -> State:
 
 
 def load_state(path: str) -> State:
-    """Read and validate one particle-state file (CONTRACT.md section 1)."""
+    """Read and validate one particle-state file (docs/formats.md#state-files)."""
     try:
         with xr.open_dataset(path, decode_times=False) as ds:
             ds = ds.load()

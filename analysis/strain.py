@@ -1,6 +1,6 @@
 """Best-fit displacement gradient of Cambou et al. (paper Eqs 3–9).
 
-Index order (CONTRACT.md): ``eps_ij = du_j/dx_i``, i.e. an affine field moves
+Index order (docs/formats.md#conventions): ``eps_ij = du_j/dx_i``, i.e. an affine field moves
 the contact pair by ``dDelta u_j = eps_ij l_i`` (Eq. 4, written there as
 ``dDelta u_i = eps_ji l_j``).
 

@@ -1,6 +1,6 @@
 """Stress from contact forces (paper Eq. 2).
 
-Sign convention (CONTRACT.md): Eq. 2 as written with ``f`` the force acting
+Sign convention (docs/formats.md#conventions): Eq. 2 as written with ``f`` the force acting
 **on** the particle, so compression is negative. The branch vector of particle
 ``p`` at contact ``c`` is ``x^c = (contact_x - x_p, contact_y - y_p)``. The
 state file gives ``force_x, force_y`` acting on ``contact_i``; ``contact_j``
@@ -65,7 +65,7 @@ def particle_stress_moment(state: State) -> np.ndarray:
     Parameters
     ----------
     state : State
-        A particle state (CONTRACT.md section 1).
+        A particle state (docs/formats.md#state-files).
 
     Returns
     -------

@@ -1,6 +1,6 @@
 """Export of one particle state for ParaView / OVITO (``python -m analysis export``).
 
-Reads a particle-state file through the contract (CONTRACT.md section 1,
+Reads a particle-state file through the contract (docs/formats.md#state-files,
 :func:`analysis.states.load_state`) and writes two VTK XML unstructured-grid
 files with :mod:`meshio` (binary, zlib-compressed)::
 
@@ -37,7 +37,7 @@ are not shared between particles. Cell data (name, units: meaning):
 * ``stress``, N/m: the Eq. 2 particle stress sigma_ij
   (:func:`analysis.stress.particle_stress`) as a 3x3 tensor, row-major
   (xx, xy, xz, yx, ...), z row and column zero; compression negative (the
-  CONTRACT.md sign convention); not symmetrised;
+  docs/formats.md sign convention); not symmetrised;
 * ``coordination``, 1: number of particle–particle contacts of the particle
   (contacts with the support, ``contact_j = -1``, not counted);
 * ``support_contacts``, 1: number of its contacts with the support;
@@ -264,7 +264,7 @@ def export_state(path_in: str, path_out: str) -> tuple[str, str]:
     Parameters
     ----------
     path_in : str
-        State file (CONTRACT.md section 1).
+        State file (docs/formats.md#state-files).
     path_out : str
         Particles file, must end in ``.vtu``; the contact network goes to
         :func:`contacts_path` of it.
@@ -300,7 +300,7 @@ def export_state(path_in: str, path_out: str) -> tuple[str, str]:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of ``python -m analysis export``."""
-    parser.add_argument("--input", required=True, help="particle-state file (.nc, CONTRACT.md section 1)")
+    parser.add_argument("--input", required=True, help="particle-state file (.nc, docs/formats.md#state-files)")
     parser.add_argument("--vtk", required=True, metavar="OUT.vtu",
                         help="particles file to write (.vtu); the contact network goes to OUT_contacts.vtu")
 

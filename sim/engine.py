@@ -453,7 +453,7 @@ class Simulation:
 
     # ------------------------------------------------------------------ contacts
     def contacts(self):
-        """The active contacts of the last force evaluation (CONTRACT.md §1).
+        """The active contacts of the last force evaluation (docs/formats.md#state-files).
 
         Returns
         -------

@@ -1,4 +1,4 @@
-"""State files: save and load the particle state of CONTRACT.md §1.
+"""State files: save and load the particle state of docs/formats.md#state-files.
 
 A state file holds exactly the contract's variables plus what a restart needs
 to continue the same trajectory: ``integrator_state`` (the scaled time
@@ -86,7 +86,7 @@ CONVENTIONS = "CF-1.10"
 
 def cf_attributes(title: str, config: dict | None, history: str,
                   source: str | None = None) -> dict:
-    """The global attributes CONTRACT.md asks of every netCDF file.
+    """The global attributes docs/formats.md#conventions asks of every netCDF file.
 
     Parameters
     ----------
@@ -172,7 +172,7 @@ def atomic_figure(fig, path, **kwargs) -> None:
 
 
 def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Dataset:
-    """The CONTRACT.md §1 dataset of a simulation's current state.
+    """The docs/formats.md#state-files dataset of a simulation's current state.
 
     Parameters
     ----------

@@ -95,7 +95,7 @@ def pile_summary(position, radius, mass, gravity_y, contact_i, contact_j, contac
     gravity_y : float
         Vertical gravity, m/s² (negative).
     contact_i, contact_j, contact_fy : numpy.ndarray
-        The contacts of the state (CONTRACT.md §1): ``j = -1`` is the support,
+        The contacts of the state (docs/formats.md#state-files): ``j = -1`` is the support,
         ``fy`` the vertical force on i.
 
     Returns

@@ -1,4 +1,4 @@
-"""Synthetic particle-state files that follow CONTRACT.md section 1.
+"""Synthetic particle-state files that follow docs/formats.md#state-files.
 
 Builders return plain dicts of arrays; :func:`to_dataset` / :func:`write_state`
 turn them into contract datasets/files. Every geometry is simple enough that

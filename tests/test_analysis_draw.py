@@ -1,6 +1,6 @@
 """analysis/draw.py (python -m analysis draw): pictures of particle states and
 the Eq. 2 particle pressure, on a tiny hand-made state file that follows
-CONTRACT.md section 1."""
+docs/formats.md#state-files."""
 
 import numpy as np
 import pytest

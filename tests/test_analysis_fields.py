@@ -1,4 +1,4 @@
-"""Per-pile fields (CONTRACT.md section 2): names, dims, CF attributes, masks, solid fraction, speed."""
+"""Per-pile fields (docs/formats.md#fields): names, dims, CF attributes, masks, solid fraction, speed."""
 
 import json
 import time

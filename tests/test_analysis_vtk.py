@@ -1,6 +1,6 @@
 """analysis/vtk.py (python -m analysis export): a particle state as VTK files
 for ParaView, checked for content on a tiny hand-made state that follows
-CONTRACT.md section 1, read back with meshio and with VTK's own reader (ParaView's; the ``vtk``
+docs/formats.md#state-files, read back with meshio and with VTK's own reader (ParaView's; the ``vtk``
 package is a test dependency)."""
 
 import os

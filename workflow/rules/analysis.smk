@@ -9,7 +9,7 @@
 #   PY, py_shell   the python executable and the helper that prefixes it to a shell command
 #   and the global wildcard_constraints of protocol and seed
 # and from workflow/rules/scene.smk has_probes() and field_quantities() (the scene's outputs),
-# and the state files results/piles/{protocol}/seed{seed}/{stage}.nc (CONTRACT.md section 1).
+# and the state files results/piles/{protocol}/seed{seed}/{stage}.nc (docs/formats.md#state-files).
 #
 # Every rule passes config["analysis"] as sorted JSON in params, so a change of
 # an analysis setting reruns exactly the rules that read it. Figure captions

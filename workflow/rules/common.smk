@@ -80,7 +80,7 @@ PILE_STAGE_PATTERN = rf"poured|relaxed|{STAGE_PATTERN}"
 
 
 def pile(protocol, seed, stage):
-    """Path of a particle-state file (CONTRACT.md section 1)."""
+    """Path of a particle-state file (docs/formats.md#state-files)."""
     return f"results/piles/{protocol}/seed{seed}/{stage}.nc"
 
 
@@ -95,7 +95,7 @@ def stage_for_level(level):
     """Stage name of the gravity probe with reduction `level` (Delta).
 
     The first level in config probe.levels is the stage `reduced` of
-    CONTRACT.md; any other is reducedNN with NN = round(100 * level).
+    docs/formats.md#stages; any other is reducedNN with NN = round(100 * level).
     """
     levels = [float(x) for x in config["probe"]["levels"]]
     if float(level) == levels[0]:

@@ -1,6 +1,6 @@
 # Gravity probes: lower gravity of a relaxed pile to (1 - Delta) g0 and let it
 # come to rest again. One stage per level in config probe.levels: the first is
-# `reduced` (CONTRACT.md), the others reducedNN (NN = round(100 Delta)). With
+# `reduced` (docs/formats.md), the others reducedNN (NN = round(100 Delta)). With
 # probe.tilts, gravity of the relaxed pile also gets a horizontal component
 # +-delta g0 (stages tiltpNN, tiltmNN); with probe.restore, full gravity comes
 # back after `reduced` (stage restored).
