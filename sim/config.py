@@ -243,6 +243,8 @@ class PourParams:
         Height of the release point above the current top of the pile, m.
     release_speed : float
         Downward speed given to a released particle, m/s.
+    spin_drag : float
+        Drag on the rotation alone while pouring, 1/s (``−spin_drag·I·ω``).
     jitter : float
         Half-width of the uniform horizontal jitter of the point source, m.
     line_margin : float
@@ -265,6 +267,7 @@ class PourParams:
     rate: float = _default("pour", "rate")
     release_height: float = _default("pour", "release_height")
     release_speed: float = _default("pour", "release_speed")
+    spin_drag: float = _default("pour", "spin_drag")
     jitter: float = _default("pour", "jitter")
     line_margin: float = _default("pour", "line_margin")
     top_band: float = _default("pour", "top_band")

@@ -105,6 +105,15 @@ class Simulation:
         angular velocity is zero and θ never changes).
     skin : float or None
         Verlet skin of the pair list, m (default: 0.3 × mean circumradius).
+
+    Attributes
+    ----------
+    drag : float
+        Background drag, 1/s, on translation and rotation (``−drag·m·v``,
+        ``−drag·I·ω``); set while relaxing (``relax.drag``), 0 otherwise.
+    spin_drag : float
+        Further drag on the rotation alone, 1/s; ``pour.spin_drag`` while
+        pouring, 0 otherwise.
     """
 
     def __init__(self, shapes, model: ModelParams, gravity=(0.0, -9.81), support=True,
@@ -167,6 +176,7 @@ class Simulation:
         self.energy_tolerance = 0.25
         self.parallel_threshold = 400
         self.drag = 0.0
+        self.spin_drag = 0.0
         self._reset_energy_reference()
 
     # ------------------------------------------------------------------ state
@@ -333,7 +343,7 @@ class Simulation:
                 Law(float(m.youngs_modulus), float(m.damping), float(m.friction), self.eps,
                     bool(damped), bool(tangential), bool(body_tangential)),
                 Motion(self.dt, self.coeffs, self.gravity[0], self.gravity[1],
-                       float(self.drag), self.rotate),
+                       float(self.drag), float(self.drag + self.spin_drag), self.rotate),
                 self.work)
 
     def snapshot(self) -> Snapshot:

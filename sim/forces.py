@@ -124,9 +124,11 @@ tolerance of the narrow phase, m); damped: damping force on; tangential:
 tangential force between particles; body_tangential: with bodies.
 """
 
-Motion = namedtuple("Motion", "dt coeffs gravity_x gravity_y drag rotate")
+Motion = namedtuple("Motion", "dt coeffs gravity_x gravity_y drag spin_drag rotate")
 Motion.__doc__ = """Integrator settings: time step (s), corrector coefficients, gravity
-(m/s²), background drag (1/s, relaxation only) and whether θ is integrated."""
+(m/s²), background drag on the translation and on the rotation (1/s; the
+first while relaxing only, the second also ``pour.spin_drag`` while pouring)
+and whether θ is integrated."""
 
 Workspace = namedtuple("Workspace", "scratch out block_moved")
 Workspace.__doc__ = """Work arrays: per thread (indexed by Numba's thread id) the
@@ -404,9 +406,10 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
     """Total force and torque on each particle, the corrector (Eq. 1), and the
     next step's predictor.
 
-    ``motion.drag`` (1/s) adds the background damping ``−drag·m·v`` and
-    ``−drag·I·ω`` used only while relaxing (see :mod:`sim.protocols`); it is 0
-    otherwise.
+    ``motion.drag`` and ``motion.spin_drag`` (1/s) add the background damping
+    ``−drag·m·v`` and ``−spin_drag·I·ω``: both ``relax.drag`` while relaxing,
+    only the rotation's (``pour.spin_drag``) while pouring (see
+    :mod:`sim.protocols`); 0 otherwise.
 
     Parameters
     ----------
@@ -434,6 +437,7 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
     coeffs = motion.coeffs
     dt = motion.dt
     drag = motion.drag
+    spin_drag = motion.spin_drag
     gx = motion.gravity_x
     gy = motion.gravity_y
     n_dof = 3 if motion.rotate else 2
@@ -477,7 +481,7 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
             nordsieck_predict(r, i, n_dof)
             nordsieck_correct(r, i, half_dt2 * (fx * inv_mass[i] - drag * pred[i, 3] / dt),
                               half_dt2 * (fy * inv_mass[i] - drag * pred[i, 4] / dt),
-                              half_dt2 * (tq * inv_inertia[i] - drag * pred[i, 5] / dt),
+                              half_dt2 * (tq * inv_inertia[i] - spin_drag * pred[i, 5] / dt),
                               coeffs, n_dof)
             dx = r[0, 0, i] - x_ref[i]
             dy = r[0, 1, i] - y_ref[i]

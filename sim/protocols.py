@@ -422,6 +422,7 @@ def _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock, frames):
         sim = Simulation(shapes, cfg.model, gravity=(0.0, -GRAVITY), support=phys.support,
                          walls=phys.walls, rotate=phys.rotation)
         next_release = 0.0
+    sim.spin_drag = p.spin_drag
     log.info("pouring %d particles (%s, seed %d), dt = %.3g s (%s; limit %.3g s)",
              p.n_particles, protocol, seed, sim.dt, cfg.model.integrator,
              sim.bound.dt_limit)
@@ -579,10 +580,12 @@ def relax(sim: Simulation, cfg: SimConfig, what="relax", load=None):
     scale = load / weight if weight > 0 else 1.0
     t0 = sim.time
     sim.drag = cfg.relax.drag
+    spin_drag, sim.spin_drag = sim.spin_drag, 0.0  # the pour's drag on rotation does not relax
     try:
         return _relax_loop(sim, cfg, what, t0, load, scale)
     finally:
         sim.drag = 0.0
+        sim.spin_drag = spin_drag
 
 
 def _relax_loop(sim, cfg, what, t0, load, scale):

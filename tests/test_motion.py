@@ -62,3 +62,23 @@ def test_block_slides_above_friction_angle(integrator, tan_theta):
     # the single force point (midpoint of the contact line) lets the block
     # lean onto its leading corner, but it must not tip over
     assert abs(sim.theta[0]) < 0.05
+
+
+@pytest.mark.parametrize("integrator", ["gear", "verlet"])
+def test_spin_drag_damps_the_rotation_alone_exponentially(integrator):
+    """``pour.spin_drag`` c: I dω/dt = −c I ω, so ω(t) = ω0 e^(−ct), while the
+    free flight of the centre stays exactly ballistic. The drag is taken at the
+    predicted ω, first order in dt: each step multiplies ω by 1 − c dt instead of
+    e^(−c dt), a relative excess of c² dt t / 2 after time t, as measured."""
+    gravity = (0.0, -G)
+    x0, y0, vx0, vy0, w0, c = 0.01, 0.5, 0.3, 1.2, 40.0, 50.0
+    sim = scene([regular_polygon(7, 3e-3)], [(x0, y0, 0.1, vx0, vy0, w0)], gravity=gravity,
+                integrator=integrator)
+    sim.spin_drag = c
+    sim.run(duration=0.02)
+    t = sim.time
+    excess = sim.omega[0] / (w0 * np.exp(-c * t)) - 1
+    assert excess == pytest.approx(c * c * sim.dt * t / 2, rel=0.05)
+    assert sim.theta[0] == pytest.approx(0.1 + w0 * (1 - np.exp(-c * t)) / c, rel=1e-3)
+    assert np.allclose(sim.velocity[0], [vx0, vy0 - G * t], rtol=0, atol=1e-11)
+    assert np.allclose(sim.position[0], [x0 + vx0 * t, y0 + vy0 * t - 0.5 * G * t * t], rtol=0, atol=1e-12)
