@@ -233,13 +233,18 @@ def test_benchmark_tsv():
                                         {"column": columns})
 
 
-def test_committed_sweeps_and_growth_records():
+def test_committed_sweep_probe_level_and_growth_records():
     section = Section(("Committed records",))
-    for path in sorted(RECORD.glob("*.json")):
+    for path in sorted(p for p in RECORD.glob("*.json") if p.name != "probe_levels.json"):
         record = json.loads(path.read_text())
         per_pile = {k for by_value in record["piles"].values() for piles in by_value.values()
                     for pile in piles for k in pile}
         section.check(f"setting sweep docs/reproduction/{path.name}", {"key": set(record), "pile key": per_pile})
+    levels = json.loads((RECORD / "probe_levels.json").read_text())
+    piles = [pile for by_protocol in levels.values() for ps in by_protocol.values() for pile in ps]
+    section.check("docs/reproduction/probe_levels.json",
+                  {"mode": set(levels), "pile key": {k for pile in piles for k in pile},
+                   "stage": {st for pile in piles for st in pile["slips"]}})
     keys = set()
     for line in (RECORD / "growing_piles.jsonl").read_text().splitlines():
         keys |= set(json.loads(line))
