@@ -63,7 +63,10 @@ def cmd_run_times(args, params) -> None:
     missing = [p for p in args.benchmarks if not os.path.exists(p)]
     if missing:
         raise InputError(f"{missing[0]}: no such benchmark file")
-    page = run_times_html({job_label(p): p for p in args.benchmarks}, args.title)
+    try:
+        page = run_times_html({job_label(p): p for p in args.benchmarks}, args.title)
+    except ValueError as exc:  # not a benchmark file: say which, write nothing
+        raise InputError(str(exc)) from None
     with atomic_path(args.out) as tmp:
         with open(tmp, "w") as fh:
             fh.write(page)

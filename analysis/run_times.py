@@ -54,9 +54,20 @@ def children_cpu_time(path) -> float:
 def benchmark_row(path) -> dict:
     """Wall time, CPU time (s) and peak memory (MB) of one job's benchmark file
     (means over its rows); ``cores`` is CPU time over wall time, NaN where
-    either is missing."""
-    out = {}
-    for key, column in (("wall_s", "s"), ("cpu_s", "cpu_time"), ("max_rss_mb", "max_rss")):
+    either is missing.
+
+    Raises
+    ------
+    ValueError
+        If the file has no row with a wall time in column ``s``: it is not a
+        Snakemake benchmark file (or an empty one).
+    """
+    wall = benchmark_time(path, "s")  # raises for a file without the column
+    if not wall == wall:
+        raise ValueError(f"benchmark file {path}: no rows (a Snakemake benchmark file has a header "
+                         "line and one row per run, with the wall time in column 's')")
+    out = {"wall_s": wall}
+    for key, column in (("cpu_s", "cpu_time"), ("max_rss_mb", "max_rss")):
         try:
             out[key] = benchmark_time(path, column)
         except ValueError:

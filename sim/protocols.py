@@ -642,6 +642,10 @@ def relax_file(cfg: SimConfig, input_path, out):
     return sim
 
 
+#: Stages of state files that are not at rest, so that no probe starts from them.
+NOT_AT_REST = ("poured", "checkpoint")
+
+
 def change_gravity(cfg: SimConfig, input_path, target, out, stage, what, **attrs):
     """Change gravity of a state at rest to ``target(g)``, relax again and save.
 
@@ -665,8 +669,18 @@ def change_gravity(cfg: SimConfig, input_path, target, out, stage, what, **attrs
         Name of the probe in log lines.
     **attrs
         Further global attributes of the state file.
+
+    Raises
+    ------
+    ValueError
+        If the input's stage is one of :data:`NOT_AT_REST` (a poured pile or a
+        pour's checkpoint), before anything runs.
     """
     sim, ds = load_simulation(input_path, cfg.model)
+    if ds.attrs.get("stage") in NOT_AT_REST:
+        raise ValueError(f"{input_path}: its stage is {ds.attrs['stage']!r}, a state not at rest; a probe "
+                         "changes gravity of a state at rest: a relaxed state (python -m sim relax) or a "
+                         "probe's state")
     g_start = np.array(sim.gravity, float)
     g_end = np.array(target(g_start), float)
     t = _time.monotonic()

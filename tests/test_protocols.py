@@ -229,3 +229,23 @@ def test_release_points_stay_inside_side_walls(protocol):
         x, _ = protocols.release_point(sim, cfg, protocol, 1, k)
         r = sim.shapes.radius[k]
         assert walls[0] + r <= x <= walls[1] - r
+
+
+@pytest.mark.parametrize("stage", ["poured", "checkpoint"])
+def test_a_probe_refuses_a_state_not_at_rest_before_it_runs(tmp_path, stage):
+    """A gravity probe measures the response of a pile at rest; a poured state
+    (or a pour's checkpoint) is refused with the file and its stage named, and
+    nothing is written."""
+    from scenes import rectangle
+
+    from sim.cli import main
+    from sim.io import save_state
+
+    sim = scene([rectangle(4e-3, 4e-3)], [(0.0, 0.002, 0, 0, 0, 0)], gravity=(0.0, -9.81), support=True)
+    state = tmp_path / f"{stage}.nc"
+    save_state(sim, state, {"model": {}}, stage=stage, protocol="wedge", seed=1)
+    out = tmp_path / "reduced.nc"
+    with pytest.raises(ValueError, match=f"its stage is '{stage}', a state not at rest"):
+        protocols.probe_file(SimConfig(), state, 0.1, out)
+    assert main(["probe", "--input", str(state), "--level", "0.1", "--out", str(out)]) == 2
+    assert not out.exists()

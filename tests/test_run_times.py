@@ -77,3 +77,14 @@ def test_a_missing_benchmark_file_is_named(tmp_path, capsys):
                  str(tmp_path / "t.html")]) == 1
     assert "nope.tsv: no such benchmark file" in capsys.readouterr().err
     assert not (tmp_path / "t.html").exists()
+
+
+@pytest.mark.parametrize("text", ["any text\nat all\n", "", HEADER])
+def test_a_file_that_is_no_benchmark_is_refused_by_name_and_nothing_is_written(tmp_path, capsys, text):
+    path = tmp_path / "any.txt"
+    path.write_text(text)
+    out = tmp_path / "table.html"
+    assert main(["run-times", "--benchmarks", str(path), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert str(path) in err and "'s'" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
