@@ -59,6 +59,13 @@ def _check_scene():
                     f"{protocol} (seeds {seeds(protocol)}): the convergence study would "
                     "pour a pile outside the study; give one of its seeds or null (the first)"
                 )
+    n, least = config["pour"]["n_particles"], config["analysis"]["rve"]["min_particles"]
+    if wants("fields") and n < least:
+        problems.append(
+            f"pour.n_particles = {n} is fewer than analysis.rve.min_particles = {least}: no RVE of "
+            f"such a pile can hold enough particles, so the fields would be empty; pour at least "
+            f"{least} particles, lower analysis.rve.min_particles, or ask only outputs [states]"
+        )
     stage = config["analysis"]["base_pressure"]["stage"]
     if wants("fields") and stage not in ["poured", "relaxed"] + probe_stages():
         problems.append(
