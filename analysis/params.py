@@ -28,6 +28,11 @@ from typing import Any
 import yaml
 
 from .errors import ParamError
+from .solid_fraction import RASTER_BYTES_PER_PIXEL, raster_shape
+
+#: The largest raster of the solid fraction the settings may ask for (bytes):
+#: half the 2 GB a workflow analysis job asks for.
+MAX_RASTER_BYTES = 2**30
 
 #: The JSON schema (YAML) of the ``analysis`` section: the source of every
 #: key, default and bound below.
@@ -144,6 +149,35 @@ def _check_value(name: str, value: Any, spec: dict[str, Any]) -> None:
             raise ParamError(f"analysis.{name} = {value!r} must be <= {hi}")
 
 
+def check_memory(params: dict[str, Any]) -> None:
+    """Refuse resolved settings whose solid-fraction raster (the grid's RVEs, and
+    the largest convergence RVE at its points) would not fit in
+    :data:`MAX_RASTER_BYTES`: a limit of the machine, not of the settings'
+    ranges, so it is checked by :func:`parse_params` (the command line) and the
+    workflow's validation, not by :func:`resolve_params`.
+
+    Raises
+    ------
+    ParamError
+        Naming the settings, the raster's pixels and its memory.
+    """
+    g, rve, conv = params["grid"], params["rve"], params["convergence"]
+    h = rve["raster_pixel"]
+    xs, ys = [p[0] for p in conv["points"]], [p[1] for p in conv["points"]]
+    for what, (x_lo, x_hi, y_hi), size in (
+            (f"analysis.rve.size = {rve['size']} over the grid x {g['x_min']} to {g['x_max']}, y up to "
+             f"{g['y_max']}", (g["x_min"], g["x_max"], g["y_max"]), rve["size"]),
+            (f"analysis.convergence.sizes up to {max(conv['sizes'])} at its points",
+             (min(xs), max(xs), max(ys)), max(conv["sizes"]))):
+        nx, ny = raster_shape(x_lo, x_hi, y_hi, size / 2, h)
+        need = float(nx) * ny * RASTER_BYTES_PER_PIXEL
+        if need > MAX_RASTER_BYTES:
+            raise ParamError(
+                f"{what} needs a solid-fraction raster of {nx} x {ny} pixels of analysis.rve.raster_pixel = "
+                f"{h} m, about {need / 2**30:.1f} GiB, more than the {MAX_RASTER_BYTES / 2**30:g} GiB allowed; "
+                "shrink the RVE or the grid, or coarsen raster_pixel")
+
+
 def resolve_params(user: dict[str, Any] | None) -> dict[str, Any]:
     """Merge ``user`` over :data:`DEFAULTS` and validate every setting.
 
@@ -213,7 +247,9 @@ def parse_params(text: str | None) -> dict[str, Any]:
         user = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ParamError(f"--params is not valid JSON ({exc}); pass the analysis config section as JSON text") from exc
-    return resolve_params(user)
+    params = resolve_params(user)
+    check_memory(params)
+    return params
 
 
 def params_json(params: dict[str, Any]) -> str:

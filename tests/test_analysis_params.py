@@ -6,6 +6,7 @@ import glob
 import os
 
 import jsonschema
+import numpy as np
 import pytest
 import yaml
 
@@ -75,3 +76,43 @@ def test_analysis_never_imports_sim():
             else:
                 continue
             assert not any(n == "sim" or n.startswith("sim.") for n in names), path
+
+
+@pytest.mark.parametrize("user, words", [
+    ({"rve": {"size": 50.0}}, ["analysis.rve.size = 50.0", "GiB", "raster_pixel = 0.0005"]),
+    ({"grid": {"x_min": -50.0, "x_max": 50.0, "y_min": 0.0, "y_max": 50.0, "spacing": 0.1}},
+     ["analysis.rve.size = 0.08 over the grid x -50.0 to 50.0", "GiB"]),
+])
+def test_settings_whose_raster_cannot_fit_are_refused_before_any_computation(user, words):
+    """Both passed the checks once and then died in the solid fraction with a
+    MemoryError (39 and 149 GiB): the raster grows with the grid's extent and
+    the RVE, not with the number of RVEs."""
+    import json
+
+    from analysis.params import parse_params
+
+    resolve_params(user)  # within every setting's range
+    with pytest.raises(ParamError) as err:
+        parse_params(json.dumps(user))
+    assert all(w in str(err.value) for w in words), str(err.value)
+
+
+def test_the_raster_estimate_bounds_what_the_solid_fraction_allocates():
+    """tracemalloc's peak while rastering square RVEs over a grid lies within the
+    estimate RASTER_BYTES_PER_PIXEL x pixels (and above half of it)."""
+    import tracemalloc
+
+    from analysis.solid_fraction import RASTER_BYTES_PER_PIXEL, Raster, raster_shape
+
+    centres = np.array([[x, y] for x in np.linspace(-0.3, 0.3, 21) for y in np.linspace(0.015, 0.2, 7)])
+    half, h = 0.04, 0.0005
+    nx, ny = raster_shape(-0.3, 0.3, 0.2, half, h)
+    tracemalloc.start()
+    raster = Raster.covering(centres, half, h)
+    raster.solid[::3, ::2] = True
+    raster.window_fraction(centres, "square", 2 * half)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert (raster.nx, raster.ny) == (nx, ny)
+    estimate = nx * ny * RASTER_BYTES_PER_PIXEL
+    assert 0.8 * estimate < peak <= 1.05 * estimate, (peak, estimate)

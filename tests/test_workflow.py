@@ -189,6 +189,7 @@ def test_each_probe_level_is_a_stage(workdir):
     ("grid", {"analysis": {"grid": {"x_min": 0.1, "x_max": -0.1}}}, "analysis.grid.x_min = 0.1"),
     ("size", {"pour": {"n_particles": 10**9}}, "would need about 100001000 MB"),
     ("seed", {"protocols": {"wedge": {"seeds": [10**20]}}}, "4294967295"),
+    ("raster", {"analysis": {"rve": {"size": 50.0}}}, "analysis.rve.size = 50.0 over the grid"),
     ("too_few", {"pour": {"n_particles": 1}}, "pour.n_particles = 1 is fewer than analysis.rve.min_particles = 8"),
     ("convergence_seed", {"analysis": {"convergence": {"seed": 7}}},
      "analysis.convergence.seed = 7 is not a seed of protocol wedge"),

@@ -30,7 +30,7 @@ import yaml
 from jsonschema import Draft202012Validator, validators
 from referencing import Registry, Resource
 
-from analysis.params import resolve_params
+from analysis.params import check_memory, resolve_params
 from sim.config import SimConfig
 
 SCHEMAS = Path(__file__).resolve().parent / "schemas"
@@ -190,7 +190,7 @@ def validate_config(config):
         if problem:
             raise ConfigurationError(f"invalid configuration: {problem}")
     for check in (lambda: SimConfig.from_dict({k: config[k] for k in SIM_SECTIONS}),
-                  lambda: resolve_params(config["analysis"])):
+                  lambda: check_memory(resolve_params(config["analysis"]))):
         try:
             check()
         except ValueError as exc:
