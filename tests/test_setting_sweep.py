@@ -42,3 +42,10 @@ def test_a_bad_setting_is_refused_by_name_before_any_pile(setting, value, words)
     with pytest.raises(SystemExit) as err:
         sweep.check_values(setting, [100.0, value] if setting == "pour.rate" else [value])
     assert all(w in str(err.value) for w in words)
+
+
+def test_same_run_names_a_run_under_the_runs_folder_or_an_absolute_one(tmp_path):
+    assert sweep.same_run("0.02=friction/0.5", tmp_path) == (0.02, tmp_path / "friction" / "0.5")
+    assert sweep.same_run(f"0={tmp_path}/friction/0.5", Path("/elsewhere")) == (0, tmp_path / "friction" / "0.5")
+    with pytest.raises(SystemExit, match="expected VALUE=NAME/VALUE"):
+        sweep.same_run("0.02", tmp_path)

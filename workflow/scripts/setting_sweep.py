@@ -221,14 +221,22 @@ def _order(key: str) -> tuple:
     return (0, value) if number else (1, 0)
 
 
-def same_run(spec: str) -> tuple:
-    """``VALUE=NAME/OTHER`` → (value, NAME, OTHER): the value's piles are those of sweep
-    NAME at OTHER, refused unless both give the same configuration."""
+def same_run(spec: str, root: Path) -> tuple:
+    """``VALUE=NAME/OTHER`` → (value, ``root/NAME/OTHER``), or ``VALUE=/absolute/dir`` →
+    (value, that folder): the value's piles are those of another run, refused in
+    :func:`main` unless both give the same configuration."""
     value_text, _, run = spec.partition("=")
     name, _, other = run.partition("/")
-    if not (value_text and name and other):
-        raise SystemExit(f"--same {spec!r}: expected VALUE=NAME/VALUE, e.g. 0.02=friction/0.5")
-    return yaml.safe_load(value_text), name, other
+    if not (value_text and run and (Path(run).is_absolute() or (name and other))):
+        raise SystemExit(f"--same {spec!r}: expected VALUE=NAME/VALUE (under the runs' folder) or "
+                         "VALUE=/path/to/run, e.g. 0.02=friction/0.5")
+    return yaml.safe_load(value_text), Path(run) if Path(run).is_absolute() else root / name / other
+
+
+def commit_of(folder: Path) -> str:
+    """The short commit of the checkout that holds ``folder`` (where its piles were made)."""
+    return subprocess.run(["git", "-C", str(folder), "rev-parse", "--short", "HEAD"],
+                          capture_output=True, text=True, check=True).stdout.strip()
 
 
 def _configuration(piles: Path, layer: dict) -> dict:
@@ -252,8 +260,9 @@ def main() -> None:
                     help="read the values' piles from DIR/NAME/VALUE/ (results/sweeps of a clone that ran "
                          "them at a fixed commit, which is recorded) instead of pouring them here")
     ap.add_argument("--same", nargs="*", default=[], metavar="VALUE=NAME/VALUE",
-                    help="a value whose piles are another sweep's run of the same configuration "
-                         "(e.g. the study's value, poured once for every sweep)")
+                    help="a value whose piles are another run of the same configuration: NAME/VALUE under "
+                         "the runs' folder, or an absolute folder (e.g. the study's value, poured once for "
+                         "every sweep); its commit is that folder's")
     args = ap.parse_args()
     if not args.values and not args.same and not args.keep_recorded:
         ap.error("--values: give at least one value (or --keep-recorded to rewrite the table)")
@@ -269,14 +278,11 @@ def main() -> None:
         if results.get("setting", args.setting) != args.setting:
             raise SystemExit(f"--keep-recorded: {record} is a sweep of {results['setting']}, not {args.setting}")
         results["setting"] = args.setting
-    commit = subprocess.run(["git", "-C", str(args.runs or REPO), "rev-parse", "--short", "HEAD"],
-                            capture_output=True, text=True, check=True).stdout.strip()
     root = args.runs or REPO / "results" / "sweeps"
     values = list(args.values)
     works = {label(v): root / args.name / label(v) for v in values} if args.runs else {}
     for spec in args.same:
-        value, name, other = same_run(spec)
-        run = root / name / other
+        value, run = same_run(spec, root)
         if _configuration(piles, overlay(args.setting, value)) != \
                 _configuration(piles, yaml.safe_load((run / "setting.yaml").read_text())):
             raise SystemExit(f"--same {spec}: {run} was run with another configuration than "
@@ -288,7 +294,7 @@ def main() -> None:
         work = works.get(label(value)) or run_value(args.name, args.setting, value, args.cores, piles)
         for p, v in cfg["protocols"].items():
             results["piles"][p][label(value)] = [pile_values(work, p, s, params) for s in v["seeds"]]
-        results["runs"][label(value)] = commit
+        results["runs"][label(value)] = commit_of(work)
     record.write_text(json.dumps(results, indent=1) + "\n")
     keys = sorted(results["runs"], key=_order)
     n = {p: len(v["seeds"]) for p, v in cfg["protocols"].items()}
