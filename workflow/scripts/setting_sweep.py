@@ -1,4 +1,4 @@
-"""Does one setting change the piles?  (issue 11: the pour rate, the pile shape)
+"""Does one setting change the piles?  (issues 11 and 25: the pile shape, the unknown parameters)
 
 Runs the piles of ``--piles`` (``config/medium_piles.yaml``, 800 particles, by
 default; ``config/sweep_piles.yaml``, 1600, for the unknown parameters of
@@ -13,10 +13,14 @@ per protocol, with the seed mean and its standard error:
   widen the base);
 * the solid fraction of the core: mean of the RVE field over ``|x| <= 3 cm``,
   ``y <= 5 cm``;
-* the base-pressure dip: ``1 - p(0) / max p``, with ``p(0)`` the mean normal
-  force density of the two bins next to ``x = 0``;
+* the primary construction-history statistics of ``analysis/history.py``
+  (the strain and solid fraction of the centre against fixed shoulders, the
+  base pressure against a uniform-density pile, the gravity scaling of the
+  stresses, the stress-fabric angle), and at each value wedge against
+  layered with the standard error of the difference;
 * the core moduli: Young's modulus ``E`` and bulk modulus ``K`` of each pile's
-  own isotropic fit (average of both fits, m = 5), mean over the core points.
+  own isotropic fit (average of both fits, m = 5), mean over the core points;
+* the CPU seconds of each pile's pour, relaxation and probe.
 
 Two values differ beyond seed scatter in a quantity when their means are more
 than twice their combined standard error apart.  Writes the table to
@@ -27,13 +31,20 @@ written there by hand goes into the table's heading.  With
 run now replaces its record), so a value can be added without pouring the
 others again, and without ``--values`` only the table is written again.
 Every value is checked by the workflow's own validation before anything
-runs.
+runs.  With ``--from DIR`` the piles are read from ``DIR/{name}/{value}/``
+(a clone that ran them at a fixed commit) instead of being poured here, and
+``--same VALUE=NAME/OTHER`` takes a value's piles from another run of the
+same configuration (e.g. the study's value, poured once for all sweeps);
+each value records the commit of the checkout its piles came from.
 
 Usage::
 
     .venv/bin/python workflow/scripts/setting_sweep.py --setting pour.rate \\
         --values 100 200 400 --name pour_rate [--cores 2] [--keep-recorded] \\
         [--piles config/sweep_piles.yaml]
+    .venv/bin/python workflow/scripts/setting_sweep.py --piles config/sweep_piles.yaml \\
+        --setting pour.release_height --values 0.3 --same 0.02=friction/0.5 \\
+        --name release_height --from /work/sweep/results/sweeps
 """
 
 import argparse
