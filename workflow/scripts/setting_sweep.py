@@ -61,7 +61,7 @@ REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
 from analysis.elastic import moduli_dataset  # noqa: E402
-from analysis.history import pile_history, primary_names  # noqa: E402
+from analysis.history import mean_sem, pile_history, primary_names  # noqa: E402
 from analysis.params import parse_params  # noqa: E402
 
 MEDIUM = REPO / "config" / "medium_piles.yaml"
@@ -182,15 +182,6 @@ def pile_values(work: Path, protocol: str, seed: int, params: dict) -> dict:
     return out
 
 
-def mean_sem(values: list) -> tuple:
-    a = np.asarray(values, float)
-    a = a[np.isfinite(a)]
-    if a.size == 0:
-        return float("nan"), float("nan"), 0
-    sem = float(a.std(ddof=1) / np.sqrt(a.size)) if a.size > 1 else float("nan")
-    return float(a.mean()), sem, int(a.size)
-
-
 def table(results: dict, keys: list, quantities: dict) -> str:
     """Markdown: per protocol and quantity, mean ± SE at each value, and the largest
     difference between two values in combined standard errors (rows no pile has are left out)."""
@@ -199,11 +190,11 @@ def table(results: dict, keys: list, quantities: dict) -> str:
     for protocol, by_value in results["piles"].items():
         for q, text in quantities.items():
             stats = [mean_sem([p.get(q, np.nan) for p in by_value[k]]) for k in keys]
-            if not any(n for _, _, n in stats):
+            if not any(n for *_, n in stats):
                 continue
             z = max((abs(a[0] - b[0]) / np.hypot(a[1], b[1])
                      for i, a in enumerate(stats) for b in stats[i + 1:]), default=float("nan"))
-            cells = " | ".join(f"{m:.4g} ± {s:.2g}" for m, s, _ in stats)
+            cells = " | ".join(f"{m:.4g} ± {s:.2g}" for m, s, *_ in stats)
             rows.append(f"| {protocol} | {text} | {cells} | {z:.1f} |")
     return "\n".join(rows) + "\n"
 
@@ -217,7 +208,7 @@ def history_table(results: dict, keys: list, quantities: dict, a: str = "wedge",
     for q in names:
         cells = []
         for k in keys:
-            (ma, sa, _), (mb, sb, _) = (mean_sem([p.get(q, np.nan) for p in results["piles"][x][k]]) for x in (a, b))
+            (ma, sa, *_), (mb, sb, *_) = (mean_sem([p.get(q, np.nan) for p in results["piles"][x][k]]) for x in (a, b))
             se = np.hypot(sa, sb)
             cells.append(f"{ma - mb:+.3g} ± {se:.2g} ({(ma - mb) / se:+.1f})" if se > 0 else "n/a")
         if any(c != "n/a" and "nan" not in c for c in cells):
