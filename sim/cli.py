@@ -127,6 +127,9 @@ def _parser():
     p.add_argument("--threads", default="1,2", help="comma-separated thread counts")
     p.add_argument("--cache", default=".bench", help="folder of the built piles")
     p.add_argument("--state", help="time this state file instead of the built piles")
+    p.add_argument("--peer", choices=["lammps"],
+                   help="also time a LAMMPS disk pile of each N in this run (needs lmp: "
+                        "make bench-peers) and print the ratios")
     p.add_argument("--scenes", metavar="STATE",
                    help="instead: time the pile of this state file under each scene "
                         "variant (friction 0, damping 0, no rotation, no support)")
@@ -183,7 +186,7 @@ def main(argv=None):
                 bench_main(_int_list("--sizes", args.sizes), args.steps, args.repeats,
                            tuple(args.integrators.split(",")),
                            _int_list("--threads", args.threads), Path(args.cache),
-                           args.state)
+                           args.state, args.peer)
             return 0
         if args.command == "summary":
             from .io import load_simulation

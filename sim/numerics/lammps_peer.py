@@ -1,0 +1,292 @@
+"""A LAMMPS disk pile timed beside our polygons: the bench's reference peer.
+
+Absolute times drift by a factor of two between hours on shared machines;
+the ratio of two codes timed in the same run does not.  ``python -m sim
+bench --peer lammps`` therefore builds, for each pile size it times, a pile
+of as many disks in LAMMPS (Debian's ``lammps`` package, the ``lmp``
+executable, ``GRANULAR`` package) and times it in the same run, on 1 and 2
+MPI ranks.
+
+The disk pile matches the polygon pile in what sets the cost of a contact
+step, not in its shape:
+
+* **N particles of the same masses**: the polygons of the study's recipe
+  (:func:`sim.shapes.make_shapes`, the same seed), each replaced by the disk
+  of its area, so mass per metre of depth ``density * area`` is the same;
+* **stiffness and friction**: ``gran/hooke/history`` with ``k_n`` equal to
+  the study's Young's modulus (N/m in 2D, the slope of our force against
+  overlap depth for a disk-like overlap), ``k_t = 2/7 k_n``, the study's
+  friction μ between disks and against the floor;
+* **the same time step** as the polygon pile (its automatic Verlet step), so
+  that both move the same distance per step and rebuild their neighbour
+  lists alike; LAMMPS's skin is our skin, 0.3 mean circumradii;
+* **a loaded, settled pile**: disks roll freely (no rolling resistance in
+  ``gran/hooke/history``), so a free heap would flow flat; the disks fill a
+  box of floor and side walls (frictional ``wall/gran``) from a triangular
+  lattice and settle under gravity with a viscous drag, which is removed
+  before the timing.
+
+The timing is LAMMPS's own ``Loop time`` of ``steps`` steps, the median of
+``repeats`` runs, per particle-step; contacts per particle are the
+particle–particle contacts (``compute contact/atom``, each counted once), as
+in the polygon rows.  The input is written by :func:`lammps_input`; it is
+documented in ``docs/performance.md``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+#: Executable looked for on PATH.
+LMP = "lmp"
+#: Simulated time the disks settle for under a viscous drag before the timing, s.
+SETTLE_TIME = 0.4
+#: Viscous drag while settling, 1/s (``fix viscous`` takes gamma = this × mass).
+SETTLE_DRAG = 20.0
+#: Normal damping ratio of the disk contacts (``gamma_n`` of ``gran/hooke/history``).
+DAMPING_RATIO = 0.3
+
+_LOOP = re.compile(r"^Loop time of ([0-9.eE+-]+) on (\d+) procs for (\d+) steps with (\d+) atoms",
+                   re.M)
+_MARK = re.compile(r"^(CONTACTS|MASS|STEPS) ([0-9.eE+-]+)\s*$", re.M)
+
+
+class PeerUnavailable(RuntimeError):
+    """LAMMPS is not installed (or cannot run) on this machine."""
+
+
+def find_lmp():
+    """The ``lmp`` executable, or :class:`PeerUnavailable` saying how to install it."""
+    path = shutil.which(LMP)
+    if path is None:
+        raise PeerUnavailable("bench --peer lammps: no 'lmp' on PATH; install Debian's "
+                              "'lammps' package (make bench-peers does) or leave out --peer")
+    return path
+
+
+def disk_pile(n, seed=0, model=None, particles=None):
+    """The disks of a peer pile: radii, masses and lattice positions in a box.
+
+    Parameters
+    ----------
+    n : int
+        Number of disks.
+    seed : int
+        Seed of the polygons whose areas the disks take.
+    model : sim.config.ModelParams, optional
+    particles : sim.config.ParticleParams, optional
+
+    Returns
+    -------
+    dict
+        ``radius``, ``mass`` (kg per m of depth), ``x``, ``y`` (m), ``width``
+        (the box's inner width, m) and ``height`` (its height, m).
+    """
+    from ..bench import _shapes
+    from ..config import ModelParams
+    model = model or ModelParams()
+    shapes = _shapes(np.random.default_rng(seed), n, model, particles)
+    radius = np.sqrt(shapes.area / np.pi)
+    d = 2.0 * float(radius.max()) * 1.001  # lattice spacing: no two disks touch
+    ncol = max(int(np.sqrt(n)), 1)
+    row, col = np.divmod(np.arange(n), ncol)
+    width = (ncol + 1.0) * d
+    x = -0.5 * width + (col + 0.75 + 0.5 * (row % 2)) * d
+    y = (0.5 + row * np.sqrt(3.0) / 2.0) * d
+    return {"radius": radius, "mass": shapes.mass.copy(), "x": x, "y": y, "width": width,
+            "height": float(y.max() + 2.0 * d)}
+
+
+def data_file(pile):
+    """A LAMMPS data file (``atom_style sphere``) of the disks of :func:`disk_pile`.
+
+    LAMMPS takes a per-atom density and computes the mass of a sphere,
+    ``4/3 π r³ ρ``; the density written is the one that gives the disk's mass
+    per metre of depth, ``3 m / (4 π r³)``, and the input checks the total.
+    """
+    r, m = pile["radius"], pile["mass"]
+    rho = 3.0 * m / (4.0 * np.pi * r ** 3)
+    w, h = 0.5 * pile["width"], pile["height"]
+    zt = float(4.0 * r.max())
+    lines = ["LAMMPS data file: polypile bench peer, disks of the polygons' areas", "",
+             f"{len(r)} atoms", "1 atom types", "",
+             f"{-w:.10g} {w:.10g} xlo xhi", f"{0.0:.10g} {h:.10g} ylo yhi",
+             f"{-zt:.10g} {zt:.10g} zlo zhi", "", "Atoms # sphere", ""]
+    lines += [f"{k + 1} 1 {2.0 * r[k]:.12g} {rho[k]:.12g} {pile['x'][k]:.12g} "
+              f"{pile['y'][k]:.12g} 0" for k in range(len(r))]
+    return "\n".join(lines) + "\n"
+
+
+def lammps_input(pile, model, dt, skin, steps, repeats):
+    """The LAMMPS input that settles the disk pile and times it.
+
+    Parameters
+    ----------
+    pile : dict
+        From :func:`disk_pile`.
+    model : sim.config.ModelParams
+        Its Young's modulus is ``k_n``; its friction the disks' and the walls'.
+    dt, skin : float
+        Time step (s) and neighbour skin (m) of the polygon pile timed beside it.
+    steps, repeats : int
+        Steps per timed run and timed runs.
+
+    Returns
+    -------
+    str
+    """
+    kn = float(model.youngs_modulus)
+    m_mean = float(np.mean(pile["mass"]))
+    # gran/hooke/history: F_n = k_n delta - m_eff gamma_n v_n; gamma_n from the
+    # damping ratio of a contact of two mean disks (m_eff = m/2)
+    gamma_n = 2.0 * DAMPING_RATIO * np.sqrt(kn / (0.5 * m_mean))
+    gran = (f"{kn:.8g} NULL {gamma_n:.8g} NULL {model.friction:.8g} 1")
+    wall = (f"{kn:.8g} NULL {gamma_n:.8g} NULL {model.support_friction:.8g} 1")
+    w = 0.5 * pile["width"]
+    settle = max(int(round(SETTLE_TIME / dt)), 1)
+    timed = "\n".join(["run ${steps} pre no post no"] * repeats)
+    return f"""# polypile bench peer: a settled box of disks, timed (sim/numerics/lammps_peer.py)
+units si
+dimension 2
+atom_style sphere
+boundary f f p
+newton off
+comm_modify vel yes
+read_data pile.data
+variable mtot equal mass(all)
+print "MASS ${{mtot}}"
+pair_style gran/hooke/history {gran}
+pair_coeff * *
+neighbor {skin:.8g} bin
+neigh_modify delay 0 every 1 check yes
+timestep {dt:.8g}
+fix integrate all nve/sphere disc
+fix flat all enforce2d
+fix weight all gravity 9.81 vector 0 -1 0
+fix floor all wall/gran hooke/history {wall} yplane 0.0 NULL
+fix sides all wall/gran hooke/history {wall} xplane {-w:.10g} {w:.10g}
+compute touching all contact/atom
+compute contacts all reduce sum c_touching
+thermo_style custom step atoms ke c_contacts
+thermo_modify norm no lost error
+thermo 100000000
+fix settle all viscous {SETTLE_DRAG * m_mean:.8g}
+run {settle}
+unfix settle
+run {max(settle // 10, 1)}
+variable steps equal {steps}
+print "STEPS ${{steps}}"
+{timed}
+run 0 post no
+variable pairs equal c_contacts/2
+print "CONTACTS ${{pairs}}"
+"""
+
+
+def parse_log(text):
+    """Loop times and the marks of a LAMMPS log of :func:`lammps_input`.
+
+    Returns
+    -------
+    dict
+        ``loops``: list of (seconds, ranks, steps, atoms), one per ``run``;
+        ``contacts``, ``mass`` and ``steps`` from the printed marks.
+    """
+    loops = [(float(t), int(p), int(s), int(a)) for t, p, s, a in _LOOP.findall(text)]
+    marks = {k.lower(): float(v) for k, v in _MARK.findall(text)}
+    missing = {"contacts", "mass", "steps"} - set(marks)
+    if missing or not loops:
+        raise RuntimeError(f"LAMMPS log lacks {sorted(missing) or 'Loop time lines'}")
+    return {"loops": loops, **marks}
+
+
+def time_peer(n, ranks, dt, skin, steps=200, repeats=5, seed=0, model=None, workdir=None):
+    """Build and time the disk pile of ``n`` on ``ranks`` MPI ranks.
+
+    Parameters
+    ----------
+    n, ranks : int
+    dt, skin : float
+        The polygon pile's time step and skin.
+    steps, repeats : int
+    seed : int
+    model : sim.config.ModelParams, optional
+    workdir : Path, optional
+        Where the input, data and log are written (default: a temporary folder).
+
+    Returns
+    -------
+    dict
+        ``n_particles``, ``ranks``, ``contacts_per_particle``,
+        ``lammps_ns_per_particle_step`` (median of the timed runs),
+        ``lammps_ns_per_contact``, ``mass_error`` (relative, of the total mass).
+    """
+    from ..config import ModelParams
+    model = model or ModelParams()
+    lmp = find_lmp()
+    pile = disk_pile(n, seed, model)
+    with tempfile.TemporaryDirectory(dir=workdir) as tmp:
+        tmp = Path(tmp)
+        (tmp / "pile.data").write_text(data_file(pile))
+        (tmp / "in.bench").write_text(lammps_input(pile, model, dt, skin, steps, repeats))
+        cmd = [lmp, "-in", "in.bench", "-log", "log.lammps", "-screen", "none"]
+        if ranks > 1:
+            cmd = ["mpirun", "-np", str(ranks), "--oversubscribe"] + cmd
+        env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+                   OMP_NUM_THREADS="1")
+        done = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
+        log_text = (tmp / "log.lammps").read_text() if (tmp / "log.lammps").exists() else ""
+        if done.returncode != 0:
+            tail = (log_text or done.stdout + done.stderr).strip().splitlines()[-5:]
+            raise RuntimeError(f"LAMMPS peer of {n} disks on {ranks} rank(s) failed "
+                               f"(exit {done.returncode}): " + " | ".join(tail))
+    parsed = parse_log(log_text)
+    mass_error = parsed["mass"] / float(pile["mass"].sum()) - 1.0
+    if abs(mass_error) > 1e-6:
+        raise RuntimeError(f"LAMMPS peer: its disks weigh {mass_error:+.2e} (relative) "
+                           "against the polygons; the data file's densities are wrong")
+    timed = [t for t, _, s, _ in parsed["loops"] if s == int(parsed["steps"])][-repeats:]
+    seconds = float(np.median(timed))
+    pairs = parsed["contacts"]
+    return {"n_particles": n, "ranks": ranks, "contacts_per_particle": pairs / n,
+            "lammps_ns_per_particle_step": seconds / steps / n * 1e9,
+            "lammps_ns_per_contact": seconds / steps / max(pairs, 1.0) * 1e9,
+            "mass_error": mass_error}
+
+
+def ratios(rows, peers):
+    """Each polygon row's ratio to the LAMMPS pile of the same N and threads = ranks.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Rows of :func:`sim.bench.measure`.
+    peers : list of dict
+        Rows of :func:`time_peer`.
+
+    Returns
+    -------
+    list of dict
+        The rows with ``lammps_ns_per_particle_step``, ``ratio_to_lammps``
+        (per particle-step) and ``ratio_to_lammps_per_contact`` added where a
+        peer of the same N and parallelism was timed.
+    """
+    by_key = {(p["n_particles"], p["ranks"]): p for p in peers}
+    out = []
+    for r in rows:
+        p = by_key.get((r["n_particles"], r["threads"]))
+        if p is None:
+            out.append(dict(r))
+            continue
+        out.append({**r, "lammps_ns_per_particle_step": p["lammps_ns_per_particle_step"],
+                    "ratio_to_lammps": r["ns_per_particle_step"] / p["lammps_ns_per_particle_step"],
+                    "ratio_to_lammps_per_contact":
+                        r["ns_per_contact"] / p["lammps_ns_per_contact"]})
+    return out
