@@ -396,12 +396,12 @@ class Simulation:
             chunk = min(steps - done, self.check_every - self.step % self.check_every)
             kernels = (KERNELS_PARALLEL if self.n >= self.parallel_threshold and
                        numba.get_num_threads() > 1 else KERNELS_SERIAL)
-            k = advance(kernels, chunk, self.n, *self.kernel_state(), self.x_ref, self.y_ref,
-                        rebuild_sq)
+            k, stale = advance(kernels, chunk, self.n, *self.kernel_state(), self.x_ref,
+                               self.y_ref, rebuild_sq)
             done += k
             self.step += k
             self.time = start_time + done * self.dt
-            if k < chunk:
+            if stale:
                 self._stale = True
             if self.step % self.check_every == 0 or done == steps:
                 problem = self.check()

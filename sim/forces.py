@@ -551,9 +551,12 @@ def advance(kernels, n_steps, n, pt, pairs, bodies, law, motion, work, x_ref, y_
 
     Returns
     -------
-    int
-        Steps done.  Fewer than ``n_steps`` means some particle moved more than
-        ``sqrt(rebuild_sq)`` since the last pair-list build.
+    done : int
+        Steps done.
+    stale : bool
+        Some particle moved more than ``sqrt(rebuild_sq)`` since the last
+        pair-list build: the list must be rebuilt before the next step (also
+        when that happened in the last of the ``n_steps``).
     """
     predict, pair_pass, gather = kernels
     predict(n, pt, motion, work)
@@ -561,5 +564,5 @@ def advance(kernels, n_steps, n, pt, pairs, bodies, law, motion, work, x_ref, y_
         last = s + 1 == n_steps
         pair_pass(pt, pairs, law, motion.dt, work, last)
         if gather(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, last) > rebuild_sq:
-            return s + 1
-    return n_steps
+            return s + 1, True
+    return n_steps, False

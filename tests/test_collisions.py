@@ -137,3 +137,32 @@ def test_frictional_oblique_collision_conserves_angular_momentum(integrator):
     assert np.all(np.abs(_momentum(sim) - p0) < 1e-12 * sim.shapes.mass[0])
     # friction did act: the spins changed
     assert abs(sim.omega[0] - 3.0) > 1e-3
+
+
+@pytest.mark.parametrize("integrator", ["gear", "verlet"])
+@pytest.mark.parametrize("skins", [1.5, 2.5, 8.0])
+def test_fast_corner_to_corner_collision_is_seen_from_several_skins_away(integrator, skins):
+    """Two squares on their corners, 2 m/s each, starting ``skins`` skins apart.
+
+    Whatever the pair list's rebuild policy, the collision must happen as an
+    undamped frictionless one: the corners meet head on (no torque), so the
+    squares reverse with their speeds and the total momentum and energy kept.
+    A list rebuilt too late (once a particle has moved a full skin: the gap
+    closes by two skins between builds) lets the corners in deep before the
+    contact is seen, and the squares leave faster than they came.  Stepped
+    one step per call, as a scene script does: a rebuild due at the end of
+    a call was once lost, and the squares passed through each other.
+    """
+    v = 2.0
+    r = np.sqrt(2.0) * W
+    gap = skins * 0.3 * r  # the default skin is 0.3 mean circumradii
+    sim = scene([diamond(r)] * 2, [(-r - 0.5 * gap, 0.0, 0.0, v, 0.0, 0.0),
+                                   (r + 0.5 * gap, 0.0, 0.0, -v, 0.0, 0.0)],
+                youngs_modulus=Y, integrator=integrator, damping=0.0, friction=0.0,
+                dt_safety=0.5)
+    assert gap == pytest.approx(skins * sim.skin)
+    p0, e0 = _momentum(sim), _energy(sim)
+    _collide(sim, max_steps=200000)
+    np.testing.assert_allclose(sim.velocity[:, 0], [-v, v], rtol=2e-3)
+    assert np.all(np.abs(_momentum(sim) - p0) < 1e-12 * sim.shapes.mass[0] * v)
+    assert _energy(sim) == pytest.approx(e0, rel=4e-3)
