@@ -365,7 +365,7 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
                       f"{r['ns_per_contact']:>10.1f} {r['cores_used']:>5.2f} "
                       f"{r['share_predict']:>7.0%} {r['share_pairs']:>6.0%} "
                       f"{r['share_gather']:>6.0%}", flush=True)
-    peers = _time_peers(paths, threads, steps, repeats) if peer else []
+    peers = _time_peers(paths, threads, steps, repeats, cache) if peer else []
     rows = lammps_peer.ratios(rows, peers)
     for r in rows:
         if "ratio_to_lammps" in r:
@@ -385,16 +385,16 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
     return rows
 
 
-def _time_peers(paths, threads, steps, repeats):
+def _time_peers(paths, threads, steps, repeats, cache):
     """The LAMMPS disk pile of each pile's N, at its time step and skin, on each
-    thread count as MPI ranks; printed as a table."""
+    thread count as MPI ranks (settled once, kept in ``cache``); printed as a table."""
     print(f"{'N':>6} {'peer':>10} {'rk':>3} {'contacts/N':>10} {'ns/p-step':>9} "
           f"{'ns/contact':>10}", flush=True)
     peers = []
     for path in paths:
         sim = _load(path, "verlet")
         for t in threads:
-            p = lammps_peer.time_peer(sim.n, t, sim.dt, sim.skin, steps, repeats)
+            p = lammps_peer.time_peer(sim.n, t, sim.dt, sim.skin, steps, repeats, cache=cache)
             peers.append(p)
             print(f"{p['n_particles']:>6} {'lammps':>10} {t:>3} "
                   f"{p['contacts_per_particle']:>10.2f} "

@@ -58,6 +58,11 @@ def test_input_uses_the_study_stiffness_friction_step_and_skin():
     assert re.search(r"^neighbor 0.0011 bin$", text, re.M)
     assert text.count("run ${steps} pre no post no") == 4
     assert re.search(r"^variable steps equal 150$", text, re.M)
+    assert re.search(r"^read_data settled.data$", text, re.M) and "viscous" not in text
+    settle = lammps_input(pile, model, dt=3e-5, skin=1.1e-3, stage="settle")
+    assert re.search(r"^read_data pile.data$", settle, re.M)
+    assert re.search(r"^fix settle all viscous", settle, re.M)
+    assert settle.rstrip().endswith("write_data settled.data") and "${steps}" not in settle
 
 
 # Lines of a real LAMMPS 20220106 log of this input (300 disks, 2 timed runs).

@@ -23,8 +23,9 @@ step, not in its shape:
 * **a loaded, settled pile**: disks roll freely (no rolling resistance in
   ``gran/hooke/history``), so a free heap would flow flat; the disks fill a
   box of floor and side walls (frictional ``wall/gran``) from a triangular
-  lattice and settle under gravity with a viscous drag, which is removed
-  before the timing.
+  lattice and settle under gravity with a viscous drag
+  (:func:`settled_peer`, once, kept in the bench's cache like its polygon
+  piles); the drag is removed 0.1 s before the timing.
 
 The timing is LAMMPS's own ``Loop time`` of ``steps`` steps, the median of
 ``repeats`` runs, per particle-step; contacts per particle are the
@@ -46,8 +47,12 @@ import numpy as np
 
 #: Executable looked for on PATH.
 LMP = "lmp"
-#: Simulated time the disks settle for under a viscous drag before the timing, s.
-SETTLE_TIME = 0.4
+#: The disks settle under a viscous drag for this many free-fall times of the
+#: box's height, plus :data:`SETTLE_EXTRA`, before the timing (a 10 000 box
+#: settled for 0.4 s had 0.55 contacts per particle, still falling).
+SETTLE_FALLS = 2.5
+#: See :data:`SETTLE_FALLS`, s.
+SETTLE_EXTRA = 0.2
 #: Viscous drag while settling, 1/s (``fix viscous`` takes gamma = this × mass).
 SETTLE_DRAG = 20.0
 #: Normal damping ratio of the disk contacts (``gamma_n`` of ``gran/hooke/history``).
@@ -124,8 +129,8 @@ def data_file(pile):
     return "\n".join(lines) + "\n"
 
 
-def lammps_input(pile, model, dt, skin, steps, repeats):
-    """The LAMMPS input that settles the disk pile and times it.
+def lammps_input(pile, model, dt, skin, steps=200, repeats=5, stage="time"):
+    """The LAMMPS input that settles the disk pile (``stage="settle"``) or times it.
 
     Parameters
     ----------
@@ -137,11 +142,18 @@ def lammps_input(pile, model, dt, skin, steps, repeats):
         Time step (s) and neighbour skin (m) of the polygon pile timed beside it.
     steps, repeats : int
         Steps per timed run and timed runs.
+    stage : {"settle", "time"}
+        ``settle`` reads ``pile.data`` (:func:`data_file`), lets the disks
+        settle under a drag for :func:`settle_time` and writes
+        ``settled.data``; ``time`` reads ``settled.data``, runs a tenth of a
+        second without drag and then the timed runs.
 
     Returns
     -------
     str
     """
+    if stage not in ("settle", "time"):
+        raise ValueError(f"lammps_input stage {stage!r}: 'settle' or 'time'")
     kn = float(model.youngs_modulus)
     m_mean = float(np.mean(pile["mass"]))
     # gran/hooke/history: F_n = k_n delta - m_eff gamma_n v_n; gamma_n from the
@@ -150,16 +162,14 @@ def lammps_input(pile, model, dt, skin, steps, repeats):
     gran = (f"{kn:.8g} NULL {gamma_n:.8g} NULL {model.friction:.8g} 1")
     wall = (f"{kn:.8g} NULL {gamma_n:.8g} NULL {model.support_friction:.8g} 1")
     w = 0.5 * pile["width"]
-    settle = max(int(round(SETTLE_TIME / dt)), 1)
-    timed = "\n".join(["run ${steps} pre no post no"] * repeats)
-    return f"""# polypile bench peer: a settled box of disks, timed (sim/numerics/lammps_peer.py)
+    setup = f"""# polypile bench peer, {stage}: a box of disks (sim/numerics/lammps_peer.py)
 units si
 dimension 2
 atom_style sphere
 boundary f f p
 newton off
 comm_modify vel yes
-read_data pile.data
+read_data {"pile" if stage == "settle" else "settled"}.data
 variable mtot equal mass(all)
 print "MASS ${{mtot}}"
 pair_style gran/hooke/history {gran}
@@ -177,10 +187,14 @@ compute contacts all reduce sum c_touching
 thermo_style custom step atoms ke c_contacts
 thermo_modify norm no lost error
 thermo 100000000
-fix settle all viscous {SETTLE_DRAG * m_mean:.8g}
-run {settle}
-unfix settle
-run {max(settle // 10, 1)}
+"""
+    if stage == "settle":
+        return setup + f"""fix settle all viscous {SETTLE_DRAG * m_mean:.8g}
+run {max(int(round(settle_time(pile) / dt)), 1)}
+write_data settled.data
+"""
+    timed = "\n".join(["run ${steps} pre no post no"] * repeats)
+    return setup + f"""run {max(int(round(0.1 / dt)), 1)}
 variable steps equal {steps}
 print "STEPS ${{steps}}"
 {timed}
@@ -188,6 +202,53 @@ run 0 post no
 variable pairs equal c_contacts/2
 print "CONTACTS ${{pairs}}"
 """
+
+
+def _run_lmp(folder, ranks, what):
+    """Run ``lmp -in in.lammps`` in ``folder`` on ``ranks`` MPI ranks; its log's text."""
+    cmd = [find_lmp(), "-in", "in.lammps", "-log", "log.lammps", "-screen", "none"]
+    if ranks > 1:
+        cmd = ["mpirun", "-np", str(ranks), "--oversubscribe"] + cmd
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMP_NUM_THREADS="1")
+    done = subprocess.run(cmd, cwd=folder, env=env, capture_output=True, text=True)
+    log_text = (folder / "log.lammps").read_text() if (folder / "log.lammps").exists() else ""
+    if done.returncode != 0:
+        tail = (log_text or done.stdout + done.stderr).strip().splitlines()[-5:]
+        raise RuntimeError(f"LAMMPS peer, {what} on {ranks} rank(s), failed "
+                           f"(exit {done.returncode}): " + " | ".join(tail))
+    return log_text
+
+
+def settled_peer(n, dt, skin, seed=0, model=None, cache=Path(".bench")):
+    """The settled disk pile of ``n``, built once (on one rank) and kept in ``cache``.
+
+    Returns
+    -------
+    pathlib.Path
+        Its LAMMPS data file (positions and velocities after settling).
+    """
+    from ..config import ModelParams
+    model = model or ModelParams()
+    path = Path(cache) / (f"lammps-n{n}-seed{seed}-dt{dt:.6g}-skin{skin:.6g}"
+                          f"-k{model.youngs_modulus:g}-mu{model.friction:g}"
+                          f"-{model.support_friction:g}.data")
+    if path.exists():
+        return path
+    pile = disk_pile(n, seed, model)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
+        tmp = Path(tmp)
+        (tmp / "pile.data").write_text(data_file(pile))
+        (tmp / "in.lammps").write_text(lammps_input(pile, model, dt, skin, stage="settle"))
+        _run_lmp(tmp, 1, f"settling {n} disks")
+        os.replace(tmp / "settled.data", path)  # whole or not at all
+    return path
+
+
+def settle_time(pile):
+    """Simulated time the disks of ``pile`` settle for before the timing, s."""
+    return SETTLE_FALLS * float(np.sqrt(2.0 * pile["height"] / 9.81)) + SETTLE_EXTRA
 
 
 def parse_log(text):
@@ -207,8 +268,9 @@ def parse_log(text):
     return {"loops": loops, **marks}
 
 
-def time_peer(n, ranks, dt, skin, steps=200, repeats=5, seed=0, model=None, workdir=None):
-    """Build and time the disk pile of ``n`` on ``ranks`` MPI ranks.
+def time_peer(n, ranks, dt, skin, steps=200, repeats=5, seed=0, model=None,
+              cache=Path(".bench")):
+    """Time the settled disk pile of ``n`` (:func:`settled_peer`) on ``ranks`` MPI ranks.
 
     Parameters
     ----------
@@ -218,8 +280,8 @@ def time_peer(n, ranks, dt, skin, steps=200, repeats=5, seed=0, model=None, work
     steps, repeats : int
     seed : int
     model : sim.config.ModelParams, optional
-    workdir : Path, optional
-        Where the input, data and log are written (default: a temporary folder).
+    cache : Path
+        Folder of the settled disk piles.
 
     Returns
     -------
@@ -230,23 +292,14 @@ def time_peer(n, ranks, dt, skin, steps=200, repeats=5, seed=0, model=None, work
     """
     from ..config import ModelParams
     model = model or ModelParams()
-    lmp = find_lmp()
+    find_lmp()
     pile = disk_pile(n, seed, model)
-    with tempfile.TemporaryDirectory(dir=workdir) as tmp:
+    settled = settled_peer(n, dt, skin, seed, model, cache)
+    with tempfile.TemporaryDirectory(dir=cache) as tmp:
         tmp = Path(tmp)
-        (tmp / "pile.data").write_text(data_file(pile))
-        (tmp / "in.bench").write_text(lammps_input(pile, model, dt, skin, steps, repeats))
-        cmd = [lmp, "-in", "in.bench", "-log", "log.lammps", "-screen", "none"]
-        if ranks > 1:
-            cmd = ["mpirun", "-np", str(ranks), "--oversubscribe"] + cmd
-        env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-                   OMP_NUM_THREADS="1")
-        done = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
-        log_text = (tmp / "log.lammps").read_text() if (tmp / "log.lammps").exists() else ""
-        if done.returncode != 0:
-            tail = (log_text or done.stdout + done.stderr).strip().splitlines()[-5:]
-            raise RuntimeError(f"LAMMPS peer of {n} disks on {ranks} rank(s) failed "
-                               f"(exit {done.returncode}): " + " | ".join(tail))
+        shutil.copy(settled, tmp / "settled.data")
+        (tmp / "in.lammps").write_text(lammps_input(pile, model, dt, skin, steps, repeats))
+        log_text = _run_lmp(tmp, ranks, f"timing {n} disks")
     parsed = parse_log(log_text)
     mass_error = parsed["mass"] / float(pile["mass"].sum()) - 1.0
     if abs(mass_error) > 1e-6:
