@@ -27,9 +27,15 @@ def characteristic_length(ri, rj):
     """Contact length ``l = r_i r_j / (r_i + r_j)`` (Appendix).
 
     For a fixed body (support, wall) pass ``rj = inf``: then ``l = r_i``.
+    Where the contact point lies on both centres (coincident centres:
+    ``r_i = r_j = 0``) the limit is ``l = 0``; callers floor ``l`` (the pair
+    pass at ``eps``), so the force is finite and the blow-up detector, not a
+    division by zero, stops the run.
     """
     if math.isinf(rj):
         return ri
+    if ri + rj <= 0.0:
+        return 0.0
     return ri * rj / (ri + rj)
 
 

@@ -9,7 +9,7 @@ import yaml
 from scenes import rectangle, regular_polygon, scene, shapes_of
 from sim.broadphase import candidate_pairs
 from sim.config import ConfigError, ModelParams, SimConfig
-from sim.contact_law import normal_force, tangential_force
+from sim.contact_law import characteristic_length, normal_force, tangential_force
 from sim.engine import BlowUpError, Simulation
 from sim.io import StateFileError, load_simulation, save_state
 from sim.shapes import make_shapes
@@ -196,3 +196,32 @@ def test_config_defaults_match_the_workflow_schema():
         assert set(props) == set(values), section
         for key, value in values.items():
             assert props[key].get("default") == value, f"{section}.{key}"
+
+
+@pytest.mark.parametrize("name, small, offset, theta", [
+    ("coincident centres, turned", 1.0, 0.0, 0.3),
+    ("coincident centres, aligned", 1.0, 0.0, 0.0),
+    ("one square inside the other", 0.5, 0.2, 0.2),
+])
+def test_a_scene_starting_deeply_overlapped_is_refused_at_its_first_step(name, small, offset,
+                                                                         theta):
+    """Coincident centres put the contact point on both centres (l = r_i r_j / (r_i + r_j)
+    is 0/0) and a nested polygon has no contact line: the run stops after one step with
+    the blow-up detector's message and the start state kept, instead of a
+    ZeroDivisionError inside the kernel or particles thrown apart at 1e9 m/s."""
+    w = 4e-3
+    sim = scene([rectangle(w, w), rectangle(small * w, small * w)],
+                [(0.0, 0.0, 0.0, 0.0, 0.0, 0.0), (offset * w, 0.0, theta, 0.0, 0.0, 0.0)],
+                youngs_modulus=1e7)
+    start = sim.position.copy()
+    with pytest.raises(BlowUpError, match=r"step 1\): an overlap of .* exceeds "
+                                          r"model.max_overlap_fraction"):
+        sim.run(steps=300)
+    np.testing.assert_array_equal(sim.position, start)
+    assert sim.time == 0.0
+
+
+def test_characteristic_length_of_a_contact_point_on_both_centres_is_zero():
+    assert characteristic_length(0.0, 0.0) == 0.0
+    assert characteristic_length(2.0, 2.0) == pytest.approx(1.0)  # r r / 2r = r / 2
+    assert characteristic_length(3.0, np.inf) == 3.0
