@@ -147,11 +147,23 @@ def test_every_key_is_documented_and_optional_keys_have_defaults(file):
                 assert "default" in sub, f"{where} is optional but has no default"
 
 
-def test_defaults_satisfy_the_schema():
-    """The defaults alone (plus one protocol) form a valid config."""
+def test_defaults_satisfy_the_schema_and_the_simulators_own_checks():
+    """The defaults alone (plus one protocol) form a valid config: the schema
+    fills them in, and the simulator's own checks (ranges across settings, the
+    particle recipe) accept the result; a default the checks refuse fails here."""
+    from sim.config import SimConfig
     config = {"protocols": {"layered": {"seeds": [0]}}}
-    validate(config, SCHEMA)
     validate(copy.deepcopy(config), SCHEMA, set_default=False)
+    validate(config, SCHEMA)
+    assert {"model", "particles", "pour", "relax", "probe", "physics"} <= set(config)
+    cfg = SimConfig.from_dict(config)
+    assert cfg.model.friction == config["model"]["friction"]
+    assert cfg.particles.corners_min <= cfg.particles.corners_max
+    broken = copy.deepcopy(config)
+    broken["particles"]["corners_min"] = broken["particles"]["corners_max"] + 1
+    validate(broken, SCHEMA)  # each value alone is in range
+    with pytest.raises(Exception, match="corners"):
+        SimConfig.from_dict(broken)
 
 
 def test_the_settings_tables_of_the_docs_are_the_schemas():

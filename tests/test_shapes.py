@@ -145,10 +145,20 @@ def test_mass_properties_rejects_degenerate_input():
 # ---------------------------------------------------------------------------
 # validation
 # ---------------------------------------------------------------------------
-def test_validate_accepts_good_polygons():
-    x, y = regular_polygon(7, 1.0)
-    validate_polygon(x, y, min_edge=0.1, min_angle_deg=15.0)
-    validate_polygon([0, 1, 0], [0, 0, 1], min_edge=0.5, min_angle_deg=15.0)
+def test_validate_accepts_polygons_up_to_its_limits_and_refuses_just_beyond():
+    """The right isosceles triangle has edges 1, sqrt 2, 1 and angles 90, 45, 45 deg:
+    it passes with the limits at exactly those values and fails just beyond each."""
+    x, y = [0, 1, 0], [0, 0, 1]
+    validate_polygon(x, y, min_edge=1.0 - 1e-12, min_angle_deg=45.0 - 1e-9)
+    with pytest.raises(ValueError, match="edge 0 is too short"):
+        validate_polygon(x, y, min_edge=1.001, min_angle_deg=15.0)
+    with pytest.raises(ValueError, match="too sharp: interior angle 45"):
+        validate_polygon(x, y, min_edge=0.5, min_angle_deg=45.01)
+    # the regular heptagon: interior angles 128.57 deg, so flat beyond min_angle 51.43
+    hx, hy = regular_polygon(7, 1.0)
+    validate_polygon(hx, hy, min_edge=0.1, min_angle_deg=51.4)
+    with pytest.raises(ValueError, match="too flat"):
+        validate_polygon(hx, hy, min_edge=0.1, min_angle_deg=51.5)
 
 
 @pytest.mark.parametrize(
