@@ -394,7 +394,8 @@ def _time_peers(paths, threads, steps, repeats, cache):
     for path in paths:
         sim = _load(path, "verlet")
         for t in threads:
-            p = lammps_peer.time_peer(sim.n, t, sim.dt, sim.skin, steps, repeats, cache=cache)
+            p = lammps_peer.time_peer(sim.shapes, t, sim.dt, sim.skin, sim.model, steps, repeats,
+                                      cache)
             peers.append(p)
             print(f"{p['n_particles']:>6} {'lammps':>10} {t:>3} "
                   f"{p['contacts_per_particle']:>10.2f} "

@@ -15,8 +15,8 @@ from sim.numerics.lammps_peer import (PeerUnavailable, data_file, disk_pile, fin
 def test_disks_take_the_polygons_areas_and_masses_and_start_apart_inside_the_box():
     model = ModelParams()
     n = 400
-    pile = disk_pile(n, seed=3, model=model)
     shapes = _shapes(np.random.default_rng(3), n, model)
+    pile = disk_pile(shapes)
     # areas by shapely from the polygons' corners, independently of our geometry
     o = shapes.node_offset
     areas = np.array([Polygon(np.c_[shapes.node_x[o[i]:o[i + 1]],
@@ -36,7 +36,7 @@ def test_disks_take_the_polygons_areas_and_masses_and_start_apart_inside_the_box
 
 
 def test_data_file_densities_give_lammps_sphere_masses_equal_to_the_disks():
-    pile = disk_pile(50, seed=1)
+    pile = disk_pile(_shapes(np.random.default_rng(1), 50, ModelParams()))
     text = data_file(pile)
     rows = text.split("Atoms # sphere")[1].split()
     atoms = np.array(rows, dtype=float).reshape(-1, 7)  # id type diameter density x y z
@@ -50,7 +50,7 @@ def test_data_file_densities_give_lammps_sphere_masses_equal_to_the_disks():
 
 def test_input_uses_the_study_stiffness_friction_step_and_skin():
     model = ModelParams(friction=0.4, support_friction=0.7)
-    pile = disk_pile(30)
+    pile = disk_pile(_shapes(np.random.default_rng(0), 30, model))
     text = lammps_input(pile, model, dt=3e-5, skin=1.1e-3, steps=150, repeats=4)
     assert re.search(r"^pair_style gran/hooke/history 10000000 NULL \S+ NULL 0.4 1$", text, re.M)
     assert len(re.findall(r"wall/gran hooke/history 10000000 NULL \S+ NULL 0.7 1", text)) == 2

@@ -10,9 +10,9 @@ MPI ranks.
 The disk pile matches the polygon pile in what sets the cost of a contact
 step, not in its shape:
 
-* **N particles of the same masses**: the polygons of the study's recipe
-  (:func:`sim.shapes.make_shapes`, the same seed), each replaced by the disk
-  of its area, so mass per metre of depth ``density * area`` is the same;
+* **N particles of the same masses**: the polygons of the pile timed beside
+  it, each replaced by the disk of its area, so mass per metre of depth
+  ``density * area`` is the same;
 * **stiffness and friction**: ``gran/hooke/history`` with ``k_n`` equal to
   the study's Young's modulus (N/m in 2D, the slope of our force against
   overlap depth for a disk-like overlap), ``k_t = 2/7 k_n``, the study's
@@ -36,6 +36,7 @@ documented in ``docs/performance.md``.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import re
 import shutil
@@ -76,17 +77,14 @@ def find_lmp():
     return path
 
 
-def disk_pile(n, seed=0, model=None, particles=None):
+def disk_pile(shapes):
     """The disks of a peer pile: radii, masses and lattice positions in a box.
 
     Parameters
     ----------
-    n : int
-        Number of disks.
-    seed : int
-        Seed of the polygons whose areas the disks take.
-    model : sim.config.ModelParams, optional
-    particles : sim.config.ParticleParams, optional
+    shapes : sim.shapes.Shapes
+        The polygons of the pile timed beside it; each becomes the disk of
+        its area and mass.
 
     Returns
     -------
@@ -94,10 +92,7 @@ def disk_pile(n, seed=0, model=None, particles=None):
         ``radius``, ``mass`` (kg per m of depth), ``x``, ``y`` (m), ``width``
         (the box's inner width, m) and ``height`` (its height, m).
     """
-    from ..bench import _shapes
-    from ..config import ModelParams
-    model = model or ModelParams()
-    shapes = _shapes(np.random.default_rng(seed), n, model, particles)
+    n = len(shapes.area)
     radius = np.sqrt(shapes.area / np.pi)
     d = 2.0 * float(radius.max()) * 1.001  # lattice spacing: no two disks touch
     ncol = max(int(np.sqrt(n)), 1)
@@ -105,8 +100,8 @@ def disk_pile(n, seed=0, model=None, particles=None):
     width = (ncol + 1.0) * d
     x = -0.5 * width + (col + 0.75 + 0.5 * (row % 2)) * d
     y = (0.5 + row * np.sqrt(3.0) / 2.0) * d
-    return {"radius": radius, "mass": shapes.mass.copy(), "x": x, "y": y, "width": width,
-            "height": float(y.max() + 2.0 * d)}
+    return {"radius": radius, "mass": np.array(shapes.mass, dtype=float), "x": x, "y": y,
+            "width": width, "height": float(y.max() + 2.0 * d)}
 
 
 def data_file(pile):
@@ -220,22 +215,23 @@ def _run_lmp(folder, ranks, what):
     return log_text
 
 
-def settled_peer(n, dt, skin, seed=0, model=None, cache=Path(".bench")):
-    """The settled disk pile of ``n``, built once (on one rank) and kept in ``cache``.
+def settled_peer(shapes, dt, skin, model, cache=Path(".bench")):
+    """The settled disk pile of ``shapes``, built once (on one rank) and kept in ``cache``.
 
     Returns
     -------
     pathlib.Path
-        Its LAMMPS data file (positions and velocities after settling).
+        Its LAMMPS data file (positions and velocities after settling); the
+        name holds N, a digest of the masses and the contact settings.
     """
-    from ..config import ModelParams
-    model = model or ModelParams()
-    path = Path(cache) / (f"lammps-n{n}-seed{seed}-dt{dt:.6g}-skin{skin:.6g}"
+    digest = hashlib.sha1(np.ascontiguousarray(shapes.mass, dtype=float).tobytes()).hexdigest()
+    path = Path(cache) / (f"lammps-n{len(shapes.mass)}-m{digest[:10]}-dt{dt:.6g}-skin{skin:.6g}"
                           f"-k{model.youngs_modulus:g}-mu{model.friction:g}"
                           f"-{model.support_friction:g}.data")
     if path.exists():
         return path
-    pile = disk_pile(n, seed, model)
+    pile = disk_pile(shapes)
+    n = len(pile["mass"])
     path.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
         tmp = Path(tmp)
@@ -268,18 +264,19 @@ def parse_log(text):
     return {"loops": loops, **marks}
 
 
-def time_peer(n, ranks, dt, skin, steps=200, repeats=5, seed=0, model=None,
-              cache=Path(".bench")):
-    """Time the settled disk pile of ``n`` (:func:`settled_peer`) on ``ranks`` MPI ranks.
+def time_peer(shapes, ranks, dt, skin, model, steps=200, repeats=5, cache=Path(".bench")):
+    """Time the settled disk pile of ``shapes`` (:func:`settled_peer`) on ``ranks`` MPI ranks.
 
     Parameters
     ----------
-    n, ranks : int
+    shapes : sim.shapes.Shapes
+        The polygons of the pile timed beside it.
+    ranks : int
     dt, skin : float
         The polygon pile's time step and skin.
+    model : sim.config.ModelParams
+        The polygon pile's contact settings.
     steps, repeats : int
-    seed : int
-    model : sim.config.ModelParams, optional
     cache : Path
         Folder of the settled disk piles.
 
@@ -290,11 +287,10 @@ def time_peer(n, ranks, dt, skin, steps=200, repeats=5, seed=0, model=None,
         ``lammps_ns_per_particle_step`` (median of the timed runs),
         ``lammps_ns_per_contact``, ``mass_error`` (relative, of the total mass).
     """
-    from ..config import ModelParams
-    model = model or ModelParams()
     find_lmp()
-    pile = disk_pile(n, seed, model)
-    settled = settled_peer(n, dt, skin, seed, model, cache)
+    pile = disk_pile(shapes)
+    n = len(pile["mass"])
+    settled = settled_peer(shapes, dt, skin, model, cache)
     with tempfile.TemporaryDirectory(dir=cache) as tmp:
         tmp = Path(tmp)
         shutil.copy(settled, tmp / "settled.data")
