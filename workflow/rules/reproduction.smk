@@ -55,6 +55,12 @@ if not config["committed"]:
 
 if config["committed"]:
 
+    # The full-size variants (issue 25): each config/variants/NAME.yaml whose
+    # piles are recorded under {committed}/variants/NAME/, compared side by
+    # side with the study's piles in {committed}/variants/NAME.md.
+    VARIANTS = sorted(p.stem for p in (REPO / "config" / "variants").glob("*.yaml")
+                      if any((COMMITTED / "variants" / p.stem).glob("*/seed*.summary.json")))
+
     rule reproduction:
         # make reproduction: the figures and the per-pile table, from the
         # committed per-pile results only.
@@ -65,6 +71,7 @@ if config["committed"]:
                            + (["general_fit"] if reported_general_protocols() else [])),
             table=str(COMMITTED / "piles.md"),
             numbers=str(COMMITTED / "numbers.md"),
+            variants=expand(str(COMMITTED / "variants" / "{variant}.md"), variant=VARIANTS),
         localrule: True
 
     rule reproduction_figure:
@@ -130,4 +137,29 @@ if config["committed"]:
                 "--convergence {input.convergence:q} --checks {input.checks:q} --heights {params.heights:q} "
                 "--general {params.general:q} --probes {params.probes:q} --fields {params.fields:q} "
                 "--base-pressure {params.base_pressure:q} --params {params.cfg:q} > {output:q} 2> {log:q}"
+            )
+
+    rule reproduction_variant:
+        # A full-size variant against the study, pile by pile and paired by seed.
+        input:
+            study=lambda wc: sorted(str(f) for f in COMMITTED.glob("*/seed*.*")),
+            variant=lambda wc: sorted(str(f) for f in (COMMITTED / "variants" / wc.variant).glob("*/seed*.*")),
+            overlay="config/variants/{variant}.yaml",
+            script="workflow/scripts/variant_table.py",
+        output:
+            str(COMMITTED / "variants" / "{variant}.md"),
+        params:
+            study=str(COMMITTED),
+            variant=lambda wc: str(COMMITTED / "variants" / wc.variant),
+            protocols=PROTOCOLS,
+            cfg=ANALYSIS_PARAMS,
+        log:
+            "logs/reproduction/variant_{variant}.log",
+        localrule: True
+        conda:
+            "../envs/polypile.yaml"
+        shell:
+            py_shell(
+                "{input.script:q} --study {params.study:q} --variant {params.variant:q} --overlay {input.overlay:q} "
+                "--protocols {params.protocols:q} --params {params.cfg:q} > {output:q} 2> {log:q}"
             )

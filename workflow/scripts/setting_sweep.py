@@ -54,46 +54,24 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import xarray as xr
 import yaml
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
-from analysis.elastic import moduli_dataset  # noqa: E402
-from analysis.history import mean_sem, pile_history, primary_names  # noqa: E402
+from analysis.history import mean_sem  # noqa: E402
 from analysis.params import parse_params  # noqa: E402
+from analysis.pile_quantities import MODULI, SHAPE, pile_quantities  # noqa: E402
+from analysis.pile_quantities import quantities as pile_quantity_names  # noqa: E402
 
 MEDIUM = REPO / "config" / "medium_piles.yaml"
-SHAPE = {
-    "angle_deg": "angle of repose (deg)",
-    "height": "height (m)",
-    "width": "base width (m)",
-    "solid_fraction": "core solid fraction",
-}
-#: The pre-registered history statistics (analysis/history.py), per pile: the primary five.
-HISTORY = {
-    "strain": "strain u_yy centre/shoulders − 1 at {h} cm",
-    "base_pressure_column": "base pressure centre/shoulders against a uniform pile − 1",
-    "solid_fraction@": "solid fraction centre/shoulders − 1 at {h} cm",
-    "gravity_gap": "gravity scaling Δσ_xx/σ_xx ÷ Δσ_yy/σ_yy − 1",
-    "stress_fabric": "stress–fabric angle on the flanks (deg)",
-}
-MODULI = {
-    "youngs_modulus": "core E (N/m)",
-    "bulk_modulus": "core K (N/m)",
-}
 COST = {"cpu_s": "CPU s per pile (pour, relax, probe)"}
-CORE_X, CORE_Y = 0.03, 0.05
 
 
 def quantities(params: dict) -> dict:
-    """The compared quantities, ``{key: heading}``: the pile's shape, the primary
-    history statistics under ``params["history"]``, the core moduli and the CPU time."""
-    h = params["history"]
-    keys = primary_names(h)
-    cm = f"{100 * h['primary_height']:g}"
-    return {**SHAPE, **{k: text.format(h=cm) for k, text in zip(keys, HISTORY.values())}, **MODULI, **COST}
+    """The compared quantities, ``{key: heading}``: those of
+    :func:`analysis.pile_quantities.quantities` and the CPU time."""
+    return {**pile_quantity_names(params), **COST}
 
 
 def label(value) -> str:
@@ -163,21 +141,9 @@ def cpu_seconds(work: Path, protocol: str, seed: int) -> float:
 
 
 def pile_values(work: Path, protocol: str, seed: int, params: dict) -> dict:
-    """The compared quantities of one pile."""
+    """The compared quantities of one pile (:func:`analysis.pile_quantities.pile_quantities`) and its CPU time."""
     stem = work / "results" / "fields" / protocol / f"seed{seed}"
-    lines = [json.loads(s) for s in Path(f"{stem}.summary.json").read_text().splitlines() if s.strip()]
-    rel = next(line for line in lines if line["stage"] == "relaxed")
-    out = {"angle_deg": 0.5 * (rel["flank_left_deg"] + rel["flank_right_deg"]),
-           "height": rel["height"], "width": rel["width"]}
-    with xr.open_dataset(f"{stem}.nc") as f, xr.open_dataset(f"{stem}.base_pressure.nc") as bp:
-        f = f.load()
-        core = (np.abs(f["x"]) <= CORE_X) & (f["y"] <= CORE_Y)
-        out["solid_fraction"] = float(f["solid_fraction"].where(core).mean())
-        out.update(pile_history(f, params, params["figures"]["heights"], bp.load()))
-        mod = moduli_dataset(f, [], params)
-    core = (np.abs(mod["x"]) <= CORE_X) & (mod["y"] <= CORE_Y)
-    for k in ("youngs_modulus", "bulk_modulus"):
-        out[k] = float(mod[k].sel(fit="average", points=5).where(core).mean())
+    out = pile_quantities(Path(f"{stem}.summary.json"), Path(f"{stem}.nc"), Path(f"{stem}.base_pressure.nc"), params)
     out["cpu_s"] = cpu_seconds(work, protocol, seed)
     return out
 
