@@ -7,7 +7,7 @@ import sys
 from snakemake.utils import min_version
 
 sys.path.insert(0, workflow.basedir)  # for workflow/validation.py
-from workflow.validation import validate_config
+from workflow.validation import check_config_files, validate_config
 
 min_version("9.0")
 
@@ -19,6 +19,12 @@ min_version("9.0")
 if not workflow.overwrite_configfiles:
 
     configfile: "config/config.yaml"
+
+
+# The --configfile files read again strictly: a repeated key, which YAML
+# reads as its last value, and an empty section laid over another file, which
+# the merge ignores, are refused naming the file and line.
+check_config_files(workflow.overwrite_configfiles)
 
 
 # The one validator (schemas, finite numbers, integers, the simulator's and the

@@ -19,24 +19,32 @@ import sys
 from pathlib import Path
 
 from .config import BOOKKEEPING, ConfigError, SimConfig
+from .settings_file import SettingsFileError, read_settings_file
 
 
 def _load_params(text):
-    """The settings dict of ``--params`` (JSON text, or ``@file`` with JSON or YAML)."""
+    """The settings dict of ``--params`` (JSON text, or ``@file`` with JSON or YAML).
+
+    A file is read by :func:`sim.settings_file.read_settings_file` (one line
+    naming the file and line for an empty file, a list, a repeated key or a
+    syntax error); JSON text must hold an object.  Of a whole workflow
+    configuration only the simulator's sections are kept.
+    """
     if text is None:
         return {}
-    if not text.startswith("@"):
+    if text.startswith("@"):
         try:
-            return json.loads(text)
+            data = read_settings_file(text[1:], "--params file")
+        except SettingsFileError as exc:
+            raise ConfigError(str(exc)) from None
+    else:
+        try:
+            data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise ConfigError(f"--params is not valid JSON: {exc}") from None
-    path = Path(text[1:])
-    raw = path.read_text()
-    if path.suffix in (".yaml", ".yml"):
-        import yaml
-        data = yaml.safe_load(raw) or {}
-    else:
-        data = json.loads(raw)
+        if not isinstance(data, dict):
+            raise ConfigError(f"--params {text!r}: must be a JSON object of sections, "
+                              "e.g. '{\"pour\": {\"n_particles\": 800}}'")
     return {k: v for k, v in data.items()
             if k in ("model", "particles", "pour", "relax", "probe", "physics")}
 

@@ -17,6 +17,15 @@ allowed:
    such as ``relax.hold_time <= relax.max_time`` or an ordered grid.
 
 A job therefore never meets a setting that its program would refuse.
+
+Before them, :func:`check_config_files` reads each ``--configfile`` again
+strictly (:func:`sim.settings_file.read_settings_file`): a key repeated in one
+mapping, which YAML reads as its last value, and an empty section laid over
+another file, which Snakemake's merge ignores, are refused naming the file and
+line. A file Snakemake itself cannot read (empty, a list, bad syntax, missing)
+stops Snakemake before the Snakefile with a message that does not name it;
+``python -m workflow.validation FILE ...`` checks such files alone, then their
+merged configuration, and names the file and line.
 """
 
 from __future__ import annotations
@@ -32,6 +41,7 @@ from referencing import Registry, Resource
 
 from analysis.params import check_memory, resolve_params
 from sim.config import SimConfig
+from sim.settings_file import SettingsFileError, read_settings_file
 
 SCHEMAS = Path(__file__).resolve().parent / "schemas"
 CONFIG_SCHEMA = SCHEMAS / "config.schema.yaml"
@@ -195,3 +205,77 @@ def validate_config(config):
             check()
         except ValueError as exc:
             raise ConfigurationError(f"invalid configuration: {exc}") from None
+
+
+def check_config_files(paths):
+    """Read each configuration file strictly, in the order Snakemake merges them, or raise.
+
+    Parameters
+    ----------
+    paths : list of str or Path
+        The ``--configfile`` files, first to last.
+
+    Returns
+    -------
+    list of dict
+        Their mappings.
+
+    Raises
+    ------
+    ConfigurationError
+        One line naming the file (and line): it cannot be read as a mapping of
+        settings (:func:`sim.settings_file.read_settings_file`: empty, a list,
+        a repeated key, bad syntax), or a file after the first gives a section
+        as an empty mapping (``protocols: {}``), which the merge ignores, so
+        the earlier files' settings would run unseen.
+    """
+    layers = []
+    for k, path in enumerate(paths):
+        try:
+            layer = read_settings_file(path)
+        except SettingsFileError as exc:
+            raise ConfigurationError(str(exc)) from None
+        empty = [key for key, value in layer.items() if value == {}]
+        if k > 0 and empty:
+            raise ConfigurationError(
+                f"{path}: {empty[0]}: {{}} is an empty mapping, which Snakemake's merge of config files "
+                f"ignores (the {empty[0]} of {paths[k - 1]} stays); give the settings to change, or leave "
+                f"{empty[0]} out")
+        layers.append(layer)
+    return layers
+
+
+def merge_configs(base, layer):
+    """``base`` updated by ``layer`` key by key into nested mappings, as Snakemake merges config files."""
+    out = dict(base)
+    for key, value in layer.items():
+        out[key] = merge_configs(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+    return out
+
+
+def main(argv=None):
+    """``python -m workflow.validation FILE ...``: the files, then their merged configuration.
+
+    Prints ``ok: FILE ...`` and exits 0, or prints the one-line problem and exits 2.
+    """
+    import sys
+
+    paths = list(sys.argv[1:] if argv is None else argv)
+    if not paths:
+        print("usage: python -m workflow.validation CONFIGFILE [CONFIGFILE ...]  "
+              "(the files of snakemake --configfile, in their order)", file=sys.stderr)
+        return 2
+    try:
+        config = {}
+        for layer in check_config_files(paths):
+            config = merge_configs(config, layer)
+        validate_config(config)
+    except ConfigurationError as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    print("ok: " + " ".join(str(p) for p in paths))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

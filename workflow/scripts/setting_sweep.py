@@ -63,6 +63,8 @@ from analysis.history import mean_sem  # noqa: E402
 from analysis.params import parse_params  # noqa: E402
 from analysis.pile_quantities import MODULI, SHAPE, pile_quantities  # noqa: E402
 from analysis.pile_quantities import quantities as pile_quantity_names  # noqa: E402
+from workflow.validation import ConfigurationError, validate_config  # noqa: E402
+from workflow.validation import merge_configs as merged  # noqa: E402
 
 MEDIUM = REPO / "config" / "medium_piles.yaml"
 COST = {"cpu_s": "CPU s per pile (pour, relax, probe)"}
@@ -107,18 +109,8 @@ def run_value(name: str, setting: str, value, cores: int, piles: Path) -> Path:
     return work
 
 
-def merged(base: dict, layer: dict) -> dict:
-    """``base`` updated by ``layer`` key by key, into nested sections (as Snakemake merges configfiles)."""
-    out = dict(base)
-    for key, value in layer.items():
-        out[key] = merged(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
-    return out
-
-
 def check_values(setting: str, values: list, piles: Path = MEDIUM) -> None:
     """Refuse a setting or value that the workflow would refuse, before any pile is poured."""
-    from workflow.validation import ConfigurationError, validate_config
-
     study = merged(yaml.safe_load((REPO / "config" / "config.yaml").read_text()), yaml.safe_load(piles.read_text()))
     for value in values:
         try:
