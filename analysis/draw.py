@@ -155,6 +155,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dpi", type=int, default=150)
 
 
+def picture_format(path: str, option: str = "--out") -> str:
+    """The picture format of ``path`` from its extension, or :class:`~analysis.errors.InputError`.
+
+    The formats are those matplotlib writes (png, pdf, svg, eps, jpg, tif, webp, ...); a path
+    without an extension, or with another, is refused before any work, naming the option.
+    """
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = sorted(FigureCanvasBase.get_supported_filetypes())
+    ext = Path(path).suffix.lstrip(".").lower()
+    if ext not in formats:
+        raise InputError(f"{option} {path}: " + (f"a picture cannot be written as .{ext}" if ext else
+                                                  "no extension to tell the picture's format")
+                         + f"; end it in one of .{', .'.join(formats)}")
+    return ext
+
+
 def cmd_draw(args: argparse.Namespace, params: dict) -> None:
     """``python -m analysis draw``: the picture of ``args.input`` in ``args.out``.
 
@@ -162,6 +179,7 @@ def cmd_draw(args: argparse.Namespace, params: dict) -> None:
     (from :func:`~analysis.states.load_state`), a picture that cannot be
     written :class:`~analysis.errors.InputError`; ``params`` is not used.
     """
+    picture_format(args.out)
     try:
         draw_state(args.input, args.out, color_by=args.color_by, forces=args.forces, dpi=args.dpi)
     except OSError as err:

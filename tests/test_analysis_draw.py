@@ -115,3 +115,15 @@ def test_main_fails_clearly(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "missing variable" in err and "node_count" in err
     assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("name, words", [("pile.xyz", ["cannot be written as .xyz", ".png", ".svg"]),
+                                         ("pile", ["no extension"])])
+def test_a_picture_format_matplotlib_cannot_write_is_refused_first(tmp_path, capsys, name, words):
+    """Before the fix, .xyz ended in matplotlib's ValueError traceback after the state
+    was read and drawn; now the option is named before the input is even opened."""
+    out = tmp_path / name
+    assert analysis_main(["draw", "--input", str(tmp_path / "not_read.nc"), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert f"--out {out}" in err and all(w in err for w in words) and "not_read.nc" not in err
+    assert list(tmp_path.iterdir()) == []
