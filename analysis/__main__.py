@@ -1,7 +1,8 @@
 """Command line of the analysis: ``python -m analysis <command> ...`` (see ``--help``).
 
 Every command takes ``--params``: the ``analysis`` section of the workflow
-configuration as JSON text (or ``@file.json``); it is validated, with the
+configuration as JSON or YAML text (or ``@file``; the workflow passes one
+line of YAML flow text, :func:`analysis.params.params_flow_text`); it is validated, with the
 defaults of :mod:`analysis.params` filled in, before any input is read. Bad
 parameters or inputs end with a one-line ``error: ...`` naming the setting,
 file or variable, and exit status 2 (parameters) or 1 (inputs, failed checks).
@@ -267,7 +268,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     def add(name, help_, func):
         sp = sub.add_parser(name, help=help_, description=help_)
-        sp.add_argument("--params", default="{}", help="the 'analysis' config section as JSON text, or @file.json "
+        sp.add_argument("--params", default="{}", help="the 'analysis' config section as JSON or YAML text, or @file "
                         "(defaults filled in; see analysis/params.py)")
         sp.set_defaults(func=func)
         return sp
@@ -315,7 +316,8 @@ def build_parser() -> argparse.ArgumentParser:
              "contact-force network (PNG/PDF/SVG by extension)", draw.cmd_draw)
     draw.add_arguments(sp)
     sp = add("export", "one particle state as VTK files for ParaView: OUT.vtu (polygons with velocity, Eq. 2 "
-             "pressure, coordination, ...) and OUT_contacts.vtu (the contact network with its forces)",
+             "pressure, coordination, ...) and OUT_contacts.vtu (the contact network with its forces); or a "
+             "pour's frames as a ParaView time series: OUT.pvd and one polygon file per frame in OUT/",
              vtk.cmd_export)
     vtk.add_arguments(sp)
     sp = add("film", "a film of a pour from its frames (python -m sim pour --frames): MP4, and optionally "

@@ -26,7 +26,7 @@ needs ``n = ceil((s_N / (q |mean_N|))^2)`` piles (at least 2).
 
 Command line (rules ``numerics_ensemble`` and ``numerics_piles_figures``)::
 
-    python -m analysis.ensemble_cost data --params JSON --analysis-params JSON \
+    python -m analysis.ensemble_cost data --params JSON --analysis-params TEXT \
         --protocol wedge --fields ... --base-pressure bp.nc --pour-benchmarks ... \
         --relax-benchmarks ... --probe-benchmarks ... [--protocol layered ...] --out ensemble.nc
     python -m analysis.ensemble_cost figure --data ensemble.nc --out a.png a.pdf
@@ -50,7 +50,7 @@ from .ensemble import nan_mean_sem
 from .netcdf import var, write_dataset
 from .numerics_cli import data_or_figure, module_command
 from .numerics_figures import ensemble_error_figure
-from .params import resolve_params
+from .params import resolve_params, settings_from_text
 from .run_times import benchmark_time
 
 log = logging.getLogger("analysis.numerics")
@@ -235,7 +235,7 @@ def _parser():
     sub = ap.add_subparsers(dest="command", required=True)
     p = sub.add_parser("data", help="headline results, standard error and compute time (netCDF)")
     p.add_argument("--params", required=True, help="the numerics.ensemble settings as JSON")
-    p.add_argument("--analysis-params", default="{}", help="the analysis section as JSON")
+    p.add_argument("--analysis-params", default="{}", help="the analysis section as JSON or YAML text")
     p.add_argument("--protocol", action="append", required=True,
                    help="a protocol; the per-seed options after it belong to it")
     for opt in ("--seeds", "--fields", "--pour-benchmarks", "--relax-benchmarks", "--probe-benchmarks"):
@@ -279,7 +279,7 @@ def _protocol_inputs(args) -> dict:
 
 def _data(args) -> None:
     params = json.loads(args.params)
-    analysis_params = json.loads(args.analysis_params)
+    analysis_params = settings_from_text(args.analysis_params, "--analysis-params")
     check_params(params)
     resolve_params(analysis_params)
     ds = ensemble_dataset(_protocol_inputs(args), params, analysis_params)

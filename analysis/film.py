@@ -9,7 +9,9 @@ corners; layout in ``results/README.md``) and writes
   it): the polygons to scale, coloured by their speed on a logarithmic scale
   from :data:`SPEED_FLOOR` to the 99th percentile of all speeds, the
   support, and a clock with the simulated time and the number of particles
-  released;
+  released; the picture frames the pile and the stream falling onto it, from
+  the bulk of the particles (:func:`film_extent`), so a particle that
+  bounced far along the support is left outside instead of shrinking the pile;
 * optionally an HTML page holding that film (``<video>`` with the MP4 as a
   data URI), which is what ``snakemake --report`` can show inline.
 
@@ -87,17 +89,109 @@ def _polygons(corners, node_count, released):
     return [split[p] for p in np.flatnonzero(released)]
 
 
-def _extent(frames):
-    """Axis limits (m) that hold every particle of every frame, with a margin."""
-    x, y = frames["x"].values, frames["y"].values
-    finite = np.isfinite(x)
+#: Share of the pile's particles left beyond each edge of the picture's frame
+#: (at least one particle each side): see :func:`film_extent`.
+EDGE_SHARE = 0.005
+
+#: Margin added on each side of the pile's robust width, as a fraction of it.
+EDGE_MARGIN = 0.15
+
+
+def film_extent(frames) -> tuple[float, float, float, float]:
+    """Axis limits (m) that frame the pile, not its farthest stray particle.
+
+    The frame is chosen from the bulk of the particles of the **last frame**
+    (the poured pile; a pile only grows during a pour), so that one particle
+    that bounced far along the support does not shrink the pile to a few
+    pixels:
+
+    * the pile's edges ``x_lo``, ``x_hi`` are the positions with a share
+      :data:`EDGE_SHARE` (0.5 %) of its particles beyond each, and at least
+      one particle, so a single stray is left out whatever the pile's size
+      (from 3 particles on; with fewer every particle counts);
+    * the horizontal half-width is the larger of ``|x_lo - m|`` and
+      ``|x_hi + m|``, with the margin ``m`` = :data:`EDGE_MARGIN` (15 %) of
+      ``x_hi - x_lo`` plus 1.5 times the largest circumradius ``r``; the frame
+      is centred on the pouring axis x = 0;
+    * the top is the highest centre, over all frames, of the particles inside
+      that width, plus ``1.5 r``: it holds the pile and the particles falling
+      onto it from the source, not a stray outside the frame;
+    * the bottom is 5 % of the height below the support, which shows the
+      support line.
+
+    Particles outside the frame are not drawn (matplotlib clips them).
+
+    Parameters
+    ----------
+    frames : xarray.Dataset
+        A frames file (:func:`read_frames`).
+
+    Returns
+    -------
+    x_lo, x_hi, y_lo, y_hi : float
+        Axis limits, m.
+
+    Raises
+    ------
+    InputError
+        If no frame holds a released particle.
+    """
+    x, y = np.asarray(frames["x"].values, float), np.asarray(frames["y"].values, float)
+    finite = np.isfinite(x) & np.isfinite(y)
     if not finite.any():
         raise InputError("film: the frames hold no released particle")
     r = 1.5 * float(np.sqrt(np.max(frames["node_x"].values ** 2 + frames["node_y"].values ** 2)))
-    x_lo, x_hi = float(np.min(x[finite])) - r, float(np.max(x[finite])) + r
-    y_hi = float(np.max(y[finite])) + r
-    half = max(abs(x_lo), abs(x_hi))
+    last = next(k for k in range(len(x) - 1, -1, -1) if finite[k].any())
+    xs = np.sort(x[last][finite[last]])
+    n = xs.size
+    cut = max(1, int(EDGE_SHARE * n)) if n >= 3 else 0
+    lo, hi = float(xs[cut]), float(xs[n - 1 - cut])
+    margin = EDGE_MARGIN * (hi - lo) + r
+    half = max(abs(lo - margin), abs(hi + margin))
+    inside = finite & (np.abs(np.where(finite, x, 0.0)) <= half)
+    y_hi = float(np.max(y[inside])) + r
     return -half, half, -0.05 * y_hi, y_hi
+
+
+def read_frames(path: str, option: str = "--input"):
+    """Open the frames file of a pour and check that it is one, with at least one frame.
+
+    Parameters
+    ----------
+    path : str
+        Frames file (``python -m sim pour --frames``; layout in
+        docs/formats.md#frames-of-a-pour).
+    option : str
+        The command-line option that named it, for the error messages.
+
+    Returns
+    -------
+    xarray.Dataset
+        The frames, with the variables :data:`FRAME_VARIABLES`.
+
+    Raises
+    ------
+    InputError
+        If the file is missing, not netCDF, lacks a variable of
+        :data:`FRAME_VARIABLES` or holds no frame; the message names the
+        option, the file and what is expected.
+    """
+    from .netcdf import read_dataset
+
+    what = "a frames file of a pour (python -m sim pour --frames, docs/formats.md#frames-of-a-pour)"
+    if not Path(path).is_file():
+        raise InputError(f"{option} {path}: no such file; expected {what}")
+    try:
+        ds = read_dataset(path)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{option} {path}: cannot be read as netCDF ({exc}); expected {what}") from None
+    missing = [name for name in FRAME_VARIABLES if name not in ds.variables]
+    if missing:
+        raise InputError(f"{option} {path}: not a frames file (missing {', '.join(missing)}); expected {what}")
+    if ds.sizes.get("frame", 0) == 0:
+        raise InputError(f"{option} {path}: holds no frame (frame dimension of length 0); expected {what} "
+                         "with at least one frame")
+    return ds
 
 
 def render_film(frames_path: str, out: str, html_out: str | None = None, fps: int = FPS,
@@ -130,24 +224,17 @@ def render_film(frames_path: str, out: str, html_out: str | None = None, fps: in
     from matplotlib.collections import PolyCollection
     from matplotlib.colors import LogNorm
 
-    from .netcdf import read_dataset
-
     if not (isinstance(fps, int) and fps > 0):
         raise InputError(f"film: fps = {fps!r}: must be a positive integer")
     ffmpeg = ffmpeg_executable()
     t0 = time.perf_counter()
-    ds = read_dataset(frames_path)
-    missing = [name for name in FRAME_VARIABLES if name not in ds.variables]
-    if missing:
-        raise InputError(f"{frames_path}: not a frames file (missing {', '.join(missing)})")
-    if ds.sizes.get("frame", 0) == 0:
-        raise InputError(f"{frames_path}: holds no frame")
+    ds = read_frames(frames_path)
     counts = ds["node_count"].values.astype(int)
     nx, ny = ds["node_x"].values, ds["node_y"].values
     speed = ds["speed"].values
     finite = speed[np.isfinite(speed)]
     v_max = max(float(np.percentile(finite, 99)) if finite.size else 1.0, 10 * SPEED_FLOOR)
-    x_lo, x_hi, y_lo, y_hi = _extent(ds)
+    x_lo, x_hi, y_lo, y_hi = film_extent(ds)
     height_px = 2 * round(0.5 * WIDTH_PX * (y_hi - y_lo) / (x_hi - x_lo) * 1.25 + 40)
     dpi = 100
     fig = plt.figure(figsize=(WIDTH_PX / dpi, height_px / dpi), dpi=dpi)
@@ -216,8 +303,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def cmd_film(args: argparse.Namespace, params: dict) -> None:
     """``python -m analysis film``; ``params`` is not used."""
-    if not Path(args.input).exists():
-        raise InputError(f"{args.input}: no such file")
     info = render_film(args.input, args.out, args.html, args.fps)
     print(f"[analysis] film: {args.input} -> {args.out}: {info['frames']} frames, "
           f"{info['seconds']:.1f} s of film, {info['bytes'] / 1e6:.2f} MB, "

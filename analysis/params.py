@@ -233,23 +233,76 @@ def resolve_params(user: dict[str, Any] | None) -> dict[str, Any]:
     return out
 
 
-def parse_params(text: str | None) -> dict[str, Any]:
-    """Parse the ``--params`` JSON text (or ``@file.json``) and validate it."""
+def settings_from_text(text: str | None, option: str = "--params") -> dict[str, Any]:
+    """The mapping of settings in ``text``: JSON, or YAML (such as :func:`params_flow_text`).
+
+    Parameters
+    ----------
+    text : str or None
+        JSON text, YAML text, or ``@file`` naming a file of either; empty or
+        None is ``{}``.
+    option : str
+        The command-line option that passed it, for the error messages.
+
+    Returns
+    -------
+    dict
+        The settings as given (not validated).
+
+    Raises
+    ------
+    ParamError
+        The file cannot be read, the text is neither JSON nor YAML, or it is
+        not a mapping.
+    """
     if text is None or text.strip() == "":
-        return resolve_params({})
+        return {}
     if text.startswith("@"):
         try:
             with open(text[1:], encoding="utf-8") as fh:
                 text = fh.read()
         except OSError as exc:
-            raise ParamError(f"cannot read the parameter file {text[1:]!r}: {exc}") from exc
+            raise ParamError(f"{option}: cannot read the parameter file {text[1:]!r}: {exc}") from exc
     try:
-        user = json.loads(text)
+        user = json.loads(text)   # first: YAML 1.1 would read the JSON number 1e-06 as a string
     except json.JSONDecodeError as exc:
-        raise ParamError(f"--params is not valid JSON ({exc}); pass the analysis config section as JSON text") from exc
-    params = resolve_params(user)
+        try:
+            user = yaml.safe_load(text)
+        except yaml.YAMLError as yexc:
+            raise ParamError(f"{option} is neither JSON ({exc}) nor YAML ({' '.join(str(yexc).split())}); pass "
+                             "the analysis config section as a mapping, e.g. {\"rve\": {\"size\": 0.08}} "
+                             "or {rve: {size: 0.08}}") from None
+    if user is None:
+        return {}
+    if not isinstance(user, dict):
+        raise ParamError(f"{option} = {text[:80]!r}: must be a mapping of the analysis config sections "
+                         f"(got a {type(user).__name__})")
+    return user
+
+
+def parse_params(text: str | None) -> dict[str, Any]:
+    """Parse the ``--params`` text (JSON or YAML, or ``@file``) and validate it.
+
+    See :func:`settings_from_text`; the workflow passes YAML flow text
+    (:func:`params_flow_text`), which its report shows as it is.
+    """
+    params = resolve_params(settings_from_text(text, "--params"))
     check_memory(params)
     return params
+
+
+def params_flow_text(settings: dict[str, Any]) -> str:
+    """``settings`` as one line of YAML flow text, keys sorted: ``{rve: {size: 0.08}}``.
+
+    What the workflow passes as ``--params``: :func:`settings_from_text` reads
+    it back to the same values (PyYAML writes every float so that it reads it
+    back as that float, and quotes the strings that would read as something
+    else). Unlike JSON it has no double quotes, which ``snakemake --report``
+    shows backslash-escaped (``{\\"rve\\": ...}``) under *Job parameters*:
+    Snakemake escapes the quotes of the job's params before it stores them as
+    JSON in the page, so they are escaped twice.
+    """
+    return yaml.safe_dump(settings, default_flow_style=True, sort_keys=True, width=math.inf).strip()
 
 
 def params_json(params: dict[str, Any]) -> str:

@@ -1,13 +1,20 @@
-"""Export of one particle state for ParaView / OVITO (``python -m analysis export``).
+"""Export of particle states for ParaView / OVITO (``python -m analysis export``).
 
-Reads a particle-state file through the contract (docs/formats.md#state-files,
-:func:`analysis.states.load_state`) and writes two VTK XML unstructured-grid
-files with :mod:`meshio` (binary, zlib-compressed)::
+A state: reads a particle-state file through the contract
+(docs/formats.md#state-files, :func:`analysis.states.load_state`) and writes
+two VTK XML unstructured-grid files with :mod:`meshio` (binary,
+zlib-compressed)::
 
     python -m analysis export --input results/piles/wedge/seed2/relaxed.nc --vtk relaxed.vtu
 
 writes ``relaxed.vtu`` (the particles) and ``relaxed_contacts.vtu`` (the
 contact network) next to each other. All points lie in the plane z = 0.
+
+A pour: reads the frames a pour wrote (``python -m sim pour --frames``) and
+writes a ParaView time series, one polygon file per frame and a collection
+that gives each its simulated time (see *Frames of a pour* below)::
+
+    python -m analysis export --frames results/piles/wedge/seed2/frames.nc --vtk pour.pvd
 
 Why two files and not one file with a ``kind`` field
 ----------------------------------------------------
@@ -31,7 +38,9 @@ are not shared between particles. Cell data (name, units: meaning):
 * ``particle``, 1: index of the particle in the state file;
 * ``velocity``, m/s: (vx, vy, 0), velocity of the centre of mass;
 * ``angular_velocity``, rad/s: omega, counter-clockwise positive;
-* ``orientation``, rad: theta as stored (not wrapped to one turn);
+* ``orientation``, rad: theta wrapped to one turn, (-pi, pi]
+  (:func:`wrap_angle`; the state file keeps the integrated angle, which may
+  be several turns);
 * ``pressure``, N/m: p = -(sigma_xx + sigma_yy)/2 of the particle stress of
   Eq. 2 (:func:`analysis.draw.particle_pressure`), positive under compression;
 * ``stress``, N/m: the Eq. 2 particle stress sigma_ij
@@ -72,6 +81,25 @@ data (name, units: meaning):
 Global attributes of the state (time, gravity, ...) are not carried: meshio
 does not write VTK field data to ``.vtu``; they stay in the netCDF file.
 
+Frames of a pour: ``OUT.pvd`` and ``OUT/``
+-------------------------------------------
+``OUT/OUT_0000.vtu``, ``OUT/OUT_0001.vtu``, ... (four digits, more beyond
+10 000 frames): frame k of the frames file as one ``VTK_POLYGON`` cell per
+particle released by then, in particle order, its corners in the lab frame
+from the frame's centre and orientation (float32 in the frames file) and the
+body-frame corners; written by the same polygon writer as ``OUT.vtu``
+(:func:`polygon_mesh`). Cell data: ``particle`` (index in the frames file;
+the cell id as long as particles are released in index order, as a pour
+does), ``orientation`` (rad, wrapped to (-pi, pi]) and ``speed`` (m/s, of
+the centre of mass). A frame before the first release is a grid without
+cells (with the same, empty, arrays).
+
+``OUT.pvd``: a VTK ``Collection`` listing the frame files (paths relative
+to it) with ``timestep`` = the frame's simulated time in s (``time`` of the
+frames file, written with all its digits), which ParaView's time controls
+step through: *File > Open* ``OUT.pvd`` (one source, one time step per
+frame), *Apply*, colour by ``speed``, then *Play*.
+
 Opening in ParaView
 -------------------
 *File > Open* both files, *Apply*; switch the render view to 2D.
@@ -92,7 +120,9 @@ the particles as points, not polygons.
 
 Both files are written atomically (:func:`analysis.netcdf.atomic_path`),
 each to a temporary name renamed only after both are complete, so a failed
-export never leaves a complete-looking file.
+export never leaves a complete-looking file. A pour's frames go to a
+temporary folder that replaces ``OUT/`` once complete, and ``OUT.pvd`` is
+written last (:func:`export_frames`).
 """
 
 from __future__ import annotations
@@ -118,6 +148,29 @@ def contacts_path(path: str) -> str:
     """
     stem, ext = os.path.splitext(path)
     return f"{stem}{CONTACTS_SUFFIX}{ext}"
+
+
+def wrap_angle(theta) -> np.ndarray:
+    """Angles wrapped to one turn, (-pi, pi] (float64).
+
+    The simulator keeps integrating the orientation, so a particle that has
+    rolled holds theta of several turns; the exported ``orientation`` is the
+    same direction in (-pi, pi]: pi stays pi and -pi becomes pi.
+
+    Parameters
+    ----------
+    theta : array_like
+        Angles, rad.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``theta - 2 pi k`` in (-pi, pi], float64; NaN stays NaN.
+    """
+    theta = np.asarray(theta, dtype=np.float64)
+    wrapped = np.pi - np.mod(np.pi - theta, 2.0 * np.pi)
+    # np.mod may round a tiny negative remainder up to 2 pi, giving -pi
+    return np.where(wrapped <= -np.pi, wrapped + 2.0 * np.pi, wrapped)
 
 
 def _xyz(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -182,17 +235,11 @@ def particle_mesh(state: State):
         other in particle order, so the file's cell ids are the particle
         indices. Cell data as in the module docstring.
     """
-    import meshio
-
     wx, wy, counts = state.world_vertices()
     n = state.n_particles
     kmax = wx.shape[1]
     keep = np.arange(kmax)[None, :] < counts[:, None]
-    points = _xyz(wx[keep], wy[keep])  # row-major: particle after particle, corners in order
-    offsets = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    # Runs of consecutive particles with the same corner count.
-    starts = np.flatnonzero(np.concatenate([[True], counts[1:] != counts[:-1]]))
-    ends = np.concatenate([starts[1:], [n]])
+    corners = np.column_stack((wx[keep], wy[keep]))  # row-major: particle after particle, corners in order
 
     sigma = particle_stress(state)
     stress = np.zeros((n, 3, 3))
@@ -202,7 +249,7 @@ def particle_mesh(state: State):
         "particle": np.arange(n, dtype=np.int64),
         "velocity": _xyz(state.vx, state.vy),
         "angular_velocity": state.omega.astype(np.float64),
-        "orientation": state.theta.astype(np.float64),
+        "orientation": wrap_angle(state.theta),
         "pressure": particle_pressure(state),
         "stress": stress.reshape(n, 9),
         "coordination": coordination(state),
@@ -210,14 +257,58 @@ def particle_mesh(state: State):
         "area": state.area.astype(np.float64),
         "mass": state.mass.astype(np.float64),
     }
-    cells, cell_data = [], {k: [] for k in per_particle}
+    return polygon_mesh(corners, counts, per_particle)
+
+
+def polygon_mesh(corners: np.ndarray, counts: np.ndarray, cell_data: dict[str, np.ndarray]):
+    """Polygons as a :class:`meshio.Mesh`, one ``polygon`` cell per polygon, in order.
+
+    The one writer of polygon grids: a state's particles (:func:`particle_mesh`)
+    and each frame of a pour (:func:`frame_mesh`).
+
+    Parameters
+    ----------
+    corners : (sum(counts), 2) array
+        Lab-frame corners, m, polygon after polygon, each counter-clockwise.
+    counts : (n,) int array
+        Corners of each polygon.
+    cell_data : dict of str to array
+        Per-polygon values, first axis of length ``n`` (vectors ``(n, 3)``).
+
+    Returns
+    -------
+    meshio.Mesh
+        Points: the corners with z = 0, not shared between polygons. meshio
+        keeps polygons of one corner count per cell block, so consecutive
+        polygons with the same count form one block; the blocks follow each
+        other in order, so the file's cell ids are the polygons' indices.
+        Without polygons the mesh holds one empty polygon block that carries
+        the (empty) cell data, so every file of a series has the same arrays.
+    """
+    import meshio
+
+    counts = np.asarray(counts, dtype=np.int64)
+    n = counts.size
+    corners = np.asarray(corners, dtype=np.float64).reshape(-1, 2)
+    if corners.shape[0] != counts.sum():
+        raise ValueError(f"{corners.shape[0]} corners for polygons of {int(counts.sum())} corners in all")
+    points = _xyz(corners[:, 0], corners[:, 1])
+    offsets = np.cumsum(counts) - counts
+    # Runs of consecutive polygons with the same corner count.
+    starts = np.flatnonzero(np.diff(counts, prepend=-1) != 0)
+    ends = np.append(starts[1:], n)
+    cells, data = [], {k: [] for k in cell_data}
     for a, b in zip(starts, ends):
         k = int(counts[a])
         conn = offsets[a:b, None] + np.arange(k)[None, :]
         cells.append(meshio.CellBlock("polygon", conn.astype(np.int64)))
-        for name, v in per_particle.items():
-            cell_data[name].append(v[a:b])
-    return meshio.Mesh(points, cells, cell_data=cell_data)
+        for name, v in cell_data.items():
+            data[name].append(np.asarray(v)[a:b])
+    if not cells:
+        cells.append(meshio.CellBlock("polygon", np.zeros((0, 3), dtype=np.int64)))
+        for name, v in cell_data.items():
+            data[name].append(np.asarray(v)[:0])
+    return meshio.Mesh(points, cells, cell_data=data)
 
 
 def contact_mesh(state: State):
@@ -284,7 +375,8 @@ def export_state(path_in: str, path_out: str) -> tuple[str, str]:
     import meshio
 
     if os.path.splitext(path_out)[1].lower() != ".vtu":
-        raise InputError(f"{path_out}: the VTK output must be a .vtu file (VTK XML unstructured grid)")
+        raise InputError(f"--vtk {path_out}: the VTK output of a state must be a .vtu file (VTK XML "
+                         "unstructured grid); a pour's frames (--frames) are written as a .pvd collection")
     state = load_state(path_in)
     particles, contacts = particle_mesh(state), contact_mesh(state)
     path_c = contacts_path(path_out)
@@ -298,24 +390,158 @@ def export_state(path_in: str, path_out: str) -> tuple[str, str]:
     return path_out, path_c
 
 
+def frame_mesh(frames, k: int):
+    """Frame ``k`` of a pour as a :class:`meshio.Mesh`: one polygon per released particle.
+
+    Parameters
+    ----------
+    frames : xarray.Dataset
+        A frames file (:func:`analysis.film.read_frames`).
+    k : int
+        Index of the frame.
+
+    Returns
+    -------
+    meshio.Mesh
+        The particles released by frame ``k`` (finite centre), in particle
+        order, their corners in the lab frame from the frame's centre and
+        orientation and the body-frame corners
+        (:func:`analysis.film.world_corners`, float64). Cell data: ``particle``
+        (index in the frames file), ``orientation`` (rad, wrapped to (-pi, pi]
+        by :func:`wrap_angle`) and ``speed`` (m/s).
+    """
+    from .film import world_corners
+
+    x, y, theta, speed = (np.asarray(frames[v].values[k], dtype=np.float64) for v in ("x", "y", "theta", "speed"))
+    counts = np.asarray(frames["node_count"].values, dtype=np.int64)
+    released = np.isfinite(x) & np.isfinite(y) & np.isfinite(theta)
+    corners = world_corners(x, y, theta, counts, np.asarray(frames["node_x"].values, dtype=np.float64),
+                            np.asarray(frames["node_y"].values, dtype=np.float64))
+    return polygon_mesh(corners[np.repeat(released, counts)], counts[released], {
+        "particle": np.flatnonzero(released).astype(np.int64),
+        "orientation": wrap_angle(theta[released]),
+        "speed": speed[released],
+    })
+
+
+def series_folder(path: str) -> str:
+    """Folder of the frame files that go with the collection ``path``: ``pour.pvd`` -> ``pour/``."""
+    return os.path.splitext(path)[0]
+
+
+def _pvd_text(files: list[str], times: np.ndarray) -> str:
+    """A ParaView collection (.pvd) of ``files`` (relative paths) at ``times`` (s)."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.Element("VTKFile", type="Collection", version="0.1", byte_order="LittleEndian")
+    coll = ET.SubElement(root, "Collection")
+    for f, t in zip(files, times):
+        ET.SubElement(coll, "DataSet", timestep=repr(float(t)), group="", part="0", file=f)
+    ET.indent(root)
+    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def export_frames(path_in: str, path_out: str) -> tuple[str, list[str]]:
+    """Export the frames of a pour as a ParaView time series: ``OUT.pvd`` and ``OUT/``.
+
+    Parameters
+    ----------
+    path_in : str
+        Frames file (``python -m sim pour --frames``, docs/formats.md#frames-of-a-pour).
+    path_out : str
+        The collection, must end in ``.pvd``. Frame ``k`` goes to
+        ``OUT/OUT_kkkk.vtu`` (:func:`frame_mesh`; the folder is
+        :func:`series_folder`), and the collection lists each file with the
+        frame's simulated time as its ``timestep``.
+
+    Returns
+    -------
+    pvd : str
+        The collection written.
+    files : list of str
+        The frame files, in frame order.
+
+    Raises
+    ------
+    InputError
+        ``path_in`` is missing, not a frames file or holds no frame
+        (:func:`analysis.film.read_frames`, naming ``--frames``); ``path_out``
+        does not end in ``.pvd`` or cannot be written.
+
+    Notes
+    -----
+    The frame files are written into a temporary folder that replaces
+    ``OUT/`` once complete; an existing ``OUT.pvd`` is removed before and the
+    new one written (atomically) last, so a failed export never leaves a
+    collection that lists missing or stale frames.
+    """
+    import shutil
+
+    import meshio
+
+    from .film import read_frames
+
+    if os.path.splitext(path_out)[1].lower() != ".pvd":
+        raise InputError(f"--vtk {path_out}: a pour's frames are written as a ParaView collection; "
+                         "the output must end in .pvd (with one .vtu per frame in the folder of its name)")
+    frames = read_frames(path_in, "--frames")
+    times = np.asarray(frames["time"].values, dtype=np.float64)
+    folder = series_folder(os.path.abspath(path_out))
+    stem = os.path.basename(folder)
+    digits = max(4, len(str(len(times) - 1)))
+    names = [f"{stem}_{k:0{digits}d}.vtu" for k in range(len(times))]
+    parent = os.path.dirname(folder)
+    tmp = os.path.join(parent, f".{stem}.{os.getpid()}.tmp")
+    old = os.path.join(parent, f".{stem}.{os.getpid()}.old")
+    try:
+        if os.path.exists(folder) and not os.path.isdir(folder):
+            raise InputError(f"--vtk {path_out}: {folder} is a file, not the folder of the frames")
+        os.makedirs(tmp, exist_ok=True)
+        for k, name in enumerate(names):
+            meshio.write(os.path.join(tmp, name), frame_mesh(frames, k), file_format="vtu")
+        if os.path.exists(path_out):
+            os.remove(path_out)
+        if os.path.isdir(folder):
+            os.replace(folder, old)
+        os.replace(tmp, folder)
+        with atomic_path(path_out) as tmp_pvd:
+            with open(tmp_pvd, "w", encoding="utf-8") as fh:
+                fh.write(_pvd_text([f"{stem}/{name}" for name in names], times))
+    except OSError as err:
+        raise InputError(f"--vtk {path_out}: cannot be written ({err})") from err
+    finally:
+        for d in (tmp, old):
+            shutil.rmtree(d, ignore_errors=True)
+    return path_out, [os.path.join(series_folder(path_out), name) for name in names]
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of ``python -m analysis export``."""
-    parser.add_argument("--input", required=True, help="particle-state file (.nc, docs/formats.md#state-files)")
-    parser.add_argument("--vtk", required=True, metavar="OUT.vtu",
-                        help="particles file to write (.vtu); the contact network goes to OUT_contacts.vtu")
+    src = parser.add_mutually_exclusive_group(required=True)
+    src.add_argument("--input", help="particle-state file (.nc, docs/formats.md#state-files): "
+                     "--vtk OUT.vtu and OUT_contacts.vtu")
+    src.add_argument("--frames", help="frames file of a pour (python -m sim pour --frames): a ParaView time "
+                     "series, --vtk OUT.pvd listing OUT/OUT_0000.vtu, ... with their simulated times")
+    parser.add_argument("--vtk", required=True, metavar="OUT",
+                        help="with --input the particles file (.vtu), the contact network going to "
+                             "OUT_contacts.vtu; with --frames the collection (.pvd)")
 
 
 def cmd_export(args: argparse.Namespace, params: dict) -> None:
-    """``python -m analysis export``: ``args.input`` as ``args.vtk`` and its contact file.
+    """``python -m analysis export``: a state (``--input``) or a pour's frames (``--frames``) as VTK.
 
     A state that breaks the contract raises :class:`~analysis.errors.StateError`,
-    an output that cannot be written :class:`~analysis.errors.InputError`;
-    ``params`` is not used.
+    a frames file that is missing or holds no frame and an output that cannot
+    be written :class:`~analysis.errors.InputError`; ``params`` is not used.
     """
     import sys
     import time
 
     t0 = time.perf_counter()
-    p, c = export_state(args.input, args.vtk)
-    print(f"[analysis] export: {args.input} -> {p}, {c} ({time.perf_counter() - t0:.2f} s)",
-          file=sys.stderr, flush=True)
+    if args.frames is not None:
+        pvd, files = export_frames(args.frames, args.vtk)
+        done = f"{args.frames} -> {pvd} and {len(files)} frames in {series_folder(pvd)}/"
+    else:
+        p, c = export_state(args.input, args.vtk)
+        done = f"{args.input} -> {p}, {c}"
+    print(f"[analysis] export: {done} ({time.perf_counter() - t0:.2f} s)", file=sys.stderr, flush=True)

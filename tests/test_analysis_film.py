@@ -119,3 +119,74 @@ def test_the_pour_command_takes_frames_without_a_file_as_none(tmp_path):
                           timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["poured.nc"]
+
+
+def _pile_frames(stray=None, falling=True):
+    """Two frames of a synthetic triangular pile of 1 cm squares (half-width
+    0.3 m, height 0.15 m, about 450 particles): in the first the lower half
+    of the pile and one particle falling at (0, 0.3 m), in the last the whole
+    pile, and the particle ``stray`` = (x, y) (released in the last frame)."""
+    a, half, height = 0.01, 0.3, 0.15
+    centres = [(i * a, (j + 0.5) * a) for j in range(int(height / a)) for i in range(-40, 41)
+               if abs(i * a) + a / 2 <= half * (1 - (j + 1) * a / height)]
+    n = len(centres) + (stray is not None)
+    x, y = np.full((2, n), np.nan), np.full((2, n), np.nan)
+    x[1, :len(centres)], y[1, :len(centres)] = np.array(centres).T
+    low = y[1] < height / 2
+    x[0, low], y[0, low] = x[1, low], y[1, low]
+    if falling:
+        top = int(np.nanargmax(y[1]))
+        x[0, top], y[0, top] = 0.0, 2 * height
+    if stray is not None:
+        x[1, -1], y[1, -1] = stray
+    corner = np.tile([[-a / 2, -a / 2], [a / 2, -a / 2], [a / 2, a / 2], [-a / 2, a / 2]], (n, 1))
+    return xr.Dataset({"time": ("frame", [0.0, 1.0]), "x": (("frame", "particle"), x),
+                       "y": (("frame", "particle"), y), "theta": (("frame", "particle"), np.zeros((2, n))),
+                       "speed": (("frame", "particle"), np.zeros((2, n))),
+                       "node_count": ("particle", np.full(n, 4)),
+                       "node_x": ("node", corner[:, 0]), "node_y": ("node", corner[:, 1])}), half, height
+
+
+def test_the_film_frames_the_pile_not_a_stray_particle():
+    """One particle far to the side and above (2 m, 0.9 m) of a pile 0.6 m wide
+    leaves the frame where it is without it: around the pile with a margin
+    (not +-2 m, the farthest particle), and as high as the particle falling
+    onto the pile in the first frame (not 0.9 m)."""
+    r = 1.5 * 0.01 / np.sqrt(2)     # 1.5 times the squares' circumradius
+    plain, half, height = _pile_frames()
+    strayed, _, _ = _pile_frames(stray=(2.0, 0.9))
+    x_lo, x_hi, y_lo, y_hi = film.film_extent(strayed)
+    # the same frame as without the stray, to 5 % of the pile's half-width (the
+    # edge moves by one particle's column: the stray is one particle more)
+    assert (x_lo, x_hi, y_lo, y_hi) == pytest.approx(film.film_extent(plain), abs=0.05 * half)
+    assert x_lo == -x_hi                                  # centred on the pouring axis
+    assert half + r < x_hi < 1.35 * half                  # the whole pile and a margin, not the stray
+    assert y_hi == pytest.approx(2 * height + r)          # the falling particle is in the picture
+    assert y_lo == pytest.approx(-0.05 * y_hi)
+    # without the falling particle the top is the pile's top
+    settled, _, _ = _pile_frames(stray=(2.0, 0.9), falling=False)
+    pile_top = float(np.nanmax(settled["y"].values[:, :-1]))   # highest centre but the stray's
+    assert pile_top < height and film.film_extent(settled)[3] == pytest.approx(pile_top + r)
+
+
+def test_a_film_of_few_particles_still_leaves_a_stray_out():
+    """Three particles and a stray: at least one particle is left beyond each
+    edge, so the stray does not set the frame (with 1 % of 3 particles none would be)."""
+    frames = xr.Dataset({"time": ("frame", [0.0]), "x": (("frame", "particle"), [[-0.01, 0.0, 0.01, 1.0]]),
+                         "y": (("frame", "particle"), [[0.005, 0.005, 0.005, 0.005]]),
+                         "theta": (("frame", "particle"), np.zeros((1, 4))),
+                         "speed": (("frame", "particle"), np.zeros((1, 4))),
+                         "node_count": ("particle", [3] * 4),
+                         "node_x": ("node", [-0.004, 0.004, 0.0] * 4), "node_y": ("node", [-0.003, -0.003, 0.006] * 4)})
+    x_lo, x_hi, _, _ = film.film_extent(frames)
+    assert x_hi < 0.05
+
+
+def test_frames_that_are_missing_or_empty_are_refused_naming_the_option(tmp_path):
+    with pytest.raises(InputError, match=r"--input .*missing\.nc: no such file; expected a frames file"):
+        film.read_frames(str(tmp_path / "missing.nc"))
+    empty = tmp_path / "empty.nc"
+    frames, _, _ = _pile_frames()
+    frames.isel(frame=slice(0, 0)).to_netcdf(empty)
+    with pytest.raises(InputError, match=r"--frames .*empty\.nc: holds no frame"):
+        film.read_frames(str(empty), "--frames")

@@ -116,3 +116,46 @@ def test_the_raster_estimate_bounds_what_the_solid_fraction_allocates():
     assert (raster.nx, raster.ny) == (nx, ny)
     estimate = nx * ny * RASTER_BYTES_PER_PIXEL
     assert 0.8 * estimate < peak <= 1.05 * estimate, (peak, estimate)
+
+
+@pytest.mark.parametrize("configfile", sorted(glob.glob(os.path.join(REPO, "config", "*.yaml"))))
+def test_flow_text_reads_back_to_the_same_settings_without_double_quotes(configfile):
+    """What the workflow passes as --params (params_flow_text): one line of
+    YAML flow text with no double quote, backslash or line break (which the
+    report would show escaped), read back to exactly the configured values;
+    JSON still reads the same."""
+    import json
+
+    from analysis.params import params_flow_text, parse_params, settings_from_text
+
+    with open(configfile, encoding="utf-8") as fh:
+        section = (yaml.safe_load(fh) or {}).get("analysis") or {}
+    text = params_flow_text(section)
+    assert not set(text) & set('"\\\n'), text
+    assert settings_from_text(text) == section
+    assert parse_params(text) == parse_params(json.dumps(section))
+
+
+def test_flow_text_keeps_values_that_yaml_would_read_otherwise():
+    """Floats without a dot, infinities, null and strings that look like
+    booleans or numbers come back as they were."""
+    from analysis.params import params_flow_text, settings_from_text
+
+    tricky = {"a": 1e-06, "b": float("inf"), "c": None, "d": "yes", "e": "1.0", "f": [1, "x y", True],
+              "g": {"h": -2.5e300, "i": "null"}}
+    text = params_flow_text(tricky)
+    assert settings_from_text(text) == tricky, text
+    assert settings_from_text('{"a": 1e-06}') == {"a": 1e-06}   # JSON first: YAML 1.1 reads 1e-06 as text
+
+
+@pytest.mark.parametrize("text, words", [
+    ("{rve: [size: 0.08}", ["--params is neither JSON", "nor YAML", "{rve: {size: 0.08}}"]),
+    ("[1, 2]", ["--params = '[1, 2]'", "must be a mapping", "got a list"]),
+    ("0.08", ["must be a mapping", "got a float"]),
+])
+def test_params_that_are_not_a_mapping_are_refused_naming_the_option(text, words):
+    from analysis.params import parse_params
+
+    with pytest.raises(ParamError) as err:
+        parse_params(text)
+    assert all(w in str(err.value) for w in words), str(err.value)

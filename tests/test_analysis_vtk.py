@@ -1,7 +1,9 @@
 """analysis/vtk.py (python -m analysis export): a particle state as VTK files
 for ParaView, checked for content on a tiny hand-made state that follows
 docs/formats.md#state-files, read back with meshio and with VTK's own reader (ParaView's; the ``vtk``
-package is a test dependency)."""
+package is a test dependency); and the frames of a simulated pour as a
+ParaView time series (.pvd collection of one .vtu per frame), read back with
+VTK's reader and checked against the simulator's own state."""
 
 import os
 import subprocess
@@ -14,7 +16,7 @@ import pytest
 import xarray as xr
 
 from analysis.__main__ import main as analysis_main
-from analysis.vtk import contacts_path, export_state
+from analysis.vtk import contacts_path, export_frames, export_state, wrap_angle
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 A = 0.01          # side of the squares, m
@@ -70,8 +72,9 @@ COORDINATION = [2, 1, 1, 0, 0]   # B: T and L; the support does not count
 SUPPORT_CONTACTS = [1, 0, 1, 0, 0]
 
 
-def write_state(path, contacts=True, drop=()):
-    """The five-particle state above as a contract file (``contacts=False``: none)."""
+def write_state(path, contacts=True, drop=(), theta=THETA):
+    """The five-particle state above as a contract file (``contacts=False``: none;
+    ``theta``: other orientations)."""
     n = len(CENTRES)
     node_x = [bx for body in BODIES for bx, _ in body]
     node_y = [by for body in BODIES for _, by in body]
@@ -92,7 +95,7 @@ def write_state(path, contacts=True, drop=()):
         {
             "x": ("particle", np.array([p[0] for p in CENTRES]), {"units": "m", "long_name": "x"}),
             "y": ("particle", np.array([p[1] for p in CENTRES]), {"units": "m", "long_name": "y"}),
-            "theta": ("particle", np.array(THETA), {"units": "rad", "long_name": "orientation"}),
+            "theta": ("particle", np.array(theta, dtype=float), {"units": "rad", "long_name": "orientation"}),
             "vx": ("particle", np.array([v[0] for v in VELOCITY], dtype=float)),
             "vy": ("particle", np.array([v[1] for v in VELOCITY], dtype=float)),
             "omega": ("particle", np.array(OMEGA)),
@@ -274,3 +277,196 @@ def test_command_line_exit_status(tmp_path):
     line = _one_error_line(r.stderr)
     assert str(bad) in line and "node_count" in line
     assert not (tmp_path / "x.vtu").exists()
+
+
+# --- orientation: wrapped to one turn in every export --------------------------
+
+def test_orientation_is_wrapped_to_minus_pi_exclusive_pi_inclusive(tmp_path):
+    """theta beyond one turn, and exactly pi and -pi, come out in (-pi, pi]:
+    pi stays pi and -pi becomes pi (the same direction), by hand."""
+    theta = [np.pi, -np.pi, -3 * np.pi, 1.5 * np.pi, 6 * np.pi + 0.25]
+    expected = [np.pi, np.pi, np.pi, -np.pi / 2, 0.25]
+    state = write_state(tmp_path / "turned.nc", theta=theta)
+    out, _ = export_state(str(state), str(tmp_path / "turned.vtu"))
+    _, data = _cells(meshio.read(out), "polygon")
+    assert data["orientation"][0] == np.pi and data["orientation"][1] == np.pi
+    np.testing.assert_allclose(data["orientation"], expected, rtol=0, atol=1e-12)
+    assert np.all(data["orientation"] > -np.pi) and np.all(data["orientation"] <= np.pi)
+
+
+def test_wrap_angle_stays_in_the_half_open_turn_at_its_edges():
+    """Next to the edges (one float away from +-pi and from odd multiples of
+    pi) the wrapped angle stays in (-pi, pi] and is the same direction."""
+    edges = np.array([np.pi, -np.pi, 3 * np.pi, -3 * np.pi, 101 * np.pi])
+    theta = np.concatenate([edges, np.nextafter(edges, np.inf), np.nextafter(edges, -np.inf),
+                            [0.0, -0.0, 1e-300, -1e-300, 2 * np.pi, -2 * np.pi, 1e3, -1e3]])
+    w = wrap_angle(theta)
+    assert w.dtype == np.float64
+    assert np.all(w > -np.pi) and np.all(w <= np.pi), theta[(w <= -np.pi) | (w > np.pi)]
+    np.testing.assert_allclose(np.cos(w), np.cos(theta), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.sin(w), np.sin(theta), rtol=0, atol=1e-12)
+    assert np.isnan(wrap_angle([np.nan])[0])
+
+
+# --- the frames of a pour as a ParaView time series ------------------------------
+
+FRAME_INTERVAL = 0.004   # s
+RELEASES = {1: (0.02, 0.03, 4.0), 3: (0.0, 0.03, -4.5), 5: (-0.02, 0.03, 3 * np.pi)}  # frame: (x, y, theta)
+
+
+@pytest.fixture(scope="module")
+def poured_frames(tmp_path_factory):
+    """Frames of a tiny pour by the simulator: two polygons at rest on the
+    support (turned beyond +-pi) from the start, three more released later
+    (the first frame before any release: an empty grid). Returns the frames
+    file and, per frame, the simulator's centres and orientations (float64)."""
+    from scenes import rectangle, regular_polygon, scene
+    from sim.frames import FrameRecorder
+
+    polygons = [rectangle(6e-3, 4e-3), regular_polygon(5, 3e-3), regular_polygon(6, 3e-3, 0.1),
+                rectangle(5e-3, 5e-3), regular_polygon(3, 3.5e-3)]
+    sim = scene(polygons, [], gravity=(0.0, -9.81), support=True)
+    recorder = FrameRecorder(sim.shapes, len(polygons), FRAME_INTERVAL)
+    truth = []
+    placed = [(-0.01, 0.0025, -3 * np.pi), (0.01, 0.0035, -np.pi - 1.0)]   # just above the support
+    for k in range(8):
+        if k == 1:
+            for x, y, th in placed:
+                sim.place(sim.n, x, y, th)
+        if k in RELEASES:
+            sim.place(sim.n, *RELEASES[k], 0.0, -0.5, 2.0)
+        taken = len(recorder.times)
+        recorder(sim)
+        assert len(recorder.times) == taken + 1
+        truth.append((sim.position, sim.theta, sim.shapes))
+        sim.run(duration=1.5 * FRAME_INTERVAL)   # past the next frame time whatever the step
+    recorder.finish(sim)
+    truth.append((sim.position, sim.theta, sim.shapes))
+    path = tmp_path_factory.mktemp("pour_frames") / "frames.nc"
+    recorder.save(path, {"model": {}}, protocol="wedge", seed=1)
+    with xr.open_dataset(path) as f:
+        assert f.sizes["frame"] == len(truth)   # one frame per call, the last by finish()
+    return path, truth
+
+
+def _read_pvd(path):
+    """(timestep, file) of each DataSet of a .pvd collection, parsed as XML."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.parse(path).getroot()
+    assert root.tag == "VTKFile" and root.get("type") == "Collection"
+    return [(float(d.get("timestep")), d.get("file")) for d in root.find("Collection").findall("DataSet")]
+
+
+def _vtk_grid(path):
+    r = vtk.vtkXMLUnstructuredGridReader()
+    r.SetFileName(str(path))
+    r.Update()
+    assert r.GetErrorCode() == 0, path
+    return r.GetOutput()
+
+
+def _polygon_points(grid, cell):
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    pts = vtk_to_numpy(grid.GetPoints().GetData())
+    ids = grid.GetCell(cell).GetPointIds()
+    return pts[[ids.GetId(k) for k in range(ids.GetNumberOfIds())]]
+
+
+def _rotated(cx, cy, theta, bx, by):
+    """Lab-frame corners, corner by corner: centre + R(theta) (body-frame corner)."""
+    c, s = np.cos(theta), np.sin(theta)
+    return np.array([(cx + c * x - s * y, cy + s * x + c * y) for x, y in zip(bx, by)])
+
+
+def test_frames_become_a_paraview_time_series(poured_frames, tmp_path):
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    frames, truth = poured_frames
+    out = tmp_path / "series" / "pour.pvd"
+    assert analysis_main(["export", "--frames", str(frames), "--vtk", str(out)]) == 0
+    entries = _read_pvd(out)
+    with xr.open_dataset(frames) as f:
+        times = f["time"].values
+        x, y, theta, speed = (f[v].values.astype(float) for v in ("x", "y", "theta", "speed"))
+        counts, bx, by = f["node_count"].values, f["node_x"].values, f["node_y"].values
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    assert len(entries) == len(times) == len(truth)
+    assert [t for t, _ in entries] == [float(t) for t in times]   # every digit of the simulated time
+    assert sorted(p.name for p in out.parent.iterdir()) == ["pour", "pour.pvd"]  # no temporary left
+    assert sorted(p.name for p in (out.parent / "pour").iterdir()) == sorted(
+        os.path.basename(name) for _, name in entries)
+    released = [int(np.isfinite(x[k]).sum()) for k in range(len(times))]
+    assert released[0] == 0 and released[-1] == len(counts)   # an empty first frame, then all of them
+    for k, (t, name) in enumerate(entries):
+        assert not os.path.isabs(name) and name.startswith("pour/")
+        grid = _vtk_grid(out.parent / name)
+        assert grid.GetNumberOfCells() == released[k], name
+        assert {grid.GetCellType(c) for c in range(grid.GetNumberOfCells())} <= {vtk.VTK_POLYGON}
+        cd = grid.GetCellData()
+        np.testing.assert_array_equal(vtk_to_numpy(cd.GetArray("particle")), np.arange(released[k]))
+        np.testing.assert_array_equal(vtk_to_numpy(cd.GetArray("speed")), speed[k, :released[k]])
+        orientation = vtk_to_numpy(cd.GetArray("orientation"))
+        assert np.all(orientation > -np.pi) and np.all(orientation <= np.pi)
+        np.testing.assert_allclose(np.cos(orientation), np.cos(theta[k, :released[k]]), atol=1e-12)
+        np.testing.assert_allclose(np.sin(orientation), np.sin(theta[k, :released[k]]), atol=1e-12)
+        for p in range(released[k]):   # each polygon: the frame's centre, turned body corners
+            np.testing.assert_allclose(
+                _polygon_points(grid, p), np.column_stack([_rotated(
+                    x[k, p], y[k, p], theta[k, p], bx[offsets[p]:offsets[p + 1]],
+                    by[offsets[p]:offsets[p + 1]]), np.zeros(counts[p])]),
+                rtol=0, atol=1e-15, err_msg=f"frame {k}, particle {p}")
+    # One polygon against the simulator itself: its centre, orientation (float64,
+    # beyond one turn) and body-frame corners at the last frame; the frames keep
+    # float32 centres and angles, hence the tolerance.
+    position, angle, shapes = truth[-1]
+    grid = _vtk_grid(out.parent / entries[-1][1])
+    for p in range(len(counts)):
+        corners = _rotated(*position[p], angle[p], *shapes.corners(p))
+        np.testing.assert_allclose(_polygon_points(grid, p)[:, :2], corners, rtol=0, atol=1e-8)
+    assert abs(angle[4]) > np.pi   # the orientations turned beyond one turn were exported wrapped
+
+
+def test_a_second_export_replaces_the_series(poured_frames, tmp_path):
+    frames, _ = poured_frames
+    out = tmp_path / "pour.pvd"
+    folder = tmp_path / "pour"
+    folder.mkdir()
+    (folder / "pour_9999.vtu").write_text("stale")
+    pvd, files = export_frames(str(frames), str(out))
+    assert pvd == str(out) and all(os.path.exists(f) for f in files)
+    assert sorted(os.listdir(folder)) == sorted(os.path.basename(f) for f in files)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pour", "pour.pvd"]
+
+
+def test_bad_frames_inputs_fail_with_one_line_naming_the_option(poured_frames, tmp_path, capsys):
+    from sim.frames import FrameRecorder
+    from scenes import rectangle, scene
+
+    frames, _ = poured_frames
+    out = tmp_path / "out" / "pour.pvd"
+    missing = tmp_path / "missing.nc"
+    assert analysis_main(["export", "--frames", str(missing), "--vtk", str(out)]) == 1
+    line = _one_error_line(capsys.readouterr().err)
+    assert f"--frames {missing}: no such file" in line and "python -m sim pour --frames" in line
+    state = write_state(tmp_path / "relaxed.nc")
+    assert analysis_main(["export", "--frames", str(state), "--vtk", str(out)]) == 1
+    line = _one_error_line(capsys.readouterr().err)
+    assert f"--frames {state}: not a frames file (missing time" in line
+    sim = scene([rectangle(4e-3, 4e-3)], [(0.0, 0.002, 0, 0, 0, 0)], support=True)
+    empty = tmp_path / "empty.nc"
+    FrameRecorder(sim.shapes, 1, 0.5).save(empty)          # no frame taken
+    assert analysis_main(["export", "--frames", str(empty), "--vtk", str(out)]) == 1
+    line = _one_error_line(capsys.readouterr().err)
+    assert f"--frames {empty}: holds no frame" in line
+    assert analysis_main(["export", "--frames", str(frames), "--vtk", str(tmp_path / "pour.vtu")]) == 1
+    line = _one_error_line(capsys.readouterr().err)
+    assert "--vtk" in line and "pour.vtu" in line and ".pvd" in line
+    assert analysis_main(["export", "--input", str(state), "--vtk", str(tmp_path / "pour.pvd")]) == 1
+    assert ".vtu" in _one_error_line(capsys.readouterr().err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.nc", "relaxed.nc"]   # nothing written
+    with pytest.raises(SystemExit) as exc:   # a state and frames at once: argparse refuses
+        analysis_main(["export", "--input", str(state), "--frames", str(frames), "--vtk", str(out)])
+    assert exc.value.code == 2
+    assert "not allowed with argument" in capsys.readouterr().err

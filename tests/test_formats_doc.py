@@ -269,6 +269,25 @@ def test_vtk_export(made):
     section.check("VTK contacts (_contacts.vtu)", {"cell data": set(meshio.read(contacts_path(out)).cell_data)})
 
 
+def test_vtk_time_series_of_a_pour(made):
+    """The frames file made above as a ParaView series: the arrays of its
+    frame files, and the elements and attributes of its collection."""
+    import xml.etree.ElementTree as ET
+
+    import meshio
+
+    from analysis.vtk import export_frames
+
+    pvd, files = export_frames(str(made["frames"]), str(made["_tmp"] / "pour.pvd"))
+    section = Section(("VTK time series of a pour",))
+    section.check("VTK frames (OUT/OUT_kkkk.vtu)", {"cell data": set().union(
+        *(meshio.read(f).cell_data for f in files))})
+    root = ET.parse(pvd).getroot()
+    elements = {e.tag for e in root.iter()}
+    attributes = {a for e in root.iter() if e.tag != "VTKFile" for a in e.attrib}
+    section.check("VTK collection (OUT.pvd)", {"element": elements - {"VTKFile"}, "attribute": attributes})
+
+
 # ---------------------------------------------------------------- numerical checks
 
 def test_numerics_collisions_and_stability(made, monkeypatch):
@@ -347,6 +366,8 @@ def test_numerics_piles_and_ensemble(made):
                                "--seeds", *map(str, PROBE_SEEDS), "--fields", *fields,
                                "--pour-benchmarks", *[bench] * 5, "--relax-benchmarks", *[bench] * 5,
                                "--probe-benchmarks", *[bench] * 5,
+                               # as the workflow passes it: YAML flow text (the default value)
+                               "--analysis-params", "{moduli: {min_points: 3}}",
                                "--base-pressure", str(made["ensemble base pressure"]), "--out", out]) == 0
     Section(("Cost of the ensemble",)).check("results/numerics/ensemble.nc", _netcdf_names([out]))
 

@@ -291,6 +291,26 @@ def test_physics_scenes_reach_the_pour(workdir, name):
             assert params[section] == {**params[section], **values}, section
 
 
+def test_the_analysis_settings_travel_as_flow_text_the_report_shows_unescaped(workdir):
+    """snakemake --report shows a job's params under "Job parameters" with
+    every double quote backslash-escaped (Snakemake escapes them before it
+    stores the params as JSON in the page), so JSON settings read
+    {\\"rve\\": ...}. The analysis settings travel as one line of YAML flow
+    text instead, without double quotes, backslashes or line breaks, and the
+    analysis reads them back to the configured values."""
+    from analysis.params import parse_params
+
+    proc = snakemake(workdir, "-n", "-p", "--cores", "2", *SMOKE)
+    assert proc.returncode == 0, proc.output
+    lines = [line for line in proc.output.splitlines() if "-m analysis figure " in line]
+    assert lines, proc.output
+    for line in lines:
+        text = shlex.split(line.split(" --params ", 1)[1])[0]
+        assert text.startswith("{") and " rve: {" in text, text   # YAML flow: keys without quotes
+        assert not set(text) & set('"\\\n'), text
+        assert parse_params(text) == parse_params(json.dumps(SMOKE_CONFIG["analysis"])), text
+
+
 @pytest.mark.parametrize("name, override, message", [
     ("fits_without_strain", {"outputs": ["states", "fields", "fits"]}, "fits needs strain"),
     ("strain_without_probe", {"outputs": ["fields", "strain"], "probe": {"levels": []}},

@@ -2,8 +2,13 @@
 
 import json
 
+from analysis.params import params_flow_text
+
 ANALYSIS_CFG = config.get("analysis", {}) or {}
-ANALYSIS_PARAMS = json.dumps(ANALYSIS_CFG, sort_keys=True)
+# One line of YAML flow text, keys sorted ({rve: {size: 0.08}, ...}): the
+# analysis reads it like JSON, and the report shows it under "Job parameters"
+# as it is (Snakemake shows the double quotes of JSON params backslash-escaped).
+ANALYSIS_PARAMS = params_flow_text(ANALYSIS_CFG)
 ANALYSIS_MEM_MB = 2000
 # Each figure and the output (config `outputs`) whose data it draws.
 ANALYSIS_FIGURES = {"fig1_convergence": "strain", "fig2_vertical_strain": "strain", "fig3_fabric": "fabric",
