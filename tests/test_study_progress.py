@@ -23,8 +23,12 @@ STAGES = ["poured", "relaxed", "reduced"]
 # CPU seconds of the finished piles' jobs: pour, relax, probe.
 CPU = {("wedge", 1): (1000.0, 100.0, 50.0), ("wedge", 2): (1400.0, 140.0, 60.0)}
 # Means per stage: pour 1200, relax 120, probe 55 -> 1375 s of CPU per pile.
-ETA_LINE = ("2026-12-01 18:35:03,828 INFO pour wedge seed 3: t = 31.9 s simulated, about 3.2 s "
-            "to go, 2743 particles, 4705393 steps, 1100 ns per particle-step, ETA 397 s\n")
+ETA_LINE = ("2026-12-01 18:35:03,828 INFO pour wedge seed 3: released 2743 of 3500 (78 %), "
+            "ETA 0:06:37; t = 31.9000 s simulated, about 3.2000 s to go, 4705393 steps, "
+            "1100 ns per particle-step\n")
+# The same line as written before issue 29 (logs of pours started then).
+OLD_ETA_LINE = ("2026-12-01 18:35:03,828 INFO pour wedge seed 3: t = 31.9 s simulated, about 3.2 s "
+                "to go, 2743 particles, 4705393 steps, 1100 ns per particle-step, ETA 397 s\n")
 
 
 def write_config(root, wedge=(1, 2, 3), layered=(1, 2)):
@@ -104,6 +108,14 @@ def test_stages_and_paths():
 
 def test_parse_progress_lines():
     assert sp.parse_progress(ETA_LINE) == (397.0, 2743, False)
+    assert sp.parse_progress(OLD_ETA_LINE) == (397.0, 2743, False)
+    relax_now = ("INFO relax wedge seed 3: ETA at most 0:02:00; t = 0.4000 s simulated, at most "
+                 "9.6000 s to go, 3500 particles, 10 steps, 900 ns per particle-step, KE per "
+                 "particle 0.1 m g d")
+    assert sp.parse_progress(relax_now) == (120.0, 3500, True)
+    long_pour = ETA_LINE.replace("ETA 0:06:37", "ETA 27:46:40")
+    assert sp.parse_progress(long_pour) == (100000.0, 2743, False)
+    assert sp.parse_progress(ETA_LINE.replace("ETA 0:06:37", "ETA unknown")) is None
     old = ("2026-12-01 18:35:03,828 INFO bench pile of 3000: 0.0269 s of 1.0000 s simulated, "
            "3000 particles, 4077 steps, 401 steps/s, ETA 367 s, KE per particle 0.28 m g d")
     assert sp.parse_progress(old) == (367.0, 3000, False)
@@ -133,20 +145,53 @@ def test_counts_and_running_piles(tmp_path):
     assert pouring.missing == ("poured", "relaxed", "reduced")
     assert pouring.eta == 397.0 - 7  # less the 7 s since the line was written
     assert pouring.fraction == pytest.approx(2743 / 3500)
-    assert sp.describe_running(pouring) == "wedge 3: pour 78 %, ETA 6 min"
+    assert sp.describe_running(pouring) == "wedge 3: pour 78 %, ETA 0:06:30"
     relaxing = piles["layered", 2]
     assert relaxing.missing == ("relaxed", "reduced") and relaxing.eta is None
     assert sp.describe_running(relaxing) == "layered 2: relax"
 
 
-def test_killed_pour_keeps_its_eta(tmp_path):
+@pytest.mark.parametrize("line", [ETA_LINE, OLD_ETA_LINE])
+def test_killed_pour_keeps_its_eta(tmp_path, line):
     """A checkpoint whose log is old (a killed pour) is running; its ETA is the
-    work its pour still needs, not reduced by the time since."""
+    work its pour still needs, not reduced by the time since (also from a log
+    in the format before issue 29)."""
     write_config(tmp_path)
     touch(sp.checkpoint_file(tmp_path, "wedge", 1))
-    touch(sp.log_file(tmp_path, "wedge", 1, "poured"), mtime=NOW - 86400, text=ETA_LINE)
+    touch(sp.log_file(tmp_path, "wedge", 1, "poured"), mtime=NOW - 86400, text=line)
     pile = states(tmp_path)["wedge", 1]
     assert (pile.state, pile.eta) == ("running", 397.0)
+    assert pile.fraction == pytest.approx(2743 / 3500)
+
+
+def test_reads_the_line_the_simulator_writes():
+    """The ETA of a line written by sim.protocols.Progress, as it reads it."""
+    from types import SimpleNamespace
+
+    from sim import protocols
+
+    progress = protocols.Progress(10.0, protocols.pour_remaining(3500, 0.01, 0.1), total=3500,
+                                  clock=iter([0.0, 20.0]).__next__)
+    sim = SimpleNamespace(n=2000, step=1000, time=20.0, dt=1e-5)
+    progress(sim, "pour wedge seed 3")
+    sim.step += 20_000  # 20 s for 2000 x 20 000 particle-steps: 500 ns each
+    progress(sim, "pour wedge seed 3")
+    line = progress.line(sim, "pour wedge seed 3")
+    particle_seconds = protocols.pour_remaining(3500, 0.01, 0.1)(sim)[1]
+    assert sp.parse_progress("INFO " + line) == (
+        pytest.approx(500e-9 * particle_seconds / sim.dt, abs=0.5), 2000, False)
+
+
+def test_fraction_done_by_hand(tmp_path):
+    root = fake_study(tmp_path)
+    piles = list(states(root).values())
+    means, _ = sp.stage_means(root, piles, STAGES)
+    # Work left as in test_time_left_by_hand, of 5 piles of 1375 s each.
+    left = (390 + 120 + 55) + (120 + 55) + 1375
+    assert sp.fraction_done(piles, means, cores=1, threads=1) == pytest.approx(1 - left / (5 * 1375))
+    assert sp.fraction_done(piles, {}, cores=1, threads=1) is None
+    slow = [sp.PileState("wedge", 1, "running", tuple(STAGES), eta=1e6)]
+    assert sp.fraction_done(slow, means, cores=1, threads=1) == 0.0  # never below 0
 
 
 def test_stale_log_without_checkpoint_is_left(tmp_path):
@@ -186,10 +231,11 @@ def test_time_left_shared_work():
 def test_progress_line(tmp_path):
     root = fake_study(tmp_path)
     line = sp.progress_line(root, config_of(root), cores=1, now=NOW)
-    assert line == ("study: 2 of 5 piles done, 2 running (wedge 3: pour 78 %, ETA 6 min; "
-                    "layered 2: relax), 1 left; about 35 min left at 1 job at a time "
-                    "(mean of 2 finished piles: 23 min of CPU per pile)")
-    assert "about 23 min left at 2 jobs" in sp.progress_line(root, config_of(root), 2, NOW)
+    # 2115 s of work left of 5 x 1375 s: 69 % done (see test_fraction_done_by_hand)
+    assert line == ("study: 2 of 5 piles done, 2 running (wedge 3: pour 78 %, ETA 0:06:30; "
+                    "layered 2: relax), 1 left; 69 % of the simulation done, about 0:35:15 left "
+                    "at 1 job at a time (mean of 2 finished piles: 0:22:55 of CPU per pile)")
+    assert "done, about 0:22:55 left at 2 jobs" in sp.progress_line(root, config_of(root), 2, NOW)
 
 
 def test_unknown_before_a_pile_has_finished(tmp_path):
@@ -197,8 +243,8 @@ def test_unknown_before_a_pile_has_finished(tmp_path):
     for seed in (1, 2):  # the finished piles' last stage gone
         sp.stage_file(root, "wedge", seed, "reduced").unlink()
     line = sp.progress_line(root, config_of(root), cores=2, now=NOW)
-    assert line.startswith("study: 0 of 5 piles done, 2 running (wedge 3: pour 78 %, ETA 6 min;")
-    assert "time left unknown" in line and "about" not in line
+    assert line.startswith("study: 0 of 5 piles done, 2 running (wedge 3: pour 78 %, ETA 0:06:30;")
+    assert "time left unknown" in line and "about" not in line and "% of the simulation" not in line
     empty = tmp_path / "empty"
     write_config(empty)
     assert sp.progress_line(empty, config_of(empty), 2, NOW) == (
@@ -212,7 +258,8 @@ def test_seed10_is_not_seed1(tmp_path):
     finished_pile(tmp_path, "wedge", 10, (1000.0, 100.0, 50.0), NOW)
     touch(sp.log_file(tmp_path, "wedge", 10, "poured"), mtime=NOW - 10, text=ETA_LINE)
     line = sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW)
-    assert line.startswith("study: 1 of 2 piles done, 0 running, 1 left; about 19 min left")
+    assert line.startswith("study: 1 of 2 piles done, 0 running, 1 left; "
+                           "50 % of the simulation done, about 0:19:10 left")
 
 
 def test_all_done(tmp_path):
@@ -243,9 +290,9 @@ def test_script_on_a_fake_tree(tmp_path):
     assert len(lines) == 1
     print(lines[0])
     assert re.fullmatch(
-        r"study: 2 of 5 piles done, 2 running \(wedge 3: pour 78 %, ETA [67] min; layered 2: relax\), "
-        r"1 left; about 23 min left at 2 jobs at a time \(mean of 2 finished piles: 23 min of CPU "
-        r"per pile\)", lines[0])
+        r"study: 2 of 5 piles done, 2 running \(wedge 3: pour 78 %, ETA 0:0[56]:[0-5]\d; layered 2: "
+        r"relax\), 1 left; 69 % of the simulation done, about 0:22:55 left at 2 jobs at a time "
+        r"\(mean of 2 finished piles: 0:22:55 of CPU per pile\)", lines[0])
     other = write_config(tmp_path / "elsewhere", wedge=(1, 2), layered=())
     result = subprocess.run([sys.executable, str(SCRIPT), "--directory", str(root),
                              "--configfile", str(other)],

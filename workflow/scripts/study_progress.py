@@ -19,8 +19,10 @@ a running pile is in costs what the ETA of its log's last progress line
 (``sim.protocols.Progress``) says instead, when there is one. The cores it
 can use are the jobs that run side by side, ``cores // threads``, but no more
 than there are unfinished piles; and the study cannot end before its longest
-single pile. Before any pile has finished the estimate is unknown. Only the
-simulations are counted, not the analysis after them.
+single pile. The share done is one less the work left over the work of the
+whole study (its piles times the mean CPU seconds of a finished pile). Before
+any pile has finished both are unknown. Only the simulations are counted, not
+the analysis after them. Times are written ``h:mm:ss`` (``sim.durations.hms``).
 
 Usage::
 
@@ -46,7 +48,9 @@ from pathlib import Path
 import yaml
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO))  # for workflow/validation.py
+sys.path.insert(0, str(REPO))  # for workflow/validation.py and sim/durations.py
+
+from sim.durations import hms, parse_hms  # noqa: E402
 
 # A pile whose log was written this recently (s) counts as running.
 RECENT_S = 300.0
@@ -56,11 +60,12 @@ LOG_TAIL_BYTES = 65536
 RULES = {"poured": "pour", "relaxed": "relax"}
 
 # Parts of a progress line of sim.protocols.Progress, e.g.
-# "pour wedge seed 3: t = 31.9 s simulated, about 3.2 s to go, 2743 particles,
-#  4705393 steps, 1100 ns per particle-step, ETA 397 s"; older lines also end
-# their numbers with "ETA N s".
-_ETA = re.compile(r"\bETA (\S+) s\b")
-_PARTICLES = re.compile(r"\b(\d+) particles\b")
+# "pour wedge seed 3: released 2743 of 3500 (78 %), ETA 0:06:37; t = 31.9000 s
+#  simulated, about 3.2000 s to go, 4705393 steps, 1100 ns per particle-step" or
+# "relax ...: ETA at most 0:02:00; ..., 3500 particles, ..."; lines written
+# before issue 29 say "ETA 397 s" and "2743 particles".
+_ETA = re.compile(r"\bETA (?:at most )?(\S+?)(?: s)?(?=[;,]|$)")
+_PARTICLES = re.compile(r"\breleased (\d+) of \d+\b|\b(\d+) particles\b")
 
 
 @dataclass(frozen=True)
@@ -224,18 +229,24 @@ def parse_progress(line):
     Returns
     -------
     tuple (float, int or None, bool) or None
-        (ETA in wall seconds, particles, whether the ETA is an upper bound
-        "at most"); None for a line without a finite ETA.
+        (ETA in wall seconds, particles (those released, for a pour), whether
+        the ETA is an upper bound "at most"); None for a line without a
+        known ETA (``ETA unknown``, ``ETA nan s``).
     """
-    eta = _ETA.search(line)
-    try:
-        seconds = float(eta.group(1)) if eta else math.nan
-    except ValueError:
+    eta = _ETA.search(line.rstrip())
+    if eta is None:
         return None
+    seconds = parse_hms(eta.group(1))
+    if seconds is None:  # a line written before issue 29: "ETA 397 s"
+        try:
+            seconds = float(eta.group(1))
+        except ValueError:
+            return None
     if not math.isfinite(seconds):
         return None
     particles = _PARTICLES.search(line)
-    return seconds, int(particles.group(1)) if particles else None, " at most " in line
+    count = int(particles.group(1) or particles.group(2)) if particles else None
+    return seconds, count, " at most " in line
 
 
 def last_progress(path):
@@ -371,7 +382,7 @@ def time_left(piles, means, cores, threads):
         single pile's work.
     """
     todo = [p for p in piles if p.state != "done"]
-    per_job = max(min(int(threads), int(cores)), 1)
+    per_job = _cores_per_job(cores, threads)
     jobs = min(max(int(cores) // per_job, 1), len(todo))
     if not means or not todo:
         return (None if not means and todo else 0.0), jobs
@@ -379,24 +390,45 @@ def time_left(piles, means, cores, threads):
     return max(sum(work) / (jobs * per_job), max(work) / per_job), jobs
 
 
-def format_duration(seconds):
-    """`seconds` in words: ``45 s``, ``6 min``, ``9.5 h``."""
-    if seconds < 90:
-        return f"{seconds:.0f} s"
-    if seconds < 90 * 60:
-        return f"{seconds / 60:.0f} min"
-    return f"{seconds / 3600:.1f} h"
+def _cores_per_job(cores, threads):
+    """Cores one simulation job occupies: its threads, at most `cores`."""
+    return max(min(int(threads), int(cores)), 1)
+
+
+def fraction_done(piles, means, cores, threads):
+    """Share of the study's simulation work done.
+
+    Parameters
+    ----------
+    piles : list of PileState
+    means : dict
+        :func:`stage_means`; empty: unknown.
+    cores : int
+    threads : int
+        As for :func:`time_left`, for the CPU seconds of a running stage's ETA.
+
+    Returns
+    -------
+    float or None
+        ``1 - work left / (piles × mean CPU seconds per pile)``, within [0, 1],
+        the work left as :func:`pile_work` counts it; None when `means` is empty.
+    """
+    if not means or not piles:
+        return None
+    per_job = _cores_per_job(cores, threads)
+    left = sum(pile_work(p, means, per_job) for p in piles if p.state != "done")
+    return min(max(1.0 - left / (len(piles) * sum(means.values())), 0.0), 1.0)
 
 
 def describe_running(pile):
-    """A running pile in words: ``wedge 3: pour 78 %, ETA 6 min``."""
+    """A running pile in words: ``wedge 3: pour 78 %, ETA 0:06:30``."""
     stage = pile.missing[0]
     what = rule_of(stage) if stage in ("poured", "relaxed", "reduced") else f"probe {stage}"
     text = f"{pile.protocol} {pile.seed}: {what}"
     if pile.fraction is not None:
-        text += f" {100 * pile.fraction:.0f} %"
+        text += f" {math.floor(100 * pile.fraction)} %"
     if pile.eta is not None:
-        text += f", ETA {'at most ' if pile.at_most else ''}{format_duration(pile.eta)}"
+        text += f", ETA {'at most ' if pile.at_most else ''}{hms(pile.eta)}"
     return text
 
 
@@ -417,8 +449,9 @@ def progress_line(root, config, cores, now):
     -------
     str
         E.g. ``study: 3 of 19 piles done, 2 running (wedge 3: pour 78 %, ETA
-        6 min; layered 2: relax), 14 left; about 9.5 h left at 2 jobs at a
-        time (mean of 3 finished piles: 82 min of CPU per pile)``.
+        0:06:30; layered 2: relax), 14 left; 26 % of the simulation done, about
+        9:30:00 left at 2 jobs at a time (mean of 3 finished piles: 1:22:00 of
+        CPU per pile)``.
     """
     stages = pile_stages(config["probe"]["levels"])
     n_particles = int(config["pour"]["n_particles"])
@@ -437,8 +470,10 @@ def progress_line(root, config, cores, now):
         return line + "time left unknown until a pile has finished (with benchmark files)"
     if not running and not left:
         return line + "all piles simulated"
-    per_pile = format_duration(sum(means.values()))
-    return (line + f"about {format_duration(seconds)} left at {jobs} job{'s' * (jobs != 1)} "
+    per_pile = hms(sum(means.values()))
+    done_pct = math.floor(100 * fraction_done(piles, means, cores, config["threads"]))
+    return (line + f"{done_pct} % of the simulation done, about {hms(seconds)} left at "
+            f"{jobs} job{'s' * (jobs != 1)} "
             f"at a time (mean of {counted} finished pile{'s' * (counted != 1)}: "
             f"{per_pile} of CPU per pile)")
 
