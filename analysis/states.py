@@ -8,6 +8,7 @@ variable and first offending index, before any computation starts.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -96,11 +97,44 @@ def _fail(path: str, msg: str) -> StateError:
     return StateError(f"{path}: {msg}")
 
 
+def content_digest(ds: xr.Dataset) -> str:
+    """The ``data_digest`` of docs/formats.md#state-files, computed from ``ds`` as read.
+
+    SHA-256 over the data variables in the order of their names (each as
+    ``name|dtype|shape|`` and its C-order bytes), then the global attributes
+    but ``data_digest`` in the order of their names (``@name|`` and the value:
+    a text as UTF-8, a number as its int64 or float64 bytes).  The simulator
+    writes it (``sim.io.data_digest``); this is the reader's own computation of
+    the documented rule, as the analysis imports nothing from the simulator.
+    """
+    h = hashlib.sha256()
+    for name in sorted(ds.data_vars):
+        values = np.ascontiguousarray(ds[name].values)
+        h.update(f"{name}|{values.dtype.str}|{values.shape}|".encode() + values.tobytes())
+    for name in sorted(set(ds.attrs) - {"data_digest"}):
+        value = np.asarray(ds.attrs[name])
+        if value.dtype.kind in "US":
+            raw = str(ds.attrs[name]).encode()
+        else:
+            raw = value.astype(np.float64 if value.dtype.kind == "f" else np.int64).tobytes()
+        h.update(f"@{name}|".encode() + raw)
+    return h.hexdigest()
+
+
 def state_from_dataset(ds: xr.Dataset, path: str = "<dataset>") -> State:
-    """Validate a contract dataset and return it as a :class:`State`."""
+    """Validate a contract dataset and return it as a :class:`State`.
+
+    A file written with a ``data_digest`` (every state the simulator writes)
+    must still match it (:func:`content_digest`): bytes changed inside the
+    file after it was written are named as damage, not read as a pile.
+    """
     missing = [v for v in DIMS if v not in ds.variables]
     if missing:
         raise _fail(path, f"missing variable(s) {', '.join(missing)} required by docs/formats.md#state-files")
+    if "data_digest" in ds.attrs and content_digest(ds) != ds.attrs["data_digest"]:
+        raise _fail(path, "its content does not match the digest written with it (attribute data_digest): "
+                          "the file was damaged after it was written; delete it and run the step that writes "
+                          "it again")
     arrays: dict[str, np.ndarray] = {}
     for name, dim in DIMS.items():
         da = ds[name]

@@ -251,10 +251,39 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
     return ds
 
 
-def save_state(sim: Simulation, path, config: dict | None = None, **attrs) -> None:
-    """Write the simulation's state to ``path`` atomically (see :func:`state_dataset`).
+def data_digest(ds: xr.Dataset) -> str:
+    """SHA-256 of a dataset's content: its data variables (name, dtype, shape, bytes) and its
+    global attributes but ``data_digest`` (name and value), each in the order of their names.
+
+    Written with every state file as the attribute ``data_digest`` and checked
+    by :func:`read_state`, so that bytes changed inside a file after it was
+    written (which netCDF reads without complaint when they fall in the data
+    or an attribute's value) are named as damage instead of passing as a
+    state; the analysis checks the same digest on its own
+    (``analysis.states``), since ``sim`` and ``analysis`` import nothing from
+    each other.  A number enters as its 8 bytes (int64 or float64, as netCDF
+    stores a Python int or float), a text as UTF-8.
     """
-    atomic_write(state_dataset(sim, config, **attrs), path)
+    h = hashlib.sha256()
+    for name in sorted(ds.data_vars):
+        a = np.ascontiguousarray(ds[name].values)
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    for name in sorted(k for k in ds.attrs if k != "data_digest"):
+        value = ds.attrs[name]
+        a = np.asarray(value)
+        raw = (str(value).encode() if a.dtype.kind in "US" else
+               a.astype(np.float64 if a.dtype.kind == "f" else np.int64).tobytes())
+        h.update(f"@{name}|".encode() + raw)
+    return h.hexdigest()
+
+
+def save_state(sim: Simulation, path, config: dict | None = None, **attrs) -> None:
+    """Write the simulation's state to ``path`` atomically (see :func:`state_dataset`),
+    with the digest of its data (:func:`data_digest`)."""
+    ds = state_dataset(sim, config, **attrs)
+    ds.attrs["data_digest"] = data_digest(ds)
+    atomic_write(ds, path)
 
 
 REQUIRED = list(PARTICLE_VARS) + ["node_count", "node_x", "node_y", "contact_i",
@@ -262,7 +291,8 @@ REQUIRED = list(PARTICLE_VARS) + ["node_count", "node_x", "node_y", "contact_i",
 
 
 def read_state(path) -> xr.Dataset:
-    """Open and validate a state file (every variable present and finite).
+    """Open and validate a state file (every variable present, its data those
+    written with it (:func:`data_digest`, where the file has one), finite).
 
     Raises
     ------
@@ -283,6 +313,10 @@ def read_state(path) -> xr.Dataset:
     missing = [v for v in REQUIRED if v not in ds]
     if missing:
         raise StateFileError(f"state file {path}: missing variable(s) {missing}")
+    if "data_digest" in ds.attrs and data_digest(ds) != ds.attrs["data_digest"]:
+        raise StateFileError(f"state file {path}: its data do not match the digest written with them "
+                             "(attribute data_digest): the file was damaged after it was written; delete "
+                             "it and run the step that writes it again")
     for v in REQUIRED:
         vals = np.asarray(ds[v].values, float)
         if not np.all(np.isfinite(vals)):
