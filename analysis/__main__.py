@@ -230,8 +230,9 @@ def cmd_figure(args, params) -> None:
     dpi = f["dpi"]
     name = args.name
     if name == "convergence":
-        _require(first, inputs[first_lab], ("stress", "strain_increment", "n_particles"))
-        figures.fig_convergence(first, args.out, dpi)
+        for lab, ds in data.items():
+            _require(ds, inputs[lab], ("stress", "strain_increment", "n_particles"))
+        figures.fig_convergence(list(data.values()), args.out, dpi)
     elif name == "vertical-strain":
         for lab, ds in data.items():
             _require(ds, inputs[lab], ("strain_increment",))

@@ -17,6 +17,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
+from .elastic import mask_counts  # noqa: E402
 from .netcdf import atomic_path  # noqa: E402
 
 COMPONENTS = (("x", "x", "xx"), ("y", "y", "yy"), ("x", "y", "xy"))
@@ -60,6 +61,9 @@ def _rows(ds: xr.Dataset, heights: list[float]) -> list[tuple[int, float]]:
 
 
 def _band(ax, x, mean, sem, **kw):
+    """Line ``mean`` with the band ``mean ± sem``; nothing (None, so no legend entry) where no value is finite."""
+    if not np.isfinite(mean).any():
+        return None
     line, = ax.plot(x, mean, **kw)
     if sem is not None:
         ok = np.isfinite(mean) & np.isfinite(sem)
@@ -76,31 +80,61 @@ def _sem(ds, name, sel=None):
     return (v.sel(sel) if sel else v).values
 
 
-def fig_convergence(conv: xr.Dataset, outputs: list[str], dpi: int = 150) -> None:
-    """Fig. 1: stress (a) and strain-increment (b) components against the particle count of the RVE."""
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), layout="constrained")
-    markers = "os^vD<>"
-    for p in range(conv.sizes["point"]):
-        sub = conv.isel(point=p)
-        n = sub["n_particles"].values
-        lab = f"({float(sub['point_x']):.2f}, {float(sub['point_y']):.2f}) m"
-        for (i, j, c), ls in zip(COMPONENTS, ("-", "--", ":")):
-            axes[0].plot(n, sub["stress"].sel(i=i, j=j).values, ls, marker=markers[p % 7], ms=3,
-                         label=f"σ_{c} at {lab}")
-            axes[1].plot(n, sub["strain_increment"].sel(i=i, j=j).values, ls, marker=markers[p % 7], ms=3,
-                         label=f"u_{c} at {lab}")
-    for ax, t in zip(axes, ("a  stress at full gravity", "b  strain increment (relaxed → reduced)")):
-        ax.set_xscale("log")
-        ax.set_xlabel("particles in the RVE")
-        ax.axvspan(100, 200, color="0.9", zorder=0)
-        ax.set_title(t, loc="left", fontsize=10)
-        ax.legend(fontsize=6, ncol=1)
-    axes[0].set_ylabel("stress (N/m)")
-    axes[1].set_ylabel("strain (1)")
-    _sci(axes[1], "y")
-    fig.suptitle(f"RVE-size convergence, protocol {conv.attrs.get('protocol', '')}, 1 pile "
-                 f"(seed {conv.attrs.get('seed', '')}), {conv.attrs.get('rve_shape', '')} RVEs; "
-                 "shaded: 100–200 particles", fontsize=10)
+def fig_convergence(convs: xr.Dataset | list[xr.Dataset], outputs: list[str], dpi: int = 150) -> None:
+    """Fig. 1: stress (top) and strain increment (bottom) against the particle count of the RVE, over piles.
+
+    Parameters
+    ----------
+    convs : xarray.Dataset or list of them
+        The convergence files (``seed{seed}.convergence.nc``) of one
+        protocol's piles, with the same points and RVE sizes.
+    outputs : list of str
+        Files to write (format from the extension).
+    dpi : int
+        Resolution of raster outputs.
+
+    Notes
+    -----
+    One column per fixed point; per component the median over piles at each
+    RVE size against the median particle count, the band the 25–75 % range
+    over piles (the spread of single piles, which is what an RVE must tame).
+    """
+    convs = [convs] if isinstance(convs, xr.Dataset) else list(convs)
+    first = convs[0]
+    sizes = first["rve_size"].values
+    for c in convs[1:]:
+        if not np.array_equal(c["rve_size"].values, sizes) or c.sizes["point"] != first.sizes["point"]:
+            raise ValueError("the convergence files do not share their RVE sizes and points")
+    npt = first.sizes["point"]
+    fig, axes = plt.subplots(2, npt, figsize=(4.2 * npt + 1, 7.5), sharex=True, squeeze=False, layout="constrained")
+    n = np.median(np.stack([c["n_particles"].values for c in convs]), axis=0)          # (size, point)
+    seeds = [str(c.attrs.get("seed", "?")) for c in convs]
+    for p in range(npt):
+        lab = f"({float(first['point_x'][p]):.2f}, {float(first['point_y'][p]):.2f}) m"
+        for row, (name, sym) in enumerate((("stress", "σ"), ("strain_increment", "u"))):
+            ax = axes[row, p]
+            for i, j, c in COMPONENTS:
+                v = np.stack([d[name].isel(point=p).sel(i=i, j=j).values for d in convs])   # (pile, size)
+                with np.errstate(all="ignore"):
+                    lo, med, hi = np.nanpercentile(v, [25, 50, 75], axis=0) if len(convs) > 1 else (None, v[0], None)
+                line, = ax.plot(n[:, p], med, marker="o", ms=3, label=f"{sym}_{c}")
+                if lo is not None:
+                    ax.fill_between(n[:, p], lo, hi, color=line.get_color(), alpha=0.25, linewidth=0)
+            ax.set_xscale("log")
+            ax.axvspan(100, 200, color="0.9", zorder=0)
+            ax.axhline(0, color="0.6", lw=0.5)
+            ax.legend(fontsize=7)
+            if row == 0:
+                ax.set_title(f"point {lab}", fontsize=9)
+        axes[1, p].set_xlabel("particles in the RVE (median over piles)")
+    axes[0, 0].set_ylabel("a  stress at full gravity (N/m)")
+    axes[1, 0].set_ylabel("b  strain increment, relaxed → reduced (1)")
+    for ax in axes[1]:
+        _sci(ax, "y")
+    spread = "lines: median over piles, bands: 25–75 %" if len(convs) > 1 else "one pile"
+    fig.suptitle(f"RVE-size convergence, protocol {first.attrs.get('protocol', '')}, {len(convs)} "
+                 f"pile{'s' if len(convs) != 1 else ''} (seed{'s' if len(convs) != 1 else ''} {', '.join(seeds)}), "
+                 f"{first.attrs.get('rve_shape', '')} RVEs; {spread}; shaded: 100–200 particles", fontsize=10)
     save(fig, outputs, dpi)
 
 
@@ -159,32 +193,105 @@ def fig_fabric(ds: xr.Dataset, heights: list[float], outputs: list[str], dpi: in
     save(fig, outputs, dpi)
 
 
+#: Fig. 4's panels as in the paper: per row (label, quantity) of the isotropic and the cubic column;
+#: the columns' (law, fit, m, title).
+MODULI_ROWS = ((("K", "bulk_modulus"), ("K = (λ1 + λ2)/2", "bulk_modulus_cubic")),
+               (("E = 3G − G²/K", "youngs_modulus"), ("E_av", "E_av")),
+               (("G", "shear_modulus"), ("G_av", "G_av")))
+MODULI_COLUMNS = (("isotropic", "modulus", 1, "isotropic, fit of moduli (S′, Eq. 21), m = 1"),
+                  ("cubic", "compliance", 5, "cubic, fit of compliances (S̃, Eq. 18), m = 5"))
+
+
+def _share(reason: np.ndarray, why: str = "masked") -> float:
+    """Share of the fits made (:func:`analysis.elastic.mask_counts`) that are masked, or masked for ``why``."""
+    counts = mask_counts(reason)
+    return counts[why] / counts["fitted"] if counts["fitted"] else np.nan
+
+
 def fig_moduli(mod: xr.Dataset, heights: list[float], outputs: list[str], dpi: int = 150, protocol: str = "") -> None:
-    """Fig. 4: left isotropic K, E, G (S′, m = 1); right cubic K, E_av, G_av (S̃, m = 5)."""
-    fig, axes = plt.subplots(3, 2, figsize=(11, 10), sharex=True, layout="constrained")
+    """Fig. 4: left isotropic K, E, G (S′, m = 1); right cubic K, E_av, G_av (S̃, m = 5).
+
+    Parameters
+    ----------
+    mod : xarray.Dataset
+        ``moduli.nc`` of one protocol.
+    heights : list of float
+        Layers (m; nearest grid row), the paper's 4.5–27 cm.
+    outputs : list of str
+        Files to write.
+    dpi : int
+        Resolution of raster outputs.
+    protocol : str
+        Name in the title (default: the file's attribute).
+
+    Notes
+    -----
+    Lines: the mean over piles of the piles' own fits (``<name>_pile_mean``),
+    bands ± ``<name>_sem``, the standard error over those piles; dotted: the
+    fit of the ensemble mean (``<name>``, the paper's way). With
+    ``uncertainty_method`` ``bootstrap`` the line is the fit of the ensemble
+    mean and the band its bootstrap spread. Masked fits (``mask_reason``:
+    ill-conditioned, not positive definite, too few valid piles) are NaN and
+    not drawn; each legend gives per layer the share of its RVEs whose mean
+    over piles is masked, heights with nothing to draw are left out. All panels
+    share one scale, from the values drawn.
+    """
+    fig, axes = plt.subplots(3, 2, figsize=(11, 10), sharex=True, sharey=True, layout="constrained")
     x = mod["x"].values
     rows = _rows(mod, heights)
-    left = mod.sel(fit="modulus", points=1)
-    right = mod.sel(fit="compliance", points=5)
-    spec = ((("bulk_modulus", "K"), ("bulk_modulus_cubic", "K")),
-            (("youngs_modulus", "E = 3G − G²/K"), ("E_av", "E_av")),
-            (("shear_modulus", "G"), ("G_av", "G_av")))
-    for r, ((ln, ll), (rn, rl)) in enumerate(spec):
-        for (k, h) in rows:
-            _band(axes[r, 0], x, left[ln].isel(y=k).values, left[f"{ln}_sem"].isel(y=k).values,
-                  label=f"y = {h * 100:.1f} cm")
-            _band(axes[r, 1], x, right[rn].isel(y=k).values, right[f"{rn}_sem"].isel(y=k).values,
-                  label=f"y = {h * 100:.1f} cm")
-        axes[r, 0].set_ylabel(f"{ll} (N/m)")
-        axes[r, 1].set_ylabel(f"{rl} (N/m)")
-    axes[0, 0].set_title("isotropic, fit of moduli (S′, Eq. 21), m = 1", fontsize=9)
-    axes[0, 1].set_title("cubic, fit of compliances (S̃, Eq. 18), m = 5", fontsize=9)
-    axes[0, 0].legend(fontsize=7)
+    piles = mod.attrs.get("uncertainty_method", "pile_fits") == "pile_fits" and "bulk_modulus_pile_mean" in mod
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    drawn = []
+    for col, (law, fit, m, title) in enumerate(MODULI_COLUMNS):
+        sub = mod.sel(fit=fit, points=m)
+        reason = sub[f"{law}_mask_reason_pile_mean" if piles else f"{law}_mask_reason"].values
+        empty = []
+        for r, panels in enumerate(MODULI_ROWS):
+            ax = axes[r, col]
+            label, name = panels[col]
+            for n_row, (k, h) in enumerate(rows):
+                colour = colours[n_row % len(colours)]
+                main = sub[f"{name}_pile_mean" if piles else name].isel(y=k).values
+                sem = sub[f"{name}_sem"].isel(y=k).values
+                share = _share(reason[k])
+                line = _band(ax, x, main, sem, color=colour, marker="o", ms=2,
+                             label=f"y = {h * 100:.1f} cm ({100 * share:.0f} % masked)")
+                if line is None and r == 0 and np.isfinite(share):
+                    empty.append(f"{h * 100:.1f}")
+                if line is not None:
+                    drawn.append(main[np.isfinite(main)])
+                if piles:
+                    ens = sub[name].isel(y=k).values
+                    if np.isfinite(ens).any():
+                        ax.plot(x, ens, ":", color=colour, lw=1)
+                        drawn.append(ens[np.isfinite(ens)])
+            ax.set_ylabel(f"{label} (N/m)")
+            ax.axhline(0, color="0.6", lw=0.5)
+        note = f"masked: {100 * _share(reason):.0f} % of the RVEs fitted"
+        if f"{law}_mask_reason_piles" in sub:
+            own = sub[f"{law}_mask_reason_piles"].values
+            note += (f"\nthe piles' own fits: {100 * _share(own, 'not_positive_definite'):.0f} % not positive "
+                     f"definite, {100 * _share(own, 'ill_conditioned'):.0f} % ill-conditioned")
+        if empty:
+            note += f"\nnothing left to draw at y = {', '.join(empty)} cm"
+        axes[0, col].set_title(f"{title}\n{note}", fontsize=8)
+        if axes[0, col].get_legend_handles_labels()[0]:
+            axes[0, col].legend(fontsize=7, loc="upper right")
+    values = np.concatenate(drawn) if drawn else np.zeros(1)
+    hi = float(np.percentile(values, 99.5)) if values.size else 1.0
+    lo = min(0.0, float(np.percentile(values, 0.5)))
+    axes[0, 0].set_ylim(lo - 0.05 * (hi - lo), hi + 0.15 * (hi - lo))
+    for ax in axes.ravel():
+        _sci(ax, "y")
     for ax in axes[-1]:
         ax.set_xlabel("x (m)")
+    what = ("lines: mean over piles of each pile's own fit, bands: ± standard error over piles, dotted: fit of "
+            "the ensemble mean" if piles
+            else f"fit of the ensemble mean, bands: {mod.attrs.get('uncertainty_method', '')}")
     fig.suptitle(f"Elastic moduli, protocol {protocol or mod.attrs.get('protocol', '')} "
-                 f"({_npiles(mod)}, {_rve_label(mod)}); bands: {mod.attrs.get('uncertainty_method', '')}",
-                 fontsize=10)
+                 f"({_npiles(mod)}, {_rve_label(mod)})\n{what}\nnot drawn (masked): fits with a condition number "
+                 f"above {float(mod.attrs.get('max_condition', np.nan)):g} or not positive definite, means over "
+                 f"fewer than {100 * float(mod.attrs.get('min_valid_piles', np.nan)):.0f} % of the piles", fontsize=9)
     save(fig, outputs, dpi)
 
 

@@ -194,7 +194,8 @@ def test_fit_all_on_a_grid_points_and_average():
     assert valid.sum() > 0.8 * valid.size
     np.testing.assert_allclose(m5[valid], L3, rtol=1e-9)
     # m = 1 uses one sample: the masked point is NaN and flagged
-    assert np.isnan(res["bulk_modulus"][0, 0, 0, 0]) and res["isotropic_flag"][0, 0, 0, 0] & FIT_INSUFFICIENT_POINTS
+    assert np.isnan(res["bulk_modulus"][0, 0, 0, 0])
+    assert res["isotropic_mask_reason"][0, 0, 0, 0] & FIT_INSUFFICIENT_POINTS
     avg = res["E_av"][2]
     np.testing.assert_allclose(avg, 0.5 * (res["E_av"][0] + res["E_av"][1]), equal_nan=True)
     assert not np.isinf(np.concatenate([v.ravel() for k, v in res.items() if v.dtype.kind == "f"])).any()
@@ -301,3 +302,233 @@ def test_per_pile_fits_leave_out_a_pile_where_it_slipped():
     kept[1, 2] = False
     np.testing.assert_allclose(sem[:, 1, 2], np.std(K[:3], ddof=1) / np.sqrt(3), rtol=1e-9)
     np.testing.assert_allclose(sem[:, kept], np.std(K, ddof=1) / 2, rtol=1e-9)
+
+
+# ---------------------------------------------------------------- conditioning and masks (issue 27)
+def _hooke(u, K, G):
+    """Isotropic 2D Hooke's law: tr σ = 2K tr u, dev σ = 2G dev u."""
+    tr = (u[..., 0, 0] + u[..., 1, 1])[..., None, None]
+    return K * tr * np.eye(2) + 2 * G * (u - 0.5 * tr * np.eye(2))
+
+
+def _grid_strains(rng, shape=(5, 6)):
+    """Strain increments of an unloaded pile: u_yy about 2e-4, u_xx 0.5e-4, every
+    mode excited at every RVE (|u_xy| 0.3–0.6e-4, random sign), so that the
+    one-sample (m = 1) fits are well posed."""
+    u = np.zeros(shape + (2, 2))
+    u[..., 0, 0] = 0.5 * STRAIN * (1 + 0.3 * rng.standard_normal(shape))
+    u[..., 1, 1] = 2.0 * STRAIN * (1 + 0.3 * rng.standard_normal(shape))
+    u[..., 0, 1] = u[..., 1, 0] = STRAIN * rng.uniform(0.3, 0.6, shape) * rng.choice([-1, 1], shape)
+    return u
+
+
+def test_a_noisy_isotropic_material_is_recovered_well_conditioned_and_kept():
+    """Stress increments from Hooke's law with known K, G plus 0.5 % noise:
+    every fit (both methods and their average, m = 1 and 5) recovers K and G,
+    its condition number is that of the material, max(K, G)/min(K, G) = 2.5,
+    and nothing is masked; the cubic fit of the same data is the isotropic
+    limit (λ1 = K + G, λ2 = K − G, λ3 = G), positive definite with the same
+    condition number."""
+    from analysis.elastic import FIT_ILL_CONDITIONED
+
+    rng = np.random.default_rng(11)
+    u = _grid_strains(rng)
+    sig = _hooke(u, K0, G0)
+    sig = sig + _sym(rng, u.shape[:2], 0.005 * np.abs(sig).mean())
+    res = fit_all(sig, u, min_points=3, max_condition=10.0)
+    for law in ("isotropic", "cubic"):
+        fitted = res[f"{law}_mask_reason"][:, 1] & ~FIT_INSUFFICIENT_POINTS   # m = 5 at the grid's corners: 3 points
+        assert np.all(fitted == 0) and np.all(res[f"{law}_mask_reason"][:, 0] == 0), law
+    np.testing.assert_allclose(res["bulk_modulus"], K0, rtol=0.05)
+    np.testing.assert_allclose(res["shear_modulus"], G0, rtol=0.05)
+    np.testing.assert_allclose(res["isotropic_condition"], K0 / G0, rtol=0.1)
+    five = np.s_[:, 1]                                    # m = 5: the cubic modes have 5 samples each
+    np.testing.assert_allclose(res["lambda1"][five], K0 + G0, rtol=0.05)
+    np.testing.assert_allclose(res["lambda3"][five], G0, rtol=0.1)
+    np.testing.assert_allclose(res["cubic_condition"][five], K0 / G0, rtol=0.2)
+    assert not np.any(res["cubic_mask_reason"] & FIT_ILL_CONDITIONED)
+
+
+def test_the_condition_number_is_the_ratio_of_the_mode_stiffnesses():
+    """κ of a fit is max/min of |2K|, |2G| (isotropic) and of |λ1 + λ2|,
+    |λ1 − λ2|, |2λ3| (cubic), the eigenvalues of the Mandel stiffness."""
+    from analysis.elastic import fit_quality
+    from analysis.general_elastic import cubic_stiffness, isotropic_stiffness
+
+    kappa, _ = fit_quality(isotropic_stiffness(np.array([1e6, 1e6]), np.array([2e5, -5e4])))
+    np.testing.assert_allclose(kappa, [5.0, 20.0])
+    l1, l2, l3 = np.array([1.2e6, 1.0e6, 1.0e6]), np.array([0.3e6, 0.99e6, -0.3e6]), np.array([0.2e6, 0.4e6, 0.4e6])
+    modes = np.abs(np.stack([l1 + l2, l1 - l2, 2 * l3]))
+    kappa, _ = fit_quality(cubic_stiffness(l1, l2, l3))
+    np.testing.assert_allclose(kappa, modes.max(0) / modes.min(0), rtol=1e-12)
+    kappa, reason = fit_quality(np.full((3, 3), np.nan))
+    assert np.isnan(kappa) and reason == 0
+
+
+def test_orthogonal_deviatoric_stress_and_strain_are_ill_conditioned_and_masked():
+    """The deviatoric stress increment turned by 90° against the deviatoric
+    strain in the (u_xx − u_yy, 2u_xy) plane: <(σxx−σyy)(uxx−uyy)> + 4<σxy uxy> = 0,
+    so the fit of moduli gives G = 0 (K stays exact) and that of compliances
+    1/(2G) = 0: the condition number K/|G| is unbounded and every isotropic fit
+    is masked, at m = 1 and at m = 5."""
+    from analysis.elastic import FIT_DEGENERATE, FIT_ILL_CONDITIONED
+
+    rng = np.random.default_rng(12)
+    u = _grid_strains(rng)
+    tr = (u[..., 0, 0] + u[..., 1, 1])[..., None, None]
+    d, e = u[..., 0, 0] - u[..., 1, 1], u[..., 0, 1]
+    sig = K0 * tr * np.eye(2) + np.zeros_like(u)
+    sig[..., 0, 0] += 2 * G0 * (-2 * e) / 2                 # σxx − σyy = 2G (−2 u_xy)
+    sig[..., 1, 1] -= 2 * G0 * (-2 * e) / 2
+    sig[..., 0, 1] = sig[..., 1, 0] = G0 * d                # 2σxy = 2G (u_xx − u_yy)
+    D, S = sig[..., 0, 0] - sig[..., 1, 1], sig[..., 0, 1]
+    np.testing.assert_allclose(D * d + 4 * S * e, 0.0, atol=1e-12 * K0 * STRAIN ** 2)
+    res = fit_all(sig, u, min_points=3, max_condition=10.0)
+    iso = res["isotropic_mask_reason"]
+    tried = (iso & FIT_INSUFFICIENT_POINTS) == 0
+    assert np.all(iso[tried] & (FIT_ILL_CONDITIONED | FIT_DEGENERATE))
+    modulus = FITS.index("modulus")                            # fit of moduli: G ~ 0, K/|G| unbounded
+    assert np.all(iso[modulus][tried[modulus]] & FIT_ILL_CONDITIONED)
+    assert np.all(res["isotropic_condition"][modulus][tried[modulus]] > 1e6)
+    compliance = FITS.index("compliance")                      # fit of compliances: 1/(2G) = 0
+    assert np.all(iso[compliance][tried[compliance]] & (FIT_ILL_CONDITIONED | FIT_DEGENERATE))
+    assert np.all(np.isnan(res["bulk_modulus"])) and np.all(np.isnan(res["youngs_modulus"]))
+
+
+def test_s1_close_to_s2_is_ill_conditioned_and_masked():
+    """At m = 1 the cubic fit of compliances is exact: s1 − s2 = (u_xx − u_yy)/(σxx − σyy).
+    A normal deviatoric strain 1e-3 of the elastic one (its stress and strain
+    nearly decorrelated) gives s1 ≈ s2 and λ1 − λ2 = 1/(s1 − s2) 1000 times too
+    large: λ1 and G_av become spikes unless the fit is masked as ill-conditioned;
+    with exactly no normal deviatoric strain, s1 = s2 and the inversion of
+    Eq. 20 is degenerate."""
+    from analysis.elastic import FIT_DEGENERATE, FIT_ILL_CONDITIONED
+
+    rng = np.random.default_rng(13)
+    u = _grid_strains(rng)
+    sig = _stress(u, L1, L2, L3)
+    mean = 0.5 * (u[..., 0, 0] + u[..., 1, 1])
+    for scale, bit in ((1e-3, FIT_ILL_CONDITIONED), (0.0, FIT_DEGENERATE)):
+        v = u.copy()
+        half = 0.5 * scale * (u[..., 0, 0] - u[..., 1, 1])
+        v[..., 0, 0], v[..., 1, 1] = mean + half, mean - half
+        at = (FITS.index("compliance"), POINTS.index(1))
+        loose = fit_all(sig, v, max_condition=np.inf)["G_av"][at]
+        res = fit_all(sig, v, max_condition=10.0)
+        reason = res["cubic_mask_reason"][at]
+        assert np.all(reason & bit) and np.all(np.isnan(res["G_av"][at])) and np.all(np.isnan(res["lambda1"][at]))
+        if scale:
+            assert np.all(res["cubic_condition"][at] > 100)
+            assert np.nanmin(np.abs(loose)) > 50 * L1                       # the spike the mask removes
+
+
+def test_a_negative_modulus_is_masked_as_not_positive_definite():
+    """Exact data of unstable laws are fitted exactly and well conditioned, and
+    still masked, as not positive definite: isotropic G < 0; cubic λ3 < 0; cubic
+    λ2 > λ1 > 0 (both positive, yet λ1 − λ2 < 0). A positive definite law with
+    λ2 < 0 (a negative Poisson ratio, λ1 > |λ2|) is kept."""
+    from analysis.elastic import FIT_ILL_CONDITIONED, FIT_NOT_POSITIVE
+
+    rng = np.random.default_rng(14)
+    u = _grid_strains(rng)
+    one = np.s_[:, 0]                                     # m = 1: every RVE has its point
+    res = fit_all(_hooke(u, K0, -0.3e6), u, max_condition=10.0)
+    assert np.all(res["isotropic_mask_reason"][one] == FIT_NOT_POSITIVE)
+    np.testing.assert_allclose(res["isotropic_condition"][one], K0 / 0.3e6, rtol=1e-9)
+    assert np.all(np.isnan(res["shear_modulus"][one]))
+    for (l1, l2, l3), bad in (((L1, L2, -L3), True), ((L2, L1, L3), True), ((1.0e6, -0.3e6, 0.4e6), False)):
+        r = fit_all(_stress(u, l1, l2, l3), u, max_condition=10.0)
+        assert not np.any(r["cubic_mask_reason"][one] & FIT_ILL_CONDITIONED)
+        if bad:
+            assert np.all(r["cubic_mask_reason"][one] == FIT_NOT_POSITIVE) and np.all(np.isnan(r["lambda1"][one]))
+        else:
+            assert np.all(r["cubic_mask_reason"][one] == 0)
+            np.testing.assert_allclose(r["lambda2"][one], l2, rtol=1e-9)
+
+
+def _piles_dataset(K, G, seed=3):
+    """Per-pile fields of exactly isotropic piles of moduli ``K[k]`` and ``G[k]`` (arrays over (y, x) or scalars)."""
+    import xarray as xr
+
+    from analysis.netcdf import tensor_coords, var
+
+    coords = {"y": var("y", [0.03, 0.045, 0.06], "y", "m"),
+              "x": var("x", [-0.015, 0.0, 0.015, 0.03], "x", "m"), **tensor_coords()}
+    piles = []
+    for n, (k, g) in enumerate(zip(K, G)):
+        u = _sym(np.random.default_rng(seed), (3, 4), STRAIN)
+        sigma = _hooke(u, np.asarray(k)[..., None, None], np.asarray(g)[..., None, None])
+        pile = xr.Dataset(coords=coords, attrs={"seed": n + 1})
+        pile["stress_increment"] = var(("y", "x", "i", "j"), sigma, "dsigma", "N m-1")
+        pile["strain_increment"] = var(("y", "x", "i", "j"), u, "u", "1")
+        piles.append(pile)
+    return piles
+
+
+def test_the_mean_over_piles_leaves_out_masked_piles_and_is_masked_where_most_fail():
+    """Four isotropic piles; one has G < 0 at RVE (0, 1), three have it at RVE
+    (2, 3). Where one fails, the mean over piles and its standard error are those
+    of the other three; where three fail, too few piles are valid
+    (few_valid_piles) and the fit of the ensemble mean is not positive definite."""
+    from analysis.elastic import FIT_FEW_PILES, FIT_NOT_POSITIVE, moduli_dataset
+    from analysis.params import resolve_params
+
+    G = [np.full((3, 4), g) for g in (1.0e6, 1.2e6, 0.9e6, 1.1e6)]
+    K = [3.0e6] * 4
+    G[3][0, 1] = -0.5e6
+    for k in (0, 1, 2):
+        G[k][2, 3] = -0.4e6
+    piles = _piles_dataset(K, G)
+    ensemble = (sum(piles) / 4).assign_attrs(n_seeds=4, protocol="wedge")
+    ds = moduli_dataset(ensemble, piles, resolve_params({"moduli": {"min_points": 1}})).sel(fit="modulus", points=1)
+    g = np.array([1.0e6, 1.2e6, 0.9e6])
+    assert ds["shear_modulus_pile_mean"].values[0, 1] == pytest.approx(g.mean(), rel=1e-9)
+    assert ds["shear_modulus_sem"].values[0, 1] == pytest.approx(np.std(g, ddof=1) / np.sqrt(3), rel=1e-9)
+    assert ds["isotropic_n_piles"].values[0, 1] == 3
+    assert ds["isotropic_mask_reason_piles"].values[3, 0, 1] == FIT_NOT_POSITIVE
+    assert ds["isotropic_mask_reason_pile_mean"].values[2, 3] == FIT_FEW_PILES
+    assert np.isnan(ds["shear_modulus_pile_mean"].values[2, 3]) and np.isnan(ds["bulk_modulus_sem"].values[2, 3])
+    # the ensemble mean's G = (3 (−0.4) + 1.1)/4 = −0.025e6: not positive definite (and ill-conditioned)
+    assert ds["isotropic_mask_reason"].values[2, 3] & FIT_NOT_POSITIVE and np.isnan(ds["bulk_modulus"].values[2, 3])
+    ok = np.ones((3, 4), bool)
+    ok[0, 1] = ok[2, 3] = False
+    np.testing.assert_allclose(ds["shear_modulus_pile_mean"].values[ok], 1.05e6, rtol=1e-9)
+    assert np.all(ds["isotropic_n_piles"].values[ok] == 4)
+
+
+def test_fig4_draws_no_masked_value_and_labels_only_drawn_heights(tmp_path, monkeypatch):
+    """Fig. 4 of piles whose top row is unstable in every pile: no line holds a
+    value of a masked RVE, the top row has no legend entry, and the shared
+    scale is set by the values drawn."""
+    from analysis import figures
+    from analysis.elastic import moduli_dataset
+    from analysis.params import resolve_params
+
+    G = [np.full((3, 4), g) for g in (1.0e6, 1.2e6, 0.9e6)]
+    for g in G:
+        g[2] = -0.5e6
+    piles = _piles_dataset([3.0e6] * 3, G)
+    mod = moduli_dataset((sum(piles) / 3).assign_attrs(n_seeds=3, protocol="wedge"), piles,
+                         resolve_params({"moduli": {"min_points": 1}}))
+    drawn = {}
+    monkeypatch.setattr(figures, "save", lambda fig, outputs, dpi=150: drawn.setdefault("fig", fig))
+    figures.fig_moduli(mod, [0.03, 0.045, 0.06], [str(tmp_path / "f.png")])
+    ax = drawn["fig"].axes[0]                                   # isotropic K
+    labels = ax.get_legend_handles_labels()[1]
+    assert [lab.split(" (")[0] for lab in labels] == ["y = 3.0 cm", "y = 4.5 cm"]
+    masked = mod["isotropic_mask_reason_pile_mean"].sel(fit="modulus", points=1).values != 0
+    assert masked[2].all() and not masked[:2].any()
+    iso = mod.sel(fit="modulus", points=1)
+    kept = np.concatenate([iso[name].values[:2].ravel() for name in ("bulk_modulus", "bulk_modulus_pile_mean")])
+    drawn_values = []
+    for line in ax.get_lines():
+        y = np.asarray(line.get_ydata(), float)
+        y = y[np.isfinite(y) & (y != 0)]                        # the zero line left out
+        assert np.all(np.isin(np.round(y), np.round(kept))), "a value of no kept RVE is drawn"
+        drawn_values.append(y)
+    assert np.concatenate(drawn_values).size == 2 * 2 * 4       # two rows, mean over piles and ensemble fit
+    everything = [np.asarray(line.get_ydata(), float) for a in drawn["fig"].axes for line in a.get_lines()]
+    top = max(np.nanmax(y) for y in everything if np.isfinite(y).any())
+    lo, hi = ax.get_ylim()
+    assert drawn["fig"].axes[5].get_ylim() == (lo, hi)         # one scale for all panels
+    assert lo <= 0 and top < hi < 1.25 * top

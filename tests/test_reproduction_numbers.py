@@ -101,3 +101,53 @@ def test_per_pile_reversibility_and_its_standard_error_over_piles(tmp_path):
     lines = numbers.per_pile_probes(paths)
     assert lines == ["seed 1: median reversibility 0.80", "seed 2: median reversibility 0.50",
                      "median reversibility, mean over the 2 piles: 0.65 ± 0.15"]
+
+
+def test_moduli_lines_give_the_share_masked_per_layer_as_counted_from_the_piles():
+    """Four exactly isotropic piles (K = 3e6, G = 1e6 N/m) on a 3 × 4 grid,
+    made unstable (G < 0) where chosen: pile 0 at two RVEs of the middle row,
+    every pile at one RVE of the top row. The isotropic column of the table
+    is the share of those RVEs counted here from that choice: for the fit of
+    the ensemble mean only the top RVE fails (the middle row's mean G is
+    0.7e6), for the piles' own fits 2 and 4 of the 16 pile-RVEs of a row, for
+    the mean over piles the top RVE; and the medians are over the RVEs kept."""
+    from analysis.elastic import moduli_dataset
+    from analysis.netcdf import tensor_coords, var
+    from analysis.params import resolve_params
+
+    ny, nx, n = 3, 4, 4
+    unstable = np.zeros((n, ny, nx), bool)
+    unstable[0, 1, :2] = True
+    unstable[:, 2, 3] = True
+    y = np.array([0.045, 0.09, 0.135])
+    coords = {"y": var("y", y, "y", "m"), "x": var("x", [-0.03, -0.015, 0.0, 0.015], "x", "m"),
+              **tensor_coords()}
+    rng = np.random.default_rng(4)
+    u = 1e-4 * rng.standard_normal((ny, nx, 2, 2))
+    u = 0.5 * (u + np.swapaxes(u, -1, -2))
+    tr = (u[..., 0, 0] + u[..., 1, 1])[..., None, None]
+    piles = []
+    for k in range(n):
+        G = np.where(unstable[k], -0.2e6, 1.0e6)[..., None, None]
+        sigma = 3.0e6 * tr * np.eye(2) + 2 * G * (u - 0.5 * tr * np.eye(2))
+        pile = xr.Dataset(coords=coords, attrs={"seed": k + 1})
+        pile["stress_increment"] = var(("y", "x", "i", "j"), sigma, "dsigma", "N m-1")
+        pile["strain_increment"] = var(("y", "x", "i", "j"), u, "u", "1")
+        piles.append(pile)
+    ensemble = (sum(piles) / n).assign_attrs(n_seeds=n, protocol="wedge")
+    md = moduli_dataset(ensemble, piles, resolve_params({"moduli": {"min_points": 1}}))
+    lines = numbers.moduli(md, list(y))
+
+    def pct(count, total):
+        return f"{100 * count / total:.0f} %"
+
+    mean_g = 0.25 * np.where(unstable, -0.2e6, 1.0e6).sum(axis=0)
+    for row in range(ny):
+        ens = pct(np.sum(mean_g[row] <= 0), nx)
+        own = pct(unstable[:, row].sum(), n * nx)
+        mean = pct(np.sum(unstable[:, row].sum(axis=0) > n / 2), nx)
+        cell = next(line for line in lines if line.startswith(f"| {100 * y[row]:.1f} |")).split(" | ")[1]
+        assert cell == f"{ens} / {own} / {mean} of {nx}", (row, cell)
+    total = next(line for line in lines if line.startswith("| all RVEs |")).split(" | ")[1]
+    assert total == f"{pct(1, ny * nx)} / {pct(unstable.sum(), n * ny * nx)} / {pct(1, ny * nx)} of {ny * nx}"
+    assert "| K (isotropic, m = 1) | S′ | 3e+06 N/m (11 / 12) | 3e+06 N/m (11 / 12) |" in lines

@@ -167,8 +167,8 @@ rule analysis_invariants:
 
 
 rule analysis_convergence:
-    # One pile's fields at fixed points against RVE size (Fig. 1); the scene
-    # asks for it for one seed (analysis.convergence.seed).
+    # One pile's fields at fixed points against RVE size (Fig. 1); Fig. 1 asks
+    # for it for every pile of its protocol, or for one (analysis.convergence.seed).
     input:
         relaxed=pile("{protocol}", "{seed}", "relaxed"),
         reduced=pile("{protocol}", "{seed}", "reduced"),
@@ -195,7 +195,7 @@ rule analysis_convergence:
 
 rule analysis_figure_convergence:
     input:
-        data=_analysis_convergence_file,
+        data=_analysis_convergence_files,
         code=ANALYSIS_CODE,
     output:
         png=report("results/figures/fig1_convergence.png", caption="../report/analysis/fig1_convergence.rst",
@@ -203,7 +203,8 @@ rule analysis_figure_convergence:
         pdf="results/figures/fig1_convergence.pdf",
     params:
         cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("convergence_protocol")]),
+        inputs=lambda wc, input: _labelled(input.data, [f"seed{s}" for s in
+                                                        _analysis_convergence_seeds(_analysis_protocol("convergence_protocol"))]),
     log:
         "logs/analysis/figures/fig1_convergence.log",
     localrule: True

@@ -93,9 +93,10 @@ def _analysis_protocol(key):
     return p if p in PROTOCOLS else PROTOCOLS[0]
 
 
-def _analysis_convergence_seed(protocol):
+def _analysis_convergence_seeds(protocol):
+    """The piles of Fig. 1: every pile of the protocol (analysis.convergence.seed null), else the one given."""
     s = _analysis_setting("convergence", "seed", None)
-    return analysis_seeds(protocol, "convergence")[0] if s is None else s
+    return analysis_seeds(protocol, "convergence") if s is None else [s]
 
 
 def _analysis_fields(wildcards):
@@ -107,9 +108,10 @@ def _analysis_base_pressure_piles(wildcards):
     return [pile_result(p, s, "base_pressure") for s in analysis_seeds(p, "base_pressure")]
 
 
-def _analysis_convergence_file(wildcards):
+def _analysis_convergence_files(wildcards):
+    """The convergence files of Fig. 1's piles (_analysis_convergence_seeds)."""
     p = _analysis_protocol("convergence_protocol")
-    return pile_result(p, _analysis_convergence_seed(p), "convergence")
+    return [pile_result(p, s, "convergence") for s in _analysis_convergence_seeds(p)]
 
 
 def analysis_targets():
@@ -117,7 +119,7 @@ def analysis_targets():
     names = [name for output, files in ANALYSIS_ENSEMBLE.items() if wants(output) for name in files]
     targets = [f"results/ensemble/{p}/{name}" for p in PROTOCOLS for name in names]
     if wants("strain"):
-        targets += [_analysis_convergence_file(None)]
+        targets += _analysis_convergence_files(None)
     if wants("figures"):
         targets += [f"results/figures/{stem}.{ext}" for stem, output in ANALYSIS_FIGURES.items()
                     if wants(output) for ext in ("png", "pdf")]

@@ -57,7 +57,7 @@ def _check_scene():
                 problems.append(
                     f"analysis.convergence.seed = {seed} is not a seed of protocol "
                     f"{protocol} (seeds {seeds(protocol)}): the convergence study would "
-                    "pour a pile outside the study; give one of its seeds or null (the first)"
+                    "pour a pile outside the study; give one of its seeds or null (every pile)"
                 )
     n, least = config["pour"]["n_particles"], config["analysis"]["rve"]["min_particles"]
     if wants("fields") and n < least:

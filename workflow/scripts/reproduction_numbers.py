@@ -26,9 +26,15 @@ measures:
 * **Fig. 3, fabric**: range of the trace and of the deviatoric fraction over
   the valid RVEs; mean orientation of the major axis over ``x < -10 cm`` and
   ``x > 10 cm`` in the two lowest rows; mean ``|stress_fabric_angle|`` there.
-* **Fig. 4, moduli**: median over valid RVEs of Young's modulus ``E`` of the
-  isotropic fit (m = 1) and of ``E_av`` of the cubic fit (m = 5), both the
-  average of the two fitting methods.
+* **Fig. 4, moduli** (:func:`moduli`): per layer of Fig. 4 and over all
+  RVEs, the share of the RVEs with a fit whose fit is masked (condition
+  number above ``analysis.moduli.max_condition`` or not positive definite,
+  :mod:`analysis.elastic`) for Fig. 4's isotropic (S′, m = 1) and cubic
+  (S̃, m = 5) fits: the fit of the ensemble mean, the piles' own fits (over
+  pile-RVEs) and their mean over piles; then the medians of Fig. 4's moduli,
+  and of ``E`` (m = 1) and ``E_av`` (m = 5) of the average of the two
+  fitting methods, over the RVEs kept, each with the RVEs kept of those
+  with a fit.
 * **Fig. 5**: ``R²`` of a straight line through ``tr Δσ`` against ``tr ε``,
   over RVEs with ``|x| <= 10 cm`` and over all RVEs.
 * **Fig. 1**: over every pile with a convergence file and its fixed points,
@@ -65,6 +71,7 @@ import xarray as xr
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+from analysis.elastic import mask_counts  # noqa: E402
 from analysis.history import (UNITS, bonferroni_z, compare, detection_factor, pile_history,  # noqa: E402
                               primary_names, windows)
 from analysis.params import parse_params  # noqa: E402
@@ -152,11 +159,69 @@ def _mean_deg(a):
     return f"{np.nanmean(a):.1f}°" if np.isfinite(a).any() else "no valid RVE"
 
 
-def moduli(md):
-    e1 = md["youngs_modulus"].sel(fit="average", points=1).values
-    e5 = md["E_av"].sel(fit="average", points=5).values
-    return (f"E (isotropic, m = 1): median {np.nanmedian(e1):.3g} N/m over {np.isfinite(e1).sum()} RVEs; "
-            f"E_av (cubic, m = 5): median {np.nanmedian(e5):.3g} N/m over {np.isfinite(e5).sum()} RVEs")
+#: Fig. 4's fits (law, fit, m, label) and the moduli whose medians are quoted (label, quantity, fit column).
+MODULI_FITS = (("isotropic", "modulus", 1, "isotropic S′, m = 1"), ("cubic", "compliance", 5, "cubic S̃, m = 5"))
+MODULI_MEDIANS = (("K (isotropic, m = 1)", "bulk_modulus", 0, "modulus"),
+                  ("E (isotropic, m = 1)", "youngs_modulus", 0, "modulus"),
+                  ("G (isotropic, m = 1)", "shear_modulus", 0, "modulus"),
+                  ("K (cubic, m = 5)", "bulk_modulus_cubic", 1, "compliance"),
+                  ("E_av (cubic, m = 5)", "E_av", 1, "compliance"),
+                  ("G_av (cubic, m = 5)", "G_av", 1, "compliance"),
+                  ("E (isotropic, m = 1)", "youngs_modulus", 0, "average"),
+                  ("E_av (cubic, m = 5)", "E_av", 1, "average"))
+
+
+def _share_cell(reason, why="masked"):
+    """The share of the fits made that are masked (for ``why``), of :func:`analysis.elastic.mask_counts`."""
+    counts = mask_counts(reason)
+    return f"{100 * counts[why] / counts['fitted']:.0f} %" if counts["fitted"] else "n/a"
+
+
+def _fit_masks(md, law, fit, m):
+    """The mask bits of the fit of the ensemble mean, of each pile's fit and of the mean over piles (y first)."""
+    sub = md.sel(fit=fit, points=m)
+    return (sub[f"{law}_mask_reason"].values, sub[f"{law}_mask_reason_piles"].transpose("y", "seed", "x").values,
+            sub[f"{law}_mask_reason_pile_mean"].values)
+
+
+def moduli(md, heights):
+    """Lines of Fig. 4's numbers for one protocol's ``moduli.nc``: the shares masked per layer, then the medians."""
+    out = [f"Moduli (Fig. 4): a fit is masked where its condition number exceeds {md.attrs['max_condition']:g} "
+           "(analysis.moduli.max_condition) or it is not positive definite (isotropic: K > 0 and G > 0; cubic: "
+           "λ1 > |λ2| and λ3 > 0); the mean over piles is masked where fewer than "
+           f"{100 * md.attrs['min_valid_piles']:.0f} % of the piles' own fits are valid. Masked, of the RVEs with a "
+           "fit: the fit of the ensemble mean / the piles' own fits (pile-RVEs) / their mean over piles:", "",
+           "| y (cm) | " + " | ".join(label for *_, label in MODULI_FITS) + " |", "|---|---|---|"]
+    masks = [_fit_masks(md, law, fit, m) for law, fit, m, _ in MODULI_FITS]
+    y = md["y"].values
+    rows = list(dict.fromkeys(_row_index(md, h) for h in heights))
+    for label, sel in [(f"{100 * y[k]:.1f}", np.s_[k]) for k in rows] + [("all RVEs", np.s_[:])]:
+        cells = []
+        for ens, piles, mean in masks:
+            n = mask_counts(ens[sel])["fitted"]
+            cells.append(f"{_share_cell(ens[sel])} / {_share_cell(piles[sel])} / {_share_cell(mean[sel])} of {n}"
+                         if n else "no fit")
+        if any(c != "no fit" for c in cells):
+            out.append(f"| {label} | " + " | ".join(cells) + " |")
+    own = []
+    for (law, fit, m, label), (_, piles, _) in zip(MODULI_FITS, masks):
+        own.append(f"{label}: {_share_cell(piles, 'not_positive_definite')} not positive definite, "
+                   f"{_share_cell(piles, 'ill_conditioned')} ill-conditioned")
+    out += ["", "Why the piles' own fits are masked (a fit may be both): " + "; ".join(own) + ".", "",
+            "Medians over the RVEs kept (kept / with a fit):", "",
+            "| modulus | fit | fit of the ensemble mean | mean over piles |", "|---|---|---|---|"]
+    for label, name, col, fit in MODULI_MEDIANS:
+        law, _, m, _ = MODULI_FITS[col]
+        sub = md.sel(fit=fit, points=m)
+        cells = []
+        for var, reason in ((name, f"{law}_mask_reason"), (f"{name}_pile_mean", f"{law}_mask_reason_pile_mean")):
+            v = sub[var].values
+            tried = mask_counts(sub[reason].values)["fitted"]
+            kept = int(np.isfinite(v).sum())
+            cells.append(f"{np.nanmedian(v):.3g} N/m ({kept} / {tried})" if kept else f"all masked (0 / {tried})")
+        fit_label = {"modulus": "S′", "compliance": "S̃", "average": "average of both"}[fit]
+        out.append(f"| {label} | {fit_label} | {cells[0]} | {cells[1]} |")
+    return out
 
 
 def invariants(inv):
@@ -420,7 +485,7 @@ def main(argv=None):
         with xr.open_dataset(f"{args.ensemble}/{p}/base_pressure.nc") as bp:
             out += ["", f"Base pressure: {base_pressure(bp)}."]
         with xr.open_dataset(f"{args.ensemble}/{p}/moduli.nc") as md:
-            out += ["", f"Moduli (Fig. 4): {moduli(md)}."]
+            out += ["", *moduli(md, args.heights)]
         with xr.open_dataset(f"{args.ensemble}/{p}/invariants.nc") as inv:
             out += ["", "tr Δσ against tr ε (Fig. 5): " + "; ".join(invariants(inv)) + ".", ""]
     if args.fields:
