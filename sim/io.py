@@ -103,7 +103,7 @@ def cf_attributes(title: str, config: dict | None, history: str,
     -------
     dict
         ``Conventions`` (:data:`CONVENTIONS`), ``title``, ``source``,
-        ``history``, ``config``.
+        ``history``, ``config``, ``software`` (:func:`software_versions`).
     """
     return {
         "Conventions": CONVENTIONS,
@@ -111,7 +111,18 @@ def cf_attributes(title: str, config: dict | None, history: str,
         "source": f"polypile sim {__version__}" + (f" ({source})" if source else ""),
         "history": f"{_time.strftime('%Y-%m-%dT%H:%M:%SZ', _time.gmtime())} {history}".strip(),
         "config": json.dumps(config or {}, sort_keys=True),
+        "software": software_versions(),
     }
+
+
+@functools.lru_cache(maxsize=1)
+def software_versions() -> str:
+    """``python 3.11.7, numpy 2.4.6, numba 0.68.1, ...``: what decides the bits of a state file."""
+    import platform
+    from importlib.metadata import version
+
+    return ", ".join([f"python {platform.python_version()}"]
+                     + [f"{name} {version(name)}" for name in ("numpy", "numba", "llvmlite", "xarray", "netCDF4")])
 
 
 @contextlib.contextmanager
