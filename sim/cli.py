@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 from .config import BOOKKEEPING, ConfigError, SimConfig
+from .io import OutputError
 from .settings_file import SettingsFileError, read_settings_file
 
 
@@ -228,6 +229,9 @@ def main(argv=None):
     except (ConfigError, ValueError, FileNotFoundError) as exc:
         log.error("%s", exc)
         return 2
+    except OutputError as exc:
+        log.error("%s", exc)
+        return 3
     except RuntimeError as exc:
         log.error("%s", exc)
         return 1

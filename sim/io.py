@@ -17,10 +17,12 @@ atomic write (:func:`atomic_path`, with :func:`atomic_write` for netCDF,
 from __future__ import annotations
 
 import contextlib
+import errno
 import functools
 import hashlib
 import json
 import os
+import shutil
 import time as _time
 from pathlib import Path
 
@@ -132,7 +134,9 @@ def atomic_path(path):
     The temporary file ``.{name}.{pid}.tmp`` lies in the same folder (created
     if missing), so the rename is atomic: a killed job never leaves a file
     under ``path`` that looks whole.  If the block raises, the temporary file
-    is removed and ``path`` is left as it was.
+    is removed and ``path`` is left as it was; a failure to write (a read-only
+    file system, a full disk: :class:`OSError` or netCDF's :class:`RuntimeError`)
+    becomes an :class:`OutputError` saying so in one line.
 
     Parameters
     ----------
@@ -144,13 +148,52 @@ def atomic_path(path):
         The temporary path to write to.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    existed = path.exists()
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
         yield tmp
         os.replace(tmp, path)
+    except (OSError, RuntimeError) as exc:
+        written = tmp.stat().st_size if tmp.exists() else 0
+        _remove(tmp)
+        raise OutputError(_write_failure(path, exc, written, existed)) from None
     finally:
+        _remove(tmp)
+
+
+def _remove(tmp: Path) -> None:
+    """Remove ``tmp`` if it is there (a read-only file system refuses even that: then nothing is there)."""
+    with contextlib.suppress(OSError):
         tmp.unlink(missing_ok=True)
+
+
+class OutputError(OSError):
+    """A file could not be written; the message says why and that nothing was lost."""
+
+
+def _write_failure(path: Path, exc: BaseException, written: int, existed: bool) -> str:
+    """One line on a failed write of ``path``: why (read-only, full disk, other) and what is left.
+
+    netCDF reports a full disk as "HDF error" or even "Permission denied", so a
+    folder with under 1 MiB (or under twice what was written) free is named full.
+    """
+    folder = next((d for d in [path.parent, *path.parent.parents] if d.exists()), path.parent)
+    try:
+        free = shutil.disk_usage(folder).free
+        read_only = bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
+    except OSError:
+        free, read_only = None, False
+    code = getattr(exc, "errno", None)
+    if code == errno.EROFS or read_only:
+        why = f"the file system holding {folder} is read-only"
+    elif code == errno.ENOSPC or (free is not None and free < max(2**20, 2 * written)):
+        why = f"the disk holding {folder} is full ({free} bytes free" + (
+            f" after {written} bytes of it were written)" if written else ")")
+    else:
+        why = f"{type(exc).__name__}: {getattr(exc, 'strerror', None) or exc}"
+    kept = "is as it was" if existed else "was not created"
+    return f"cannot write {path}: {why}; nothing was lost: {path} {kept} and the partial file was removed"
 
 
 def atomic_write(ds: xr.Dataset, path) -> None:
