@@ -15,13 +15,18 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from .errors import InputError
 from .fields import META, rve_quantities
 from .netcdf import tensor_coords, var
 from .states import State
 
 
 def convergence_dataset(relaxed: State, reduced: State, params: dict[str, Any]) -> xr.Dataset:
-    """Fields at the configured points for every configured RVE size."""
+    """Fields at the configured points for every configured RVE size.
+
+    A point whose largest RVE holds no particle is refused (:class:`InputError`
+    naming it): its fields would be NaN at every size.
+    """
     pts = np.asarray(params["convergence"]["points"], dtype=float).reshape(-1, 2)
     sizes = np.asarray(sorted(params["convergence"]["sizes"]), dtype=float)
     shape = params["rve"]["shape"]
@@ -32,6 +37,12 @@ def convergence_dataset(relaxed: State, reduced: State, params: dict[str, Any]) 
         q = rve_quantities(relaxed, reduced, pts, shape, float(s), params, apply_mask=False)
         for k in keys:
             acc[k].append(q[k])
+    empty = np.flatnonzero(np.max(np.stack(acc["n_particles"]), axis=0) == 0)
+    if empty.size:
+        k = int(empty[0])
+        raise InputError(f"analysis.convergence.points[{k}] = ({pts[k, 0]:g}, {pts[k, 1]:g}) m lies off the pile: "
+                         f"no RVE up to {sizes[-1]:g} m around it holds a particle (the pile's particles: x "
+                         f"{relaxed.x.min():.4g}..{relaxed.x.max():.4g} m, y {relaxed.y.min():.4g}..{relaxed.y.max():.4g} m)")
     coords = {
         "rve_size": var("rve_size", sizes, "RVE size (square side or disc diameter)", "m"),
         "point": var("point", np.arange(pts.shape[0], dtype=np.int32), "index of the fixed point", "1"),

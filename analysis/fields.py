@@ -21,7 +21,7 @@ import numpy as np
 import xarray as xr
 
 from . import rve as _rve
-from .errors import ParamError
+from .errors import InputError, ParamError
 from .fabric import deviatoric_fraction, fabric_trace, particle_fabric, rve_fabric
 from .netcdf import tensor_coords, var
 from .orientation import axis_angle_difference, axis_angle_from_vertical
@@ -192,6 +192,33 @@ ANGLE_COMMENT = ("angles from the vertical (+y), positive counter-clockwise (upp
                  "into (-90, 90]; NaN where the principal values coincide")
 
 
+def _extents(relaxed: State, grid: "_rve.Grid") -> str:
+    return (f"grid centres x {grid.x[0]:.4g}..{grid.x[-1]:.4g} m, y {grid.y[0]:.4g}..{grid.y[-1]:.4g} m; the "
+            f"pile's particles x {relaxed.x.min():.4g}..{relaxed.x.max():.4g} m, y {relaxed.y.min():.4g}.."
+            f"{relaxed.y.max():.4g} m")
+
+
+def check_grid_on_pile(relaxed: State, grid: "_rve.Grid", rve: dict[str, Any]) -> None:
+    """Refuse a grid none of whose RVEs can reach a particle centre, before any RVE is computed.
+
+    An RVE of side (or diameter) ``rve["size"]`` around a centre of the grid
+    reaches at most ``size / 2`` from it in x and in y; a grid whose span so
+    widened misses the box of the pile's particle centres would give an
+    all-NaN field (and did, with exit status 0).
+
+    Raises
+    ------
+    InputError
+        Naming ``analysis.grid``, both extents and what to do.
+    """
+    half = 0.5 * float(rve["size"])
+    if relaxed.n_particles == 0 or (grid.x[-1] + half < relaxed.x.min() or grid.x[0] - half > relaxed.x.max()
+                                    or grid.y[-1] + half < relaxed.y.min() or grid.y[0] - half > relaxed.y.max()):
+        raise InputError(f"analysis.grid lies off the pile: no RVE of size {rve['size']} m reaches a particle "
+                         f"({_extents(relaxed, grid) if relaxed.n_particles else 'the pile has no particles'}); "
+                         "move the grid onto the pile")
+
+
 def compute_fields(relaxed: State, reduced: State | None, params: dict[str, Any], quantities=None) -> xr.Dataset:
     """The per-pile fields of docs/formats.md#fields on the configured grid.
 
@@ -200,7 +227,11 @@ def compute_fields(relaxed: State, reduced: State | None, params: dict[str, Any]
     """
     grid = _rve.Grid.from_params(params["grid"])
     rp = params["rve"]
+    check_grid_on_pile(relaxed, grid, rp)
     q = rve_quantities(relaxed, reduced, grid.centres(), rp["shape"], rp["size"], params, quantities=quantities)
+    if np.all(np.asarray(q["n_particles"]) < rp["min_particles"]):
+        raise InputError(f"analysis.grid: none of the {grid.x.size * grid.y.size} RVEs holds "
+                         f"analysis.rve.min_particles = {rp['min_particles']} particles ({_extents(relaxed, grid)})")
     ny, nx = grid.shape
     coords = {
         "y": var("y", grid.y, "height of the RVE centre above the support", "m", axis="Y"),
