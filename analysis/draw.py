@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .netcdf import check_writable
 from .states import State, load_state
 from .stress import particle_stress
 
@@ -180,6 +181,7 @@ def cmd_draw(args: argparse.Namespace, params: dict) -> None:
     written :class:`~analysis.errors.InputError`; ``params`` is not used.
     """
     picture_format(args.out)
+    check_writable(args.out, "--out")
     try:
         draw_state(args.input, args.out, color_by=args.color_by, forces=args.forces, dpi=args.dpi)
     except OSError as err:

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .netcdf import atomic_path
+from .netcdf import atomic_path, check_writable
 
 #: Frames per second of the film by default.
 FPS = 10
@@ -302,7 +302,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def cmd_film(args: argparse.Namespace, params: dict) -> None:
-    """``python -m analysis film``; ``params`` is not used."""
+    """``python -m analysis film``; ``params`` is not used.
+
+    Both outputs are checked writable first, so an unwritable ``--html`` no
+    longer leaves the film without its page after the rendering.
+    """
+    for option, path in (("--out", args.out), ("--html", args.html)):
+        if path:
+            check_writable(path, option)
     info = render_film(args.input, args.out, args.html, args.fps)
     print(f"[analysis] film: {args.input} -> {args.out}: {info['frames']} frames, "
           f"{info['seconds']:.1f} s of film, {info['bytes'] / 1e6:.2f} MB, "

@@ -72,6 +72,33 @@ def finalize(ds: xr.Dataset, title: str, params: dict[str, Any] | None, command:
     return ds
 
 
+def check_writable(path: str, option: str) -> None:
+    """Refuse an output ``path`` that cannot be written, before any work: a file is made and
+    removed in its folder, or in the nearest folder above it that exists (the writers make
+    the missing ones).
+
+    Raises
+    ------
+    InputError
+        Naming the option, the path and the system's reason (a read-only or
+        missing folder that cannot be made, a full disk, no permission).
+    """
+    from .errors import InputError
+
+    d, b = os.path.split(os.path.abspath(path))
+    while not os.path.exists(d):  # the writer makes the missing folders: probe the nearest that exists
+        d = os.path.dirname(d)
+    probe = os.path.join(d, f".{b}.{os.getpid()}.probe")
+    try:
+        if not os.path.isdir(d):
+            raise NotADirectoryError(20, f"{d} is a file, not a folder")
+        with open(probe, "wb") as fh:
+            fh.write(b"\0")
+        os.remove(probe)
+    except OSError as exc:
+        raise InputError(f"{option} {path}: cannot be written ({exc.strerror or exc}); nothing was made") from None
+
+
 @contextlib.contextmanager
 def atomic_path(path: str) -> Iterator[str]:
     """A temporary path next to ``path`` that becomes ``path`` when the block ends.
