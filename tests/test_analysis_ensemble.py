@@ -68,13 +68,53 @@ def test_all_nan_gives_nan_and_single_value_has_no_sem():
     assert np.all(np.isfinite(ens["stress"].values[2, 2]))
 
 
+def _axis_from_vertical(t, which):
+    """Angle (deg) from +y, counter-clockwise, in (-90, 90], of the principal axis
+    of the largest (``which = -1``) or smallest (0) eigenvalue, by numpy's eigh."""
+    _, vec = np.linalg.eigh(0.5 * (t + np.swapaxes(t, -1, -2)))
+    v = vec[..., :, which]
+    ang = np.degrees(np.arctan2(-v[..., 0], v[..., 1]))  # +y turned by ang is v
+    ang = (ang + 90.0) % 180.0 - 90.0
+    return np.where(ang == -90.0, 90.0, ang)
+
+
 def test_derived_fields_recomputed_from_mean_tensors():
+    """Each derived field of the ensemble is that of the seed-mean tensors, by hand:
+    the trace and (l_max - l_min) / (l_max + l_min) of the mean fabric from
+    numpy's eigenvalues; the axes of the mean fabric, stress increment and
+    strain (largest eigenvalue) and of the mean stress (smallest: most
+    compressive) from its eigenvectors; the stress-fabric angle their
+    difference.  None but the (linear) trace is the seed average of the
+    per-pile values."""
     rng = np.random.default_rng(2)
     piles = [_pile(rng) for _ in range(3)]
     ens = ensemble_fields(piles)
-    F = np.mean([p["fabric"].values for p in piles], axis=0)
-    np.testing.assert_allclose(ens["fabric_trace"].values, F[..., 0, 0] + F[..., 1, 1])
-    assert "fabric_orientation_sem" in ens and "stress_fabric_angle_sem" in ens
+    mean = {k: np.mean([p[k].values for p in piles], axis=0)
+            for k in ("fabric", "stress", "stress_increment", "strain_increment")}
+    lam = np.linalg.eigvalsh(mean["fabric"])
+    stress_axis = _axis_from_vertical(mean["stress"], 0)
+    fabric_axis = _axis_from_vertical(mean["fabric"], -1)
+    hand = {
+        "fabric_trace": lam[..., 0] + lam[..., 1],
+        "fabric_deviatoric_fraction": (lam[..., 1] - lam[..., 0]) / (lam[..., 1] + lam[..., 0]),
+        "fabric_orientation": fabric_axis,
+        "stress_orientation": stress_axis,
+        "stress_increment_orientation": _axis_from_vertical(mean["stress_increment"], -1),
+        "strain_orientation": _axis_from_vertical(mean["strain_increment"], -1),
+        "stress_fabric_angle": (stress_axis - fabric_axis + 90.0) % 180.0 - 90.0,
+    }
+    for name, value in hand.items():
+        got = ens[name].values
+        if name in ("fabric_trace", "fabric_deviatoric_fraction"):
+            np.testing.assert_allclose(got, value, rtol=1e-10, err_msg=name)
+        else:  # axis angles: equal modulo 180 degrees
+            np.testing.assert_allclose((got - value + 90.0) % 180.0 - 90.0, 0.0, atol=1e-8,
+                                       err_msg=name)
+            assert np.all((-90.0 < got) & (got <= 90.0)), name
+        if name != "fabric_trace":  # the trace is linear: the same either way
+            off = got - np.mean([p[name].values for p in piles], axis=0)
+            assert np.max(np.abs((off + 90.0) % 180.0 - 90.0)) > 1e-2 * np.max(np.abs(value)), name
+        assert f"{name}_sem" in ens
 
 
 def test_different_grids_are_refused():

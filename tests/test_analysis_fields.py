@@ -1,11 +1,9 @@
-"""Per-pile fields (docs/formats.md#fields): names, dims, CF attributes, masks, solid fraction, speed."""
+"""Per-pile fields (docs/formats.md#fields): names, dims, CF attributes, masks, solid fraction, a full-size heap."""
 
 import json
-import time
 
 import numpy as np
 import pytest
-import xarray as xr
 from synthetic_states import as_state, displaced, make_state, square_lattice, square_nodes, step_pyramid
 
 from analysis import __version__
@@ -135,17 +133,26 @@ def test_rotated_polygons_fill_the_same_area():
     assert f[0] == pytest.approx(0.25, abs=0.02)
 
 
-def test_speed_3500_particles():
+def test_a_full_size_heap_on_the_default_grid():
+    """A 3500-square heap (the study's size) on the default settings: the affine
+    displacement u = (1e-6 x, 2e-5 y) comes back as the displacement gradient
+    diag(1e-6, 2e-5) in every RVE with a valid strain, and forces scaled by 0.9
+    give 0.9 of the stress (branch vectors stretched by at most 2e-5).  Its
+    cost is not judged here: a wall time fails on a busy machine without a
+    defect (the analysis of a pile is timed in the workflow's benchmarks)."""
     s = step_pyramid(152, A, slope=0.6)
     assert 3300 < s["x"].size < 4000
-    du = np.column_stack([1e-6 * s["x"], 2e-5 * s["y"]])
+    eps = np.diag([1e-6, 2e-5])
+    du = np.column_stack([s["x"], s["y"]]) @ eps
     relaxed, reduced = as_state(s), as_state(displaced(s, du, 0.9, 0.9 * 9.81))
-    params = resolve_params({})
-    t = time.perf_counter()
-    ds = compute_fields(relaxed, reduced, params)
-    elapsed = time.perf_counter() - t
-    assert isinstance(ds, xr.Dataset)
-    assert elapsed < 10.0, f"fields of {s['x'].size} particles took {elapsed:.1f} s"
+    ds = compute_fields(relaxed, reduced, resolve_params({}))
+    valid = ds["mask_reason"].values == 0
+    assert valid.sum() > 20
+    g = ds["displacement_gradient"].values[valid & (ds["strain_flag"].values == 0)]
+    assert len(g) > 20
+    np.testing.assert_allclose(g, np.broadcast_to(eps, g.shape), atol=1e-12)
+    np.testing.assert_allclose(ds["stress_reduced"].values[valid], 0.9 * ds["stress"].values[valid],
+                               rtol=3e-5, atol=1e-9)
 
 
 @pytest.mark.parametrize("reduced, quantities", [

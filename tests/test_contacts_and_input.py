@@ -11,6 +11,7 @@ from sim.broadphase import candidate_pairs
 from sim.config import ConfigError, ModelParams, SimConfig
 from sim.contact_law import characteristic_length, normal_force, tangential_force
 from sim.engine import BlowUpError, Simulation
+from sim.integrators import stability_limit
 from sim.io import StateFileError, load_simulation, save_state
 from sim.shapes import make_shapes
 
@@ -78,6 +79,121 @@ def test_pair_history_is_carried_across_a_rebuild():
     np.testing.assert_array_equal(carried, [-2.5, 3.5, 0.0, 4.5, 0.0])
 
 
+A_SIDE = 5e-3  # side of the stacked squares, m
+K_T = 2.0 / 7.0 * 1e7  # Cundall-Strack stiffness (2/7) Y, N/m
+
+
+def _stack(v=1e-4, dt=2e-7):
+    """Square 1 on square 0 on the support, both at their equilibrium overlaps
+    (``m g = Y A / l``: l = a/4 between the squares, a/2 on the support), no
+    rotation; square 1 starts sliding at ``v`` (m/s): too slow to slip
+    (amplitude k_t v / omega far below mu F), so the contact sticks and rocks."""
+    m_g = 2500.0 * A_SIDE ** 2 * 9.81
+    d_support = 2 * m_g / (1e7 * A_SIDE / (A_SIDE / 2))
+    d_pair = m_g / (1e7 * A_SIDE / (A_SIDE / 4))
+    y0 = A_SIDE / 2 - d_support
+    return scene([rectangle(A_SIDE, A_SIDE)] * 2,
+                 [(0, y0, 0, 0, 0, 0), (0, y0 + A_SIDE - d_pair, 0, v, 0, 0)],
+                 gravity=(0, -9.81), support=True, rotate=False, youngs_modulus=1e7,
+                 damping=0.3, friction=0.5, support_friction=0.9, integrator="verlet", dt=dt)
+
+
+def _pair_spring(sim, i=0, j=1):
+    """The spring of pair (i, j), or None when the pair is not in the list."""
+    at = np.flatnonzero((sim.pi == i) & (sim.pj == j))
+    return float(sim.spring[at[0]]) if len(at) else None
+
+
+def _hooke(sim, x_from):
+    """Spring the Cundall-Strack law predicts: k_t times the displacement of 1
+    relative to 0 along the tangent t = (-n_y, n_x) = (-1, 0) (n = +y, 0 to 1)
+    taken as v_rel . t = v1x - v0x, since ``x_from`` (x of both at contact)."""
+    x = sim.position[:2, 0] - x_from
+    return K_T * (x[1] - x[0])
+
+
+def test_a_rebuild_carries_the_spring_of_a_sticking_contact():
+    """``Simulation._rebuild`` in the middle of a sticking contact: the spring
+    is carried bit for bit, then keeps following Hooke's law F* = k_t dx (from
+    contact, not from the rebuild), and the run is the very run without the
+    rebuild.  Tolerance: the spring sums v dt at the predicted velocity, off
+    from dx by at most |dv| dt / 2 <= v dt."""
+    sim, twin = _stack(), _stack()
+    x0 = sim.position[:2, 0]
+    for s in (sim, twin):
+        s.run(steps=1100)  # a quarter period: the spring is near its largest
+    before = _pair_spring(sim)
+    assert abs(before - _hooke(sim, x0)) <= K_T * 1e-4 * 2e-7
+    assert 0.01 < before < 0.5 * 2500 * A_SIDE ** 2 * 9.81  # loaded, below mu F: sticking
+    old_list = sim.pi
+    sim._rebuild()
+    assert sim.pi is not old_list
+    assert _pair_spring(sim) == before  # bit for bit
+    for s in (sim, twin):
+        s.run(steps=3000)
+    assert abs(_pair_spring(sim) - _hooke(sim, x0)) <= K_T * 1e-4 * 2e-7
+    assert np.sign(_pair_spring(sim)) != np.sign(before)  # it rocked back past 0
+    np.testing.assert_array_equal(sim.r, twin.r)
+    np.testing.assert_array_equal(sim.spring, twin.spring)
+
+
+def test_rebuilding_the_pair_list_at_any_step_changes_no_bit():
+    """A packing settling in its box, its pair list rebuilt every 7 steps
+    against the same run rebuilt only when the particles have moved: the same
+    bits, positions and contact springs, since ``_rebuild`` carries each
+    pair's spring and narrow-phase witness (the warm start and the clipping
+    agree only to rounding, so a lost witness shows in the last bits)."""
+    from sim.bench import dense_packing
+
+    sim, twin = dense_packing(150, seed=3), dense_packing(150, seed=3)
+    for s in (sim, twin):
+        s.run(steps=2000)
+    for _ in range(30):
+        sim._stale = True
+        sim.run(steps=7)
+        twin.run(steps=7)
+    np.testing.assert_array_equal(sim.r, twin.r)
+    c, d = sim.contacts(), twin.contacts()
+    assert np.count_nonzero(c["spring"]) > 10
+    for k in ("i", "j", "spring", "witness"):
+        np.testing.assert_array_equal(c[k], d[k], err_msg=k)
+
+
+def test_pairs_new_to_the_list_start_unloaded_and_take_no_other_pairs_spring():
+    """Square 1 is lifted out of the pair list (placed far away) and square 2
+    put where it was, sliding, before the same rebuild: the new pair (0, 2)
+    starts from zero, not from the loaded spring of the pair (0, 1) that left
+    (F* = k_t dx from its own contact on).  Then 1 comes back on top of 2: the
+    new pair (1, 2) starts from zero while (0, 2) keeps its spring."""
+    sim = scene([rectangle(A_SIDE, A_SIDE)] * 3, [], gravity=(0, -9.81), support=True,
+                rotate=False, youngs_modulus=1e7, damping=0.3, friction=0.5,
+                support_friction=0.9, integrator="verlet", dt=2e-7)
+    stack = _stack()
+    for k in range(2):
+        sim.place(k, *stack.position[k], 0.0, *stack.velocity[k], 0.0)
+    sim.place(2, 0.5, A_SIDE / 2)  # far away on the support
+    sim.run(steps=1100)
+    assert _pair_spring(sim, 0, 1) > 0.01
+    top = sim.position[1].copy()
+    sim.place(1, -0.5, 0.5)
+    sim.place(2, *top, 0.0, 1e-4, 0.0)
+    sim.run(steps=1)
+    assert _pair_spring(sim, 0, 1) is None
+    first = _pair_spring(sim, 0, 2)
+    assert 0 < first <= K_T * 2e-4 * 2e-7  # one step's increment k_t v dt
+    x0 = sim.position[[0, 2], 0]
+    sim.run(steps=1000)
+    loaded = _pair_spring(sim, 0, 2)
+    assert abs(loaded - first - K_T * ((sim.position[2, 0] - x0[1]) -
+                                       (sim.position[0, 0] - x0[0]))) <= K_T * 1e-4 * 2e-7
+    sim.place(1, sim.position[2, 0], sim.position[2, 1] + A_SIDE - 1e-8, 0.0, 0.0, 0.0)
+    sim.run(steps=1)
+    c = sim.contacts()
+    assert np.any((c["i"] == 1) & (c["j"] == 2))
+    assert abs(_pair_spring(sim, 1, 2)) <= K_T * 2e-4 * 2e-7
+    assert abs(_pair_spring(sim, 0, 2) - loaded) < 0.1 * abs(loaded)
+
+
 def test_tangential_force_capped_and_opposes_sliding():
     f_el = 2.0
     mu = 0.4
@@ -89,6 +205,66 @@ def test_tangential_force_capped_and_opposes_sliding():
     assert spring == pytest.approx(mu * f_el)
     total, spring = tangential_force(spring, -0.01, f_el, 0.01, 1e7, mu, 1e-6)
     assert total < mu * f_el  # reversal unloads the spring first
+
+
+def _coulomb_law(spring, v, f_el, m_par, mu, dt, youngs_modulus=1e7):
+    """The Appendix's (iii) by hand: the spring loads by k_t v dt and is held
+    within +-mu F; the damping v sqrt(k_t m) is added and the total is held
+    within +-mu F too."""
+    k_t = 2.0 / 7.0 * youngs_modulus
+    cap = mu * f_el
+    spring = min(max(spring + k_t * v * dt, -cap), cap)
+    return min(max(spring + v * np.sqrt(k_t * m_par), -cap), cap), spring
+
+
+@pytest.mark.parametrize("speed", [1e-4, 2e-3, 1.0])
+@pytest.mark.parametrize("direction", [1.0, -1.0])
+def test_coulomb_cap_at_slow_and_fast_sliding_and_on_reversal(speed, direction):
+    """Sliding at ``speed`` until the spring saturates, then reversing: every
+    step gives the hand-worked law, and |T| <= mu F throughout.  Slow (1e-4
+    m/s): the total stays below the cap while the spring loads (damping
+    0.017 N); 2e-3 m/s: the damping alone (0.34 N) is under the cap (0.8 N);
+    fast (1 m/s): capped from the first step, and on reversal the spring
+    jumps from +mu F to -mu F in one step (k_t v dt = 29 N)."""
+    f_el, mu, m_par, dt = 2.0, 0.4, 0.01, 1e-5
+    cap = mu * f_el
+    v = direction * speed
+    n_load = int(np.ceil(cap / (2.0 / 7.0 * 1e7 * speed * dt))) + 5
+    spring = hand = 0.0
+    below = 0
+    for k in range(2 * n_load + 2 * n_load):
+        vk = v if k < 2 * n_load else -v
+        total, spring = tangential_force(spring, vk, f_el, m_par, 1e7, mu, dt)
+        want, hand = _coulomb_law(hand, vk, f_el, m_par, mu, dt)
+        assert abs(total) <= cap and abs(spring) <= cap
+        assert total == pytest.approx(want, rel=1e-9, abs=1e-15)
+        assert spring == pytest.approx(hand, rel=1e-9, abs=1e-15)
+        below += abs(total) < cap
+    assert spring == -direction * cap and total == -direction * cap  # saturated the other way
+    assert (below > 0) == (speed < 5e-3)
+
+
+@pytest.mark.parametrize("v0", [0.05, -0.05, 0.5, -0.5])
+def test_a_block_sliding_on_the_support_decelerates_at_mu_g(v0):
+    """A square sliding on the support (no rotation, at its equilibrium
+    overlap m g = Y A / l with l = a/2) feels the capped friction mu m g while
+    it slides, in either direction: v(t) = v0 - sign(v0) mu g t until it stops
+    at t* = |v0| / (mu g), x* = v0 |v0| / (2 mu g); after that it sticks (the
+    spring, stretched mu m g / k_t = 1e-7 m at the stop, gives that back: 4e-4
+    of x* at 0.05 m/s)."""
+    a, mu, g = 5e-3, 0.5, 9.81
+    m = 2500.0 * a * a
+    sim = scene([rectangle(a, a)], [(0, a / 2 - m * g / (2e7), 0, v0, 0, 0)],
+                gravity=(0, -g), support=True, rotate=False, youngs_modulus=1e7,
+                damping=0.3, support_friction=mu, friction=0.5, integrator="verlet")
+    t_stop = abs(v0) / (mu * g)
+    sim.run(duration=0.5 * t_stop)
+    assert sim.velocity[0, 0] == pytest.approx(v0 - np.sign(v0) * mu * g * sim.time, rel=1e-4)
+    force = sim.contacts()["fx"][0]
+    assert force == pytest.approx(-np.sign(v0) * mu * m * g, rel=1e-6)
+    sim.run(duration=0.5 * t_stop + 0.02)
+    assert sim.position[0, 0] == pytest.approx(v0 * abs(v0) / (2 * mu * g), rel=1e-3)
+    assert abs(sim.velocity[0, 0]) < 1e-4 * abs(v0)  # stuck
 
 
 def test_broad_phase_finds_every_close_pair():
@@ -113,6 +289,54 @@ def test_given_dt_beyond_stability_limit_is_refused():
     with pytest.raises(ValueError, match="stability limit"):
         Simulation(shapes, ModelParams(dt=1.5 * limit))
     Simulation(shapes, ModelParams(dt=0.9 * limit))
+
+
+def test_time_step_limit_of_equal_squares_by_hand():
+    """Squares of side a, Y = 1e7 N/m, no damping, velocity Verlet.
+
+    Two squares pressed face to face overlap by A = a d, with the force point
+    at the middle of both faces: r_i = r_j = a/2, l = r_i r_j / (r_i + r_j) =
+    a/4, so F = Y A / l = 4 Y d, a stiffness 4 Y (the rule's Y L_max / l_min
+    with L_max = a and l_min = half the inradius a/2).  The lightest contact
+    point: 1/m + R^2/I with m = rho a^2, I = m a^2 / 6 and R^2 = a^2 / 2 is
+    4/m, twice over for two particles, 8/m.  So omega = sqrt(32 Y / m), and
+    Verlet's undamped limit omega dt < 2 gives dt = 2 / omega = sqrt(m / (8 Y)).
+    The tangential spring (2/7) Y on the same mass, omega_t = sqrt(16 Y / (7 m)),
+    is damped at zeta = 1/2 (limit 0.83): 0.55 sqrt(m / Y), longer than the
+    normal mode's 0.354 sqrt(m / Y)."""
+    a, y = 5e-3, 1e7
+    m = 2500.0 * a * a
+    sim = Simulation(shapes_of(rectangle(a, a), rectangle(a, a)),
+                     ModelParams(youngs_modulus=y, damping=0.0, integrator="verlet"))
+    assert sim.bound.dt_limit == pytest.approx(np.sqrt(m / (8 * y)), rel=1e-12)
+    assert sim.bound.mode == "normal"
+    assert sim.bound.omega_tangential == pytest.approx(np.sqrt(16 * y / (7 * m)), rel=1e-12)
+    assert sim.dt == pytest.approx(ModelParams().dt_safety * np.sqrt(m / (8 * y)), rel=1e-12)
+
+
+def test_time_step_limit_of_mixed_particles_by_hand():
+    """A regular hexagon (circumradius R = 3 mm) and a square (side 8 mm),
+    damping 0.3, Gear: the rule takes the longest edge (the square's, L = 8 mm),
+    the smallest inradius (the hexagon's, R sqrt(3)/2, so l_min = sqrt(3) R / 4)
+    and the lightest contact point, the hexagon's: I = (5/12) m R^2 for a
+    regular hexagon (m R^2 (1 + 2 cos^2(pi/6)) / 6), so 1/m + R^2/I = 17 / (5 m),
+    q = 34 / (5 m) for two.  omega_n = sqrt(Y L / l_min q) with damping ratio
+    zeta_n = (gamma/2) sqrt(L / l_min); omega_t = sqrt((2/7) Y q) at zeta 1/2;
+    the limit is the smaller of h*(zeta)/omega with Gear's h* of the
+    amplification matrix (0.157 at zeta 1/2; the rule rounds zeta to 1e-3)."""
+    r, side, y, gamma = 3e-3, 8e-3, 1e7, 0.3
+    m_hex = 2500.0 * 1.5 * np.sqrt(3) * r * r
+    sim = Simulation(shapes_of(regular_polygon(6, r), rectangle(side, side)),
+                     ModelParams(youngs_modulus=y, damping=gamma, integrator="gear"))
+    assert sim.shapes.inertia[0] == pytest.approx(5 / 12 * m_hex * r * r, rel=1e-12)
+    q = 34 / (5 * m_hex)
+    ratio = side / (np.sqrt(3) * r / 4)
+    dt_n = stability_limit("gear", gamma / 2 * np.sqrt(ratio)) / np.sqrt(y * ratio * q)
+    dt_t = stability_limit("gear", 0.5) / np.sqrt(2 / 7 * y * q)
+    assert stability_limit("gear", 0.5) == pytest.approx(0.157, abs=5e-4)
+    assert sim.bound.zeta_normal == pytest.approx(gamma / 2 * np.sqrt(ratio), rel=1e-12)
+    assert sim.bound.dt_limit == pytest.approx(min(dt_n, dt_t), rel=2e-3)
+    assert sim.bound.mode == ("normal" if dt_n < dt_t else "tangential")
 
 
 def test_blow_up_is_detected_and_last_good_state_kept():
