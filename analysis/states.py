@@ -131,10 +131,6 @@ def state_from_dataset(ds: xr.Dataset, path: str = "<dataset>") -> State:
     missing = [v for v in DIMS if v not in ds.variables]
     if missing:
         raise _fail(path, f"missing variable(s) {', '.join(missing)} required by docs/formats.md#state-files")
-    if "data_digest" in ds.attrs and content_digest(ds) != ds.attrs["data_digest"]:
-        raise _fail(path, "its content does not match the digest written with it (attribute data_digest): "
-                          "the file was damaged after it was written; delete it and run the step that writes "
-                          "it again")
     arrays: dict[str, np.ndarray] = {}
     for name, dim in DIMS.items():
         da = ds[name]
@@ -156,6 +152,10 @@ def state_from_dataset(ds: xr.Dataset, path: str = "<dataset>") -> State:
         else:
             a = a.astype(np.float64)
         arrays[name] = a
+    if "data_digest" in ds.attrs and content_digest(ds) != ds.attrs["data_digest"]:
+        raise _fail(path, "its content does not match the digest written with it (attribute data_digest): "
+                          "the file was damaged after it was written; delete it and run the step that writes "
+                          "it again")
     for a in REQUIRED_ATTRS:
         if a not in ds.attrs:
             raise _fail(path, f"missing global attribute {a!r} required by docs/formats.md#state-files")

@@ -367,16 +367,16 @@ def read_state(path) -> xr.Dataset:
     missing = [v for v in REQUIRED if v not in ds]
     if missing:
         raise StateFileError(f"state file {path}: missing variable(s) {missing}")
-    if "data_digest" in ds.attrs and data_digest(ds) != ds.attrs["data_digest"]:
-        raise StateFileError(f"state file {path}: its data do not match the digest written with them "
-                             "(attribute data_digest): the file was damaged after it was written; delete "
-                             "it and run the step that writes it again")
     for v in REQUIRED:
         vals = np.asarray(ds[v].values, float)
         if not np.all(np.isfinite(vals)):
             k = int(np.argmax(~np.isfinite(vals.ravel())))
             raise StateFileError(f"state file {path}: variable {v} holds NaN or Inf "
                                  f"(first at flat index {k})")
+    if "data_digest" in ds.attrs and data_digest(ds) != ds.attrs["data_digest"]:
+        raise StateFileError(f"state file {path}: its data do not match the digest written with them "
+                             "(attribute data_digest): the file was damaged after it was written; delete "
+                             "it and run the step that writes it again")
     n = ds.sizes["particle"]
     if int(ds["node_count"].sum()) != ds.sizes["node"]:
         raise StateFileError(f"state file {path}: node_count sums to "
