@@ -181,6 +181,29 @@ def cmd_moduli(args, params) -> None:
     _log(f"moduli -> {args.out}")
 
 
+def cmd_voigt(args, params) -> None:
+    import numpy as np
+
+    from .netcdf import write_json
+    from .voigt import compare_with_fit
+
+    out = {}
+    for p in args.fields:
+        ds = _read(p)
+        _require(ds, p, ("voigt_bulk_modulus", "voigt_shear_modulus", "stress_increment", "strain_increment"))
+        out[p] = compare_with_fit(ds, params, {"x": args.core_x, "y": args.core_y})
+        row = out[p]["average/m5"]
+        print(f"{p}: Voigt/fit K {row['bulk_ratio']:.3g}, G {row['shear_ratio']:.3g} (median over {row['n']} core "
+              f"RVEs; Voigt K {row['voigt_bulk_modulus']:.4g}, G {row['voigt_shear_modulus']:.4g}, fit K "
+              f"{row['bulk_modulus']:.4g}, G {row['shear_modulus']:.4g} N/m)")
+    for name in ("bulk_ratio", "shear_ratio"):
+        v = [r["average/m5"][name] for r in out.values() if np.isfinite(r["average/m5"][name])]
+        print(f"median over {len(v)} piles of their {name}: {np.median(v) if v else float('nan'):.3g}")
+    if args.out:
+        write_json({"core": {"x": args.core_x, "y": args.core_y}, "piles": out}, args.out)
+        _log(f"voigt -> {args.out}")
+
+
 def cmd_base_pressure(args, params) -> None:
     from .base_pressure import base_pressure_dataset, combine_base_pressure
     from .netcdf import write_dataset
@@ -300,6 +323,12 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--ensemble", required=True, help="ensemble fields.nc")
     sp.add_argument("--fields", nargs="*", default=[], help="per-pile fields files (for the uncertainties)")
     sp.add_argument("--out", required=True)
+    sp = add("voigt", "the Voigt K, G of each pile's RVEs against its own isotropic fit: ratios, median over the "
+             "core RVEs (fit average, m = 5 printed; every fit and m in --out)", cmd_voigt)
+    sp.add_argument("--fields", nargs="+", required=True, help="per-pile fields files with voigt_stiffness")
+    sp.add_argument("--core-x", type=float, default=0.03, help="half width of the core, m (default 0.03)")
+    sp.add_argument("--core-y", type=float, default=0.05, help="top of the core, m (default 0.05)")
+    sp.add_argument("--out", help="JSON file of every fit's numbers")
     sp = add("base-pressure", "forces per unit length on the support (base_pressure.nc)", cmd_base_pressure)
     src = sp.add_mutually_exclusive_group(required=True)
     src.add_argument("--states", nargs="+", help="state files (one per seed)")

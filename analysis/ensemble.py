@@ -28,7 +28,10 @@ order of ``seeds``) sum it up. null leaves out nothing (a plain mean).
 
 All piles share one grid in absolute coordinates (``analysis.grid``), so
 piles of different widths need no interpolation; files with different grids
-or RVEs are refused.
+or RVEs are refused, and so are files with different variables, except the
+Voigt stiffness (:data:`analysis.fields.VOIGT`), which per-pile files written
+before it lack (the committed records): its mean, standard error and count
+are over the piles that have it.
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ import numpy as np
 import xarray as xr
 
 from .errors import InputError
-from .fields import ANGLES, DERIVED, PROBE_RESPONSE, derived_fields
+from .fields import ANGLES, DERIVED, PROBE_RESPONSE, VOIGT, derived_fields
 from .netcdf import var
 from .orientation import fold_axis_angle
 from .params import DEFAULTS
@@ -134,7 +137,7 @@ def _check_compatible(datasets: list[xr.Dataset], names: list[str]) -> None:
             if ds.attrs.get(a) != ref.attrs.get(a):
                 raise InputError(f"{name}: attribute {a} = {ds.attrs.get(a)!r} differs from {names[0]} "
                                  f"({ref.attrs.get(a)!r})")
-        missing = set(ref.data_vars) ^ set(ds.data_vars)
+        missing = (set(ref.data_vars) ^ set(ds.data_vars)) - set(VOIGT)
         if missing:
             raise InputError(f"{name}: variables {sorted(missing)} are not in every file of the ensemble")
 
@@ -166,16 +169,22 @@ def ensemble_fields(datasets: list[xr.Dataset], names: list[str] | None = None,
     datasets, left_out = leave_out_slips(datasets, slip_strain_ratio)
     ref = datasets[0]
     out = xr.Dataset(coords={k: ref[k].variable for k in ref.coords})
-    averaged = [v for v in ref.data_vars if v not in FLAG_VARS and v not in DERIVED
+    averaged = [v for v in ref.data_vars if v not in FLAG_VARS and v not in DERIVED and v not in VOIGT
                 and ref[v].dtype.kind in "fiu"]
-    for name in averaged:
-        stack = np.stack([ds[name].values for ds in datasets])
+    voigt = [v for v in VOIGT if any(v in ds for ds in datasets)]
+    holder = next((ds for ds in datasets if voigt[0] in ds), None) if voigt else None
+    if holder is not None:
+        out = out.assign_coords({k: holder[k].variable for k in holder.coords if k not in out.coords})
+    for name in averaged + voigt:
+        first = ref if name not in VOIGT else holder
+        stack = np.stack([ds[name].values if name in ds else np.full(first[name].shape, np.nan)
+                          for ds in datasets])
         mean, sem, count = nan_mean_sem(stack)
-        attrs = {k: v for k, v in ref[name].attrs.items() if k not in ("flag_masks", "flag_meanings")}
-        out[name] = xr.Variable(ref[name].dims, mean, {**attrs, "cell_methods": "seed: mean"})
-        out[f"{name}_sem"] = var(ref[name].dims, sem, f"standard error over seeds of {name}", attrs["units"],
+        attrs = {k: v for k, v in first[name].attrs.items() if k not in ("flag_masks", "flag_meanings")}
+        out[name] = xr.Variable(first[name].dims, mean, {**attrs, "cell_methods": "seed: mean"})
+        out[f"{name}_sem"] = var(first[name].dims, sem, f"standard error over seeds of {name}", attrs["units"],
                                  cell_methods="seed: standard_deviation (comment: divided by sqrt(count), ddof=1)")
-        out[f"{name}_count"] = var(ref[name].dims, count.astype(np.int32), f"seeds with a finite {name}", "1")
+        out[f"{name}_count"] = var(first[name].dims, count.astype(np.int32), f"seeds with a finite {name}", "1")
     derived_fields(out)
     for name in (d for d in DERIVED if d in out):
         stack = np.stack([ds[name].values for ds in datasets])

@@ -30,6 +30,8 @@ from .states import State, check_same_particles
 from .strain import STRAIN_FLAGS, best_fit_strain
 from .stress import antisymmetric_component, particle_stress_moment, rve_stress, symmetric_part
 from .surface import surface_height
+from .voigt import contact_stiffness, isotropic_projection, particle_voigt_moment, rve_voigt_stiffness
+from .voigt import summary_attributes as voigt_attributes
 
 QUANTITIES = ("fabric", "strain")  # optional besides the stress
 TENSOR_FIELDS = ("stress", "stress_reduced", "stress_increment", "displacement_gradient", "strain_increment", "fabric")
@@ -40,6 +42,9 @@ DERIVED = ("fabric_trace", "fabric_deviatoric_fraction", "fabric_orientation", "
 # together where a pile slipped under the probe (analysis.ensemble)
 PROBE_RESPONSE = ("stress_reduced", "stress_increment", "displacement_gradient", "strain_increment",
                   "strain_residual", "stress_increment_orientation", "strain_orientation")
+# the affine (Voigt) stiffness from the relaxed contacts (analysis/voigt.py): computed whenever the relaxed
+# state names its Young's modulus; per-pile files written before it lack these, which an ensemble allows
+VOIGT = ("voigt_stiffness", "voigt_bulk_modulus", "voigt_shear_modulus")
 ANGLES = ("fabric_orientation", "stress_orientation", "stress_increment_orientation", "strain_orientation",
           "stress_fabric_angle")
 
@@ -72,6 +77,11 @@ META: dict[str, tuple[str, str]] = {
     "mask_reason": ("why the RVE is not used (bit mask, 0 = valid)", "1"),
     "surface_height": ("height of the free surface above the support", "m"),
     "depth": ("depth of the RVE centre below the free surface", "m"),
+    "voigt_stiffness": ("affine (Voigt) Mandel stiffness C_MN of the RVE from the relaxed contacts, "
+                        "Delta sigma_M = C_MN eps_N (analysis/voigt.py)", "N m-1"),
+    "voigt_bulk_modulus": ("isotropic projection K = (C11 + C22 + C12 + C21)/4 of voigt_stiffness", "N m-1"),
+    "voigt_shear_modulus": ("isotropic projection G = (C11 + C22 - C12 - C21 + 2 C33)/8 of voigt_stiffness",
+                            "N m-1"),
 }
 
 
@@ -99,7 +109,7 @@ def check_quantities(quantities, has_reduced: bool) -> tuple[str, ...]:
 
 def rve_quantities(relaxed: State, reduced: State | None, centres: np.ndarray, shape: str, size: float,
                    params: dict[str, Any], apply_mask: bool = True,
-                   quantities=None) -> dict[str, np.ndarray]:
+                   quantities=None, voigt: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
     """RVE quantities for RVEs of one ``shape``/``size`` at ``centres`` ``(n, 2)``.
 
     Membership is decided on the relaxed positions (see :mod:`analysis.rve`).
@@ -107,7 +117,10 @@ def rve_quantities(relaxed: State, reduced: State | None, centres: np.ndarray, s
     ``min_solid_fraction`` hold NaN in every stress, strain and fabric
     quantity. The stress is always computed, the stress increment when
     ``reduced`` is given, and the optional ``quantities`` (see
-    :func:`check_quantities`). Returns flat arrays (tensors as ``(n, 2, 2)``).
+    :func:`check_quantities`). With ``voigt``, the contact stiffnesses of the
+    relaxed state (:func:`analysis.voigt.contact_stiffness`), also the Voigt
+    stiffness ``(n, 3, 3)`` and its isotropic projections (:data:`VOIGT`).
+    Returns flat arrays (tensors as ``(n, 2, 2)``).
     """
     quantities = check_quantities(quantities, reduced is not None)
     if reduced is not None:
@@ -150,6 +163,10 @@ def rve_quantities(relaxed: State, reduced: State | None, centres: np.ndarray, s
             "strain_flag": strain["flag"],
         })
         out["strain_increment"] = symmetric_part(out["displacement_gradient"])
+    if voigt is not None:
+        out["voigt_stiffness"] = rve_voigt_stiffness(W, particle_voigt_moment(relaxed, voigt), V)
+        out["voigt_stiffness"][bad] = np.nan
+        out["voigt_bulk_modulus"], out["voigt_shear_modulus"] = isotropic_projection(out["voigt_stiffness"])
     for k in ("stress", "stress_reduced", "stress_increment", "stress_antisymmetric", "fabric"):
         if k in out:
             out[k] = np.asarray(out[k], dtype=float)
@@ -228,7 +245,9 @@ def compute_fields(relaxed: State, reduced: State | None, params: dict[str, Any]
     grid = _rve.Grid.from_params(params["grid"])
     rp = params["rve"]
     check_grid_on_pile(relaxed, grid, rp)
-    q = rve_quantities(relaxed, reduced, grid.centres(), rp["shape"], rp["size"], params, quantities=quantities)
+    stiffness = contact_stiffness(relaxed) if "youngs_modulus" in relaxed.attrs else None
+    q = rve_quantities(relaxed, reduced, grid.centres(), rp["shape"], rp["size"], params, quantities=quantities,
+                       voigt=stiffness)
     if np.all(np.asarray(q["n_particles"]) < rp["min_particles"]):
         raise InputError(f"analysis.grid: none of the {grid.x.size * grid.y.size} RVEs holds "
                          f"analysis.rve.min_particles = {rp['min_particles']} particles ({_extents(relaxed, grid)})")
@@ -238,11 +257,16 @@ def compute_fields(relaxed: State, reduced: State | None, params: dict[str, Any]
         "x": var("x", grid.x, "horizontal position of the RVE centre (0 at the pouring axis)", "m", axis="X"),
         **tensor_coords(),
     }
+    if stiffness is not None:
+        coords.update({m: var(m, np.array(["xx", "yy", "xy"], dtype=object), "Mandel component", "1")
+                       for m in ("mandel_i", "mandel_j")})
     data = {}
     for k, v in q.items():
         ln, u = META[k]
         v = np.asarray(v)
-        if v.ndim == 3:
+        if k == "voigt_stiffness":
+            data[k] = var(("y", "x", "mandel_i", "mandel_j"), v.reshape(ny, nx, 3, 3), ln, u)
+        elif v.ndim == 3:
             data[k] = var(("y", "x", "i", "j"), v.reshape(ny, nx, 2, 2), ln, u)
         else:
             data[k] = var(("y", "x"), v.reshape(ny, nx), ln, u)
@@ -279,4 +303,10 @@ def compute_fields(relaxed: State, reduced: State | None, params: dict[str, Any]
     })
     if reduced is not None:
         ds.attrs.update({"gravity_reduced": reduced.gravity, "reduced_file": reduced.path})
+    if stiffness is not None:
+        ds["voigt_stiffness"].attrs["comment"] = (
+            "every particle moved by x . eps, none turned, every contact sticking: k_n = Y L / l (L the contact "
+            "line), k_t = (2/7) Y; member particles' contacts as in the stress (support included); not exactly "
+            "symmetric where contacts cross the RVE edge")
+        ds.attrs.update(voigt_attributes(stiffness))
     return ds
