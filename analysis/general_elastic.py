@@ -19,8 +19,9 @@ six: in a linear elastic pile the strain at a point is linear in the change
 of gravity, a vector of two components, so the strains of all reductions and
 tilts at one point span two shapes, and ``C + t w wᵀ`` (``w`` normal to both
 in Mandel space) fits them as well as ``C``; only the m = 5 neighbouring
-points, assumed to be one material, or a load of another kind (a surface
-load, a wall) break that tie. The **condition number** of the design matrix
+points, assumed to be one material, or a load of another kind (the support
+stretch of :func:`sim.protocols.stretch_file`, stage ``stretched``) break that
+tie. The **condition number** of the design matrix
 (the ratio of its largest to its smallest singular value) says how well the
 data pin ``C``: it depends on the strains alone; above
 :data:`MAX_CONDITION` the fit is flagged ``not_identified``.
@@ -198,15 +199,20 @@ def stiffness_axes(stiffness: np.ndarray, angles_deg: np.ndarray = ANGLES_DEG) -
     dict
         ``axis_deg`` (direction of the largest E, degrees from the vertical,
         counter-clockwise, at the resolution of ``angles_deg``; NaN when the
-        ratio is 1 to 1e-9), ``E_max``, ``E_min`` (N/m), ``anisotropy``
+        ratio is 1 to 1e-9), ``soft_axis_deg`` (that of the smallest E; for a
+        general anisotropic law not always normal to ``axis_deg``), ``E_max``,
+        ``E_min`` (N/m), ``anisotropy``
         (``E_max / E_min``); all NaN where ``C`` is not positive definite.
     """
     e = directional_modulus(stiffness, angles_deg)
     ok = np.all(np.isfinite(e), axis=-1) & positive_definite(stiffness)
     filled = np.where(ok[..., None], e, 1.0)
     e_max, e_min = filled.max(axis=-1), filled.min(axis=-1)
-    axis = np.asarray(angles_deg, float)[np.argmax(filled, axis=-1)]
+    angles = np.asarray(angles_deg, float)
+    axis, soft = angles[np.argmax(filled, axis=-1)], angles[np.argmin(filled, axis=-1)]
     ratio = e_max / e_min
-    return {"axis_deg": np.where(ok & (ratio > 1.0 + 1e-9), axis, np.nan),
+    anisotropic = ok & (ratio > 1.0 + 1e-9)
+    return {"axis_deg": np.where(anisotropic, axis, np.nan),
+            "soft_axis_deg": np.where(anisotropic, soft, np.nan),
             "E_max": np.where(ok, e_max, np.nan), "E_min": np.where(ok, e_min, np.nan),
             "anisotropy": np.where(ok, ratio, np.nan)}

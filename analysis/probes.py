@@ -23,6 +23,20 @@ Over the piles of a protocol (``python -m analysis general-fit``):
   the pile comes back to its relaxed shape (elastic), 0 where it keeps all
   of the reduction's strain; per pile, then mean and standard error.
 
+Six constants.  A gravity change has two components, so in a linear pile the
+strains of every reduction and tilt at a point span two shapes and the
+sixth constant is pinned only by the non-linear part of their response
+(:mod:`analysis.general_elastic`).  A probe of another kind, the support
+stretch (stage ``stretched``), adds a third shape.  The file therefore gives,
+besides the fit's ``condition`` over all loading probes, ``condition_gravity``
+over the gravity probes alone, and ``six_constants``: 1 where the fit has
+samples of a probe that is not a gravity change, is identified and
+positive definite, and its condition number is at most
+:data:`SIX_CONSTANTS_MAX_CONDITION`.  The per-pile fits are kept too
+(dimension ``pile``: their condition numbers, stiffest axis and
+anisotropy), and the stiffest axis is compared with the fabric and stress
+axes of the ensemble (``axis_to_fabric_deg``, ``axis_to_stress_deg``).
+
 Slips.  Where a pile slipped under a loading probe (its strain increment
 more than ``analysis.ensemble.slip_strain_ratio`` times that pile's median
 for that probe, :func:`analysis.ensemble.slipped`), that pile's increments of
@@ -35,6 +49,7 @@ out per probe and RVE.
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import numpy as np
@@ -46,12 +61,29 @@ from .ensemble import nan_mean_sem, slipped
 from .errors import InputError
 from .fields import rve_quantities
 from .netcdf import tensor_coords, var
+from .orientation import axis_angle_difference
 from .rve import Grid
 from .states import State, check_same_particles
 
 #: The probe whose increment, compared with the reduction's, measures reversibility.
 RESTORED = "restored"
 POINTS = (1, 5)
+
+#: Stage names of the probes that change gravity (reductions and tilts): in a
+#: linear pile their strains at a point span two shapes only.
+GRAVITY_PROBE = re.compile(r"reduced(\d\d)?|tilt[pm]\d\d")
+
+#: The largest condition number at which the general fit counts as pinning
+#: all six constants (when a probe that is not a gravity change is among its
+#: samples).  The condition number bounds how far the samples' relative misfit
+#: to a linear law is amplified into the weakest combination of C; that
+#: misfit, sqrt(1 - explained_general), is 13-16 % at m = 1 and about 30 % at
+#: m = 5 in the smoke piles of config/scenes/six_constants.yaml, so at 10 the
+#: worst case is already of order one, while the fits the stretch pins there
+#: have a 90th percentile of 4.5-6.  It is the paper fits' threshold
+#: (analysis.moduli.max_condition).  Gravity probes alone never qualify,
+#: however low their condition number (docs/analysis.md, "All six constants").
+SIX_CONSTANTS_MAX_CONDITION = 10.0
 
 
 def probe_increments(relaxed: State, probes: dict[str, State], params: dict[str, Any]) -> xr.Dataset:
@@ -115,6 +147,35 @@ def _fit(stress: np.ndarray, strain: np.ndarray, m: int, min_samples: int) -> di
             "explained_cubic": ge.explained_fraction(ge.cubic_stiffness(l1, l2, l3), sig, u)}
 
 
+def _add_gravity_only(fit: dict, stress: np.ndarray, strain: np.ndarray, gravity: list[int], m: int,
+                      need: int) -> None:
+    """Add to ``fit`` the condition number of the gravity probes alone
+    (``condition_gravity``; inf without any) and their valid samples
+    (``n_gravity``), from probe fields ``(probe, y, x, 2, 2)``."""
+    if gravity:
+        sig, u = _samples(stress[gravity], strain[gravity], m)
+        g = ge.fit_general_stiffness(sig, u, min_samples=need)
+        fit["condition_gravity"], fit["n_gravity"] = g["condition"], g["n_samples"]
+    else:
+        fit["condition_gravity"] = np.full(fit["condition"].shape, np.inf)
+        fit["n_gravity"] = np.zeros(fit["condition"].shape, dtype=int)
+
+
+def six_constants(fit: dict, has_other: bool,
+                  max_condition: float = SIX_CONSTANTS_MAX_CONDITION) -> np.ndarray:
+    """Where a general fit (:func:`_fit` with :func:`_add_gravity_only`) pins
+    all six constants: it has valid samples of a probe that is not a gravity
+    change (``has_other`` and more samples than the gravity probes alone),
+    is identified and positive definite (flag 0), and its condition number
+    is at most ``max_condition``.  Gravity probes alone never qualify: their
+    sixth constant rests on the non-linear part of the response, however
+    well conditioned the fit looks (module docstring)."""
+    if not has_other:
+        return np.zeros(fit["condition"].shape, dtype=bool)
+    return ((fit["n_samples"] > fit["n_gravity"]) & (fit["flag"] == 0)
+            & (fit["condition"] <= max_condition))
+
+
 def reversibility(strain: np.ndarray, probes: list[str]) -> np.ndarray:
     """``1 − |u(restored)| / |u(reduced)|`` per RVE from probe strains ``(..., probe, ny, nx, 2, 2)``.
 
@@ -131,11 +192,19 @@ def reversibility(strain: np.ndarray, probes: list[str]) -> np.ndarray:
 
 SCALARS = ("condition", "axis_deg", "E_max", "E_min", "anisotropy", "explained_general",
            "explained_isotropic", "explained_cubic")
+#: Scalars of each pile's own fit kept per pile (dimension ``pile``).
+PILE_SCALARS = ("condition", "condition_gravity", "axis_deg", "soft_axis_deg", "anisotropy")
+#: Angles whose standard error over piles is taken on the deviations of each
+#: pile's angle from the ensemble fit's, folded into (-90, 90] (axes have no sign).
+AXIS_SCALARS = ("axis_deg", "soft_axis_deg")
 META = {
     "stiffness": ("general symmetric stiffness in Mandel notation (xx, yy, sqrt2 xy), dsigma_M = C du_M", "N/m"),
     "condition": ("condition number of the fit's design matrix (strains only); above max_condition: not "
                   "identified", "1"),
+    "condition_gravity": ("condition number of the fit of the gravity probes alone (reductions and tilts)", "1"),
     "axis_deg": ("direction of the largest uniaxial Young's modulus, from the vertical, counter-clockwise", "degree"),
+    "soft_axis_deg": ("direction of the smallest uniaxial Young's modulus, from the vertical, counter-clockwise",
+                      "degree"),
     "E_max": ("largest uniaxial Young's modulus over directions", "N/m"),
     "E_min": ("smallest uniaxial Young's modulus over directions", "N/m"),
     "anisotropy": ("E_max / E_min", "1"),
@@ -174,6 +243,8 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
             raise InputError("general-fit: the piles' probe files differ in probes or grid "
                              f"({probes} against {[str(p) for p in ds['probe'].values]})")
     loading = [k for k, p in enumerate(probes) if p != RESTORED]
+    gravity = [k for k in loading if GRAVITY_PROBE.fullmatch(probes[k])]
+    other = [k for k in loading if k not in gravity]
     stress = np.stack([ds["stress_increment"].values for ds in piles])        # (pile, probe, y, x, 2, 2)
     strain = np.stack([ds["strain_increment"].values for ds in piles])
     rev_each = np.stack([reversibility(strain[k], probes) for k in range(len(piles))])
@@ -186,23 +257,37 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
     strain = np.where(left_out[..., None, None], np.nan, strain)
     mean_stress, _, _ = nan_mean_sem(stress)
     mean_strain, _, _ = nan_mean_sem(strain)
-    out: dict[str, list] = {name: [] for name in ("stiffness", "stiffness_sem", "flag", "n_samples",
-                                                  *SCALARS, *[f"{s}_sem" for s in SCALARS])}
+    scalars = SCALARS + ("condition_gravity", "soft_axis_deg")
+    out: dict[str, list] = {name: [] for name in ("stiffness", "stiffness_sem", "flag", "n_samples", "six",
+                                                  "six_piles", *scalars, *[f"{s}_sem" for s in scalars],
+                                                  *[f"{s}_pile" for s in PILE_SCALARS])}
     for m in POINTS:
         need = max(ge.MIN_SAMPLES, 1 if m == 1 else params["moduli"]["min_points"])
         whole = _fit(mean_stress[loading], mean_strain[loading], m, need)
+        _add_gravity_only(whole, mean_stress, mean_strain, gravity, m, need)
         each = [_fit(stress[k][loading], strain[k][loading], m, need) for k in range(len(piles))]
+        for k, e in enumerate(each):
+            _add_gravity_only(e, stress[k], strain[k], gravity, m, need)
         out["stiffness"].append(whole["stiffness"])
         out["stiffness_sem"].append(nan_mean_sem(np.stack([e["stiffness"] for e in each]))[1])
         out["flag"].append(whole["flag"])
         out["n_samples"].append(whole["n_samples"])
-        for s in SCALARS:
+        out["six"].append(six_constants(whole, bool(other)))
+        out["six_piles"].append(np.sum([six_constants(e, bool(other)) for e in each], axis=0))
+        for s in scalars:
             out[s].append(whole[s])
-            out[f"{s}_sem"].append(nan_mean_sem(np.stack([e[s] for e in each]))[1])
+            per_pile = np.stack([e[s] for e in each])
+            if s in AXIS_SCALARS:
+                per_pile = axis_angle_difference(per_pile, whole[s])
+            out[f"{s}_sem"].append(nan_mean_sem(per_pile)[1])
+        for s in PILE_SCALARS:
+            out[f"{s}_pile"].append(np.stack([e[s] for e in each]))
     rev_mean, rev_sem, rev_count = nan_mean_sem(rev_each)
     ref = piles[0]
+    labels = [f"{ds.attrs.get('protocol', '')} seed {ds.attrs.get('seed', k)}".strip() for k, ds in enumerate(piles)]
     coords = {"points": var("points", np.array(POINTS), "RVE points per fit (1: the RVE, 5: and its 4 "
                                                        "grid neighbours)", "1"),
+              "pile": var("pile", np.array(labels, dtype=object), "the pile of a per-pile fit", "1"),
               "y": ref["y"].variable, "x": ref["x"].variable,
               "probe": var("probe", np.array(probes, dtype=object), "probe stage", "1"),
               "mandel_i": var("mandel_i", np.array(["xx", "yy", "xy"], dtype=object), "Mandel component", "1"),
@@ -222,11 +307,23 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
         "slip_left_out": var(("probe", "y", "x"), left_out.sum(axis=0).astype(np.int32),
                              "piles left out of the fits at this RVE for this probe: they slipped", "1"),
     }
-    for s in SCALARS:
+    for s in scalars:
         ln, units = META[s]
         data[s] = var(("points", "y", "x"), np.array(out[s]), ln, units)
+        how = ("of the piles' angles from this one, folded into (-90, 90]" if s in AXIS_SCALARS
+               else "over pile-by-pile fits")
         data[f"{s}_sem"] = var(("points", "y", "x"), np.array(out[f"{s}_sem"]),
-                               f"standard error of {s} over pile-by-pile fits", units)
+                               f"standard error of {s} {how}", units)
+    for s in PILE_SCALARS:
+        ln, units = META[s]
+        data[f"{s}_pile"] = var(("points", "pile", "y", "x"), np.array(out[f"{s}_pile"]),
+                                f"{ln}: each pile's own fit", units)
+    data["six_constants"] = var(("points", "y", "x"), np.array(out["six"], dtype=np.int8),
+                                "1 where the fit pins all six constants: a probe that is not a gravity change among "
+                                "its samples, identified, positive definite and condition <= six_constants_max_condition",
+                                "1")
+    data["six_constants_piles"] = var(("points", "y", "x"), np.array(out["six_piles"], dtype=np.int32),
+                                      "piles whose own fit pins all six constants here (as six_constants)", "1")
     ds = xr.Dataset(data, coords=coords)
     if ensemble is not None:
         for name in AXES_FROM_FIELDS:
@@ -234,7 +331,15 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
                 if ensemble[name].shape != rev_mean.shape:
                     raise InputError(f"general-fit: the ensemble's {name} is on another grid")
                 ds[name] = ensemble[name].variable
+                gap = axis_angle_difference(ds["axis_deg"].values, ensemble[name].values[None])
+                what = name.split("_")[0]
+                ds[f"axis_to_{what}_deg"] = var(("points", "y", "x"), gap,
+                                                f"stiffest axis minus the ensemble's {what} axis, folded into "
+                                                "(-90, 90]", "degree")
     ds.attrs.update({"probes": " ".join(probes), "loading_probes": " ".join(probes[k] for k in loading),
+                     "gravity_probes": " ".join(probes[k] for k in gravity),
+                     "other_probes": " ".join(probes[k] for k in other),
+                     "six_constants_max_condition": SIX_CONSTANTS_MAX_CONDITION,
                      "n_seeds": len(piles), "max_condition": ge.MAX_CONDITION,
                      "slip_strain_ratio": "none" if ratio is None else float(ratio),
                      "slip_left_out_total": int(left_out.sum()),

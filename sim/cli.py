@@ -111,7 +111,8 @@ def _parser():
     p.add_argument("--input", required=True)
     p.add_argument("--out", required=True)
 
-    p = sub.add_parser("probe", help="change gravity (lower, tilt or restore it) and relax again")
+    p = sub.add_parser("probe", help="change gravity (lower, tilt or restore it), or stretch the "
+                                     "support, and relax again")
     p.add_argument("--params", help=params_help)
     p.add_argument("--bookkeeping", help=bookkeeping_help)
     p.add_argument("--input", required=True, help="relaxed state file (reduced for --restore)")
@@ -121,6 +122,9 @@ def _parser():
                         help="horizontal component of gravity added, delta |g|, in (-0.5, 0.5)")
     change.add_argument("--restore", action="store_true",
                         help="restore full gravity g0 (from a reduced state)")
+    change.add_argument("--stretch", type=float,
+                        help="stretch the support instead: its surface point at x moves by "
+                             "STRETCH * x, in (-0.01, 0.01), over probe.stretch_time")
     p.add_argument("--out", required=True)
     p.add_argument("--stage", default=None,
                    help="stage name stored in the file (default: from the output name)")
@@ -219,7 +223,9 @@ def main(argv=None):
             protocols.relax_file(cfg, args.input, args.out)
         elif args.command == "probe":
             stage = args.stage or Path(args.out).stem
-            if args.tilt is not None:
+            if args.stretch is not None:
+                protocols.stretch_file(cfg, args.input, args.stretch, args.out, stage)
+            elif args.tilt is not None:
                 protocols.tilt_file(cfg, args.input, args.tilt, args.out, stage)
             elif args.restore:
                 protocols.restore_file(cfg, args.input, args.out, stage)

@@ -363,6 +363,11 @@ class ProbeParams:
         ``"step"`` changes gravity at once, ``"ramp"`` linearly over ``ramp_time``.
     ramp_time : float
         Duration of the ramp, s.
+    stretch : float
+        Strain of the support-stretch probe (stage ``stretched``,
+        :func:`sim.protocols.stretch_file`), in (−0.01, 0.01); 0: none.
+    stretch_time : float
+        Duration of the stretch, s.
     """
 
     levels: tuple = _default("probe", "levels")
@@ -370,6 +375,8 @@ class ProbeParams:
     restore: bool = _default("probe", "restore")
     mode: str = _default("probe", "mode")
     ramp_time: float = _default("probe", "ramp_time")
+    stretch: float = _default("probe", "stretch")
+    stretch_time: float = _default("probe", "stretch_time")
 
     def __post_init__(self):
         self._check_numbers("levels", "in (0, 1) (empty: no gravity probe)")

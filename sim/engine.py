@@ -536,6 +536,55 @@ class Simulation:
             self.cross = carry_history(lo[order], hi[order], witness[pair][order],
                                        self.pi, self.pj, fill=-1)
 
+    def stretch_body(self, body_id, strain):
+        """Stretch the surface of a half-plane body by ``strain`` along itself.
+
+        The surface point at ``q`` moves tangentially by ``strain (q − p)·t t``
+        (``p`` the body's point, ``t`` its tangent), which in the contact law
+        is a move of each tangential spring's anchor: the spring of every
+        particle touching the body in the last force evaluation changes by
+        ``−(2/7) Y strain (s − p)·t`` at its force point ``s`` (the spring
+        opposes the particle's displacement relative to the surface).  The
+        Coulomb cap applies at the next step, as for any spring.  The body
+        itself stays where it is: a half-plane is the same after a move along
+        its surface, so nothing but the springs remembers the stretch (state
+        files and restarts need nothing new).  For the support (``p = 0``,
+        ``t = x̂``) a contact at ``x`` is dragged by ``strain · x``.
+
+        Parameters
+        ----------
+        body_id : int
+            ``BODY_SUPPORT`` (-1), ``BODY_LEFT`` or ``BODY_RIGHT``.
+        strain : float
+            The increment of the surface's tangential strain (dimensionless,
+            > 0 stretches).
+
+        Returns
+        -------
+        int
+            The contacts whose spring was moved.
+
+        Raises
+        ------
+        ValueError
+            If the scene has no such body, or its contacts carry no
+            tangential springs (``model.support_friction`` = 0).
+        """
+        hits = np.flatnonzero(self.body_ids == body_id)
+        if not hits.size:
+            raise ValueError(f"body {body_id}: not a body of this scene (bodies {list(self.body_ids)})")
+        if not self._law_flags()[2]:
+            raise ValueError("a body's surface can only drag the particles through friction: "
+                             f"model.support_friction = {self.model.support_friction}; give it > 0")
+        b = int(hits[0])
+        rows = self.bout[b, :self.n]
+        act = np.flatnonzero(rows[:, ROW["active"]] > 0)
+        tx, ty = -rows[act, ROW["ny"]], rows[act, ROW["nx"]]
+        along = ((rows[act, ROW["sx"]] - self.body_p[b, 0]) * tx
+                 + (rows[act, ROW["sy"]] - self.body_p[b, 1]) * ty)
+        self.bspring[b, act] -= tangential_stiffness(self.model.youngs_modulus) * strain * along
+        return int(act.size)
+
     def net_forces(self):
         """Net force (n, 2) on each active particle from the last evaluation plus gravity."""
         c = self.contacts()

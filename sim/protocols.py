@@ -1,4 +1,4 @@
-"""Pouring protocols, relaxation to rest and the gravity probe.
+"""Pouring protocols, relaxation to rest, the gravity probes and the support stretch.
 
 * **Wedge sequence (point source).**  Particles are released one at a time,
   every ``1/rate`` seconds, at ``x = 0`` plus a uniform jitter of
@@ -43,7 +43,7 @@ import numpy as np
 
 from .config import ConfigError, SimConfig, result_settings
 from .durations import hms
-from .engine import BlowUpError, Simulation
+from .engine import BODY_SUPPORT, BlowUpError, Simulation
 from .frames import FrameRecorder, partial_path
 from .io import StateFileError, code_version, load_simulation, save_state
 from .measure import angle_of_repose, mean_coordination
@@ -827,3 +827,102 @@ def restore_file(cfg: SimConfig, input_path, out, stage="restored"):
     that comes back is the elastic part."""
     return change_gravity(cfg, input_path, lambda g: (0.0, -GRAVITY), out, stage, "restore",
                           gravity_reduction=0.0)
+
+
+#: Equal increments in which :func:`stretch_file` imposes the support's strain
+#: over ``probe.stretch_time``: at the study's strain of 1e-4, a contact at
+#: the toe of a full-size pile (x = 0.54 m) is dragged by 1.1e-7 m per
+#: increment, a spring change of 0.3 N, against contact forces of order 10 N.
+STRETCH_INCREMENTS = 500
+
+
+def support_reaction_moment(sim):
+    """``Σ_c x_c F_x,c`` over the support's contacts (N m), from the last
+    force evaluation: the generalised force conjugate to a stretch ε of the
+    support (a stretch that raises it linearly by ΔP does the work ε ΔP / 2)."""
+    c = sim.contacts()
+    on = c["j"] == BODY_SUPPORT
+    return float(np.sum(c["x"][on] * c["fx"][on]))
+
+
+def stretch_file(cfg: SimConfig, input_path, strain, out, stage="stretched"):
+    """Stretch the support of a relaxed pile by ``strain`` and relax again.
+
+    The support's surface point at x moves by ``strain · x`` horizontally
+    (x = 0 on the pouring axis), linearly over ``probe.stretch_time`` in
+    :data:`STRETCH_INCREMENTS` equal steps (:meth:`sim.engine.Simulation.stretch_body`:
+    the particles touching the support are dragged by their tangential
+    springs; the surface stays the plane y = 0).  Then the pile relaxes to
+    the rest criterion of the change of load, taken as the sum over the
+    support's contacts of the change of their horizontal force during the
+    stretch.  Unlike a gravity probe this load is not a body force: its
+    strain field is not one that any change of gravity makes
+    (docs/model.md, "The support stretch").
+
+    Parameters
+    ----------
+    cfg : SimConfig
+    input_path : path
+        A state at rest (``relaxed``).
+    strain : float
+        The support's strain ε, in (−0.01, 0.01), not 0 (> 0: stretched).
+    out : path
+        The stage's state file (written atomically); it records
+        ``support_stretch`` = ε and ``support_reaction_moment`` before and
+        after (:func:`support_reaction_moment`).
+    stage : str
+
+    Raises
+    ------
+    ValueError
+        For a strain outside that range, a state not at rest, a scene without
+        the support or a frictionless support, before anything runs.
+    """
+    strain = float(strain)
+    if not (0.0 < abs(strain) < 0.01):
+        raise ValueError(f"stretch = {strain!r}: the support's strain must be in (-0.01, 0.01), not 0")
+    sim, ds = load_simulation(input_path, cfg.model)
+    if ds.attrs.get("stage") in NOT_AT_REST:
+        raise ValueError(f"{input_path}: its stage is {ds.attrs['stage']!r}, a state not at rest; the "
+                         "support stretch starts from a state at rest (a relaxed state)")
+    if BODY_SUPPORT not in sim.body_ids:
+        raise ValueError(f"{input_path}: the scene has no support to stretch (physics.support = false)")
+    if not sim.model.support_friction > 0.0:
+        raise ValueError(f"model.support_friction = {sim.model.support_friction}: the stretched support "
+                         "drags the particles only through friction; give it > 0")
+    what = f"stretch {strain:+g}"
+    t = _time.monotonic()
+    on = ds["contact_j"].values == BODY_SUPPORT
+    before = {"i": ds["contact_i"].values[on].astype(np.int64), "fx": ds["force_x"].values[on]}
+    moment_before = float(np.sum(ds["contact_x"].values[on] * before["fx"]))
+    try:
+        sim.drag = cfg.relax.drag
+        chunk = cfg.probe.stretch_time / STRETCH_INCREMENTS
+        for _ in range(STRETCH_INCREMENTS):
+            # a chunk first: the increment moves the springs of the contacts of
+            # the last force evaluation, which a state read from a file has not had
+            sim.run(duration=chunk)
+            sim.stretch_body(BODY_SUPPORT, strain / STRETCH_INCREMENTS)
+        load = _support_force_change(before, sim.contacts())
+        relax(sim, cfg, what, load=load)
+    except BlowUpError as exc:
+        _keep_last_good(sim, out, cfg, exc)
+        raise
+    save_state(sim, out, cfg.to_dict(), stage=stage, protocol=ds.attrs.get("protocol", ""),
+               seed=int(ds.attrs.get("seed", -1)), support_stretch=strain,
+               support_reaction_moment_before=moment_before,
+               support_reaction_moment=support_reaction_moment(sim))
+    _summary(sim, what, _time.monotonic() - t)
+    return sim
+
+
+def _support_force_change(before, after):
+    """``Σ_p |ΔF_x|`` of the support's horizontal forces on each particle, N,
+    from ``before`` (its support contacts: ``i``, ``fx``) to ``after`` (all
+    contacts, :meth:`sim.engine.Simulation.contacts`)."""
+    on = after["j"] == BODY_SUPPORT
+    n = int(max(before["i"].max(initial=-1), after["i"].max(initial=-1))) + 1
+    fx = np.zeros((2, n))
+    np.add.at(fx[0], before["i"], before["fx"])
+    np.add.at(fx[1], after["i"][on], after["fx"][on])
+    return float(np.abs(fx[1] - fx[0]).sum())

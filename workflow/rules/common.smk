@@ -73,9 +73,13 @@ COMPILED_FLAG = "results/.numba/compiled.ok"
 
 SIM_THREADS = int(config["threads"])
 
-# Stage names: the gravity probes (reductions, tilts, the restoring probe),
-# and every stage of a pile.
-STAGE_PATTERN = r"reduced|reduced\d\d|tilt[pm]\d\d|restored"
+# Stage names: the probes (gravity reductions, tilts, the restoring probe,
+# the support stretch), and every stage of a pile.
+STAGE_PATTERN = r"reduced|reduced\d\d|tilt[pm]\d\d|restored|stretched"
+# The support-stretch probe (config probe.stretch) and its own settings: only
+# its job reads them, and only it gets them (probe_sim_params).
+STRETCH_STAGE = "stretched"
+STRETCH_KEYS = ("stretch", "stretch_time")
 PILE_STAGE_PATTERN = rf"poured|relaxed|{STAGE_PATTERN}"
 
 
@@ -124,10 +128,16 @@ def tilt_stages():
     return [tilt_stage(t) for t in signed_tilts()]
 
 
+def stretch_stages():
+    """The support-stretch probe's stage, if config probe.stretch is not 0."""
+    return [STRETCH_STAGE] if float(config["probe"]["stretch"]) != 0.0 else []
+
+
 def extra_probe_stages():
-    """The probes beyond the gravity reductions: the tilts and, with
-    probe.restore, the stage `restored` (full gravity after `reduced`)."""
-    return tilt_stages() + (["restored"] if config["probe"]["restore"] else [])
+    """The probes beyond the gravity reductions: the tilts, the support
+    stretch (probe.stretch) and, with probe.restore, the stage `restored`
+    (full gravity after `reduced`)."""
+    return tilt_stages() + stretch_stages() + (["restored"] if config["probe"]["restore"] else [])
 
 
 def probe_input_stage(stage):
@@ -137,9 +147,11 @@ def probe_input_stage(stage):
 
 def probe_change(stage):
     """The simulator's options of the probe `stage` (python -m sim probe):
-    --level Delta, --tilt +-delta, or --restore."""
+    --level Delta, --tilt +-delta, --stretch epsilon or --restore."""
     if stage == "restored":
         return ["--restore"]
+    if stage == STRETCH_STAGE:
+        return ["--stretch", repr(float(config["probe"]["stretch"]))]
     for tilt in signed_tilts():
         if stage == tilt_stage(tilt):
             return ["--tilt", repr(tilt)]
@@ -170,6 +182,18 @@ def sim_params(*sections):
     travel in sim_bookkeeping().
     """
     return json.dumps(result_settings({k: config[k] for k in sections}), sort_keys=True)
+
+
+def probe_sim_params(stage):
+    """The simulator sections of the probe `stage` as canonical JSON
+    (sim_params("model", "pour", "relax", "probe")), each probe with only
+    its own keys of `probe`: the support stretch its STRETCH_KEYS, the
+    gravity probes all others. So a scene that adds the stretch re-runs no
+    gravity probe, and one that adds a tilt no stretch."""
+    settings = json.loads(sim_params("model", "pour", "relax", "probe"))
+    own = (lambda k: k in STRETCH_KEYS) if stage == STRETCH_STAGE else (lambda k: k not in STRETCH_KEYS)
+    settings["probe"] = {k: v for k, v in settings["probe"].items() if own(k)}
+    return json.dumps(settings, sort_keys=True)
 
 
 class Unrecorded:
@@ -274,6 +298,17 @@ def _check_config():
             f"probe.tilts {config['probe']['tilts']} give repeated stage names {tilts}: "
             "tilts must differ at percent resolution"
         )
+    stretch = float(config["probe"]["stretch"])
+    if stretch != 0.0 and not config["physics"]["support"]:
+        problems.append(
+            f"probe.stretch = {stretch} with physics.support = false: the stretch moves the "
+            "support's surface; set probe.stretch to 0"
+        )
+    if stretch != 0.0 and config["model"]["support_friction"] == 0:
+        problems.append(
+            f"probe.stretch = {stretch} with model.support_friction = 0: the support drags the "
+            "particles only through friction; give model.support_friction > 0 or set probe.stretch to 0"
+        )
     if config["probe"]["restore"] and not stages:
         problems.append(
             "probe.restore = true with probe.levels = []: restoring gravity needs a "
@@ -373,11 +408,13 @@ def relax_runtime_min(wildcards, attempt):
 
 
 def probe_runtime_min(wildcards, attempt):
-    """Runtime (min) of a gravity probe: the gravity ramp, if any, and a
-    relaxation."""
+    """Runtime (min) of a probe: the gravity ramp, if any, or the support
+    stretch, and a relaxation."""
     probe = config["probe"]
     simulated = min(RELAX_TYPICAL_S, config["relax"]["max_time"])
-    if probe["mode"] == "ramp":
+    if wildcards.stage == STRETCH_STAGE:
+        simulated += probe["stretch_time"]
+    elif probe["mode"] == "ramp":
         simulated += probe["ramp_time"]
     return sim_runtime_min(simulated, config["pour"]["n_particles"], attempt)
 

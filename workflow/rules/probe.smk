@@ -3,7 +3,9 @@
 # `reduced` (docs/formats.md), the others reducedNN (NN = round(100 Delta)). With
 # probe.tilts, gravity of the relaxed pile also gets a horizontal component
 # +-delta g0 (stages tiltpNN, tiltmNN); with probe.restore, full gravity comes
-# back after `reduced` (stage restored).
+# back after `reduced` (stage restored). With probe.stretch, the support of the
+# relaxed pile is stretched by that strain instead (stage stretched), a load
+# that no change of gravity makes.
 
 
 rule probe:
@@ -16,7 +18,7 @@ rule probe:
     wildcard_constraints:
         stage=STAGE_PATTERN,
     params:
-        sim=sim_params("model", "pour", "relax", "probe"),
+        sim=lambda wildcards: probe_sim_params(wildcards.stage),
         bookkeeping=sim_bookkeeping(),
         change=lambda wildcards: probe_change(wildcards.stage),
     log:
