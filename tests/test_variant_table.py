@@ -81,7 +81,18 @@ def test_copies_of_the_study_differ_from_it_by_nothing_when_paired(copied_varian
         heights.append(next(line for line in lines if line["stage"] == "relaxed")["height"])
     assert cells[2].startswith(f"{np.mean(heights):.4g} ± ") and cells[2].endswith(f"({len(heights)})")
     assert cells[6] == "0 ± 0 (identical)"
-    assert "| layered | height (m) |" in out and "(1) | n/a | n/a | n/a |" in out
+    # one layered variant pile: its scatter is taken as the study's SD over piles
+    lay = []
+    for s in variant_table.recorded(STUDY, "layered"):
+        lines = [json.loads(x) for x in (STUDY / "layered" / f"seed{s}.summary.json").read_text().splitlines()
+                 if x.strip()]
+        lay.append(next(line for line in lines if line["stage"] == "relaxed")["height"])
+    row = next(line for line in out.splitlines() if line.startswith("| layered | height (m) |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    sd = np.std(lay, ddof=1)
+    se = np.hypot(sd / np.sqrt(len(lay)), sd)
+    d = lay[0] - np.mean(lay)  # the copy is the study's seed 1
+    assert cells[4] == f"{d:+.3g} ± {se:.2g} ({d / se:+.1f}) †" and cells[6] == "n/a"
 
 
 def test_the_paired_difference_is_the_mean_and_standard_error_of_the_per_seed_differences(copied_variant,

@@ -11,7 +11,9 @@ CPU time:
 
 * each set's mean ± standard error over its piles;
 * the difference variant − study, ± the standard error of the difference
-  (``sqrt(se_v^2 + se_s^2)``), in standard errors, and the smallest
+  (``sqrt(se_v^2 + se_s^2)``; with one variant pile, whose scatter is not
+  measured, the study's standard deviation over piles stands for it), in
+  standard errors, and the smallest
   difference those piles could have seen (2.8 SE: two-sided 5 %, 80 % power);
 * the same difference *paired* by seed over the seeds both sets hold (a
   seed draws the same particle shapes in both, so the pairing removes the
@@ -110,10 +112,15 @@ def side_by_side(study: dict, variant: dict, names: dict) -> str:
             if q in COST:
                 rows.append(f"| {p} | {text} | {_cell(ms, ss, ns)} | {_cell(mv, sv, nv)} | | | |")
                 continue
-            se = math.hypot(ss, sv)
+            single = nv == 1
+            if single:  # one variant pile: its scatter taken as the study's SD over piles
+                se = math.hypot(ss, ss * math.sqrt(ns))
+            else:
+                se = math.hypot(ss, sv)
             md, sd, _, nd = mean_sem([variant[p][s][q] - study[p][s][q] for s in common])
             seen = f"{k * se:.2g}" if np.isfinite(se) else "n/a"
-            rows.append(f"| {p} | {text} | {_cell(ms, ss, ns)} | {_cell(mv, sv, nv)} | {_difference(mv - ms, se)} "
+            diff = _difference(mv - ms, se) + (" †" if single and np.isfinite(se) else "")
+            rows.append(f"| {p} | {text} | {_cell(ms, ss, ns)} | {_cell(mv, sv, nv)} | {diff} "
                         f"| {seen} | {_difference(md, sd) if nd > 1 else 'n/a'} |")
     return "\n".join(rows) + "\n"
 
@@ -164,7 +171,8 @@ def main() -> None:
             "the means ± its standard error (in standard errors); *seen at 80 %*: the smallest difference these "
             "piles see at two-sided 5 % with 80 % power (2.8 SE); *paired by seed*: the mean of the per-seed "
             "differences over the seeds both hold (a seed draws the same particle shapes in both), ± its "
-            "standard error.\n\n" + side_by_side(study, variant, names))
+            "standard error. †: one variant pile, whose scatter is taken as the study's standard deviation "
+            "over piles (the difference's standard error is sqrt(se² + sd²) of the study).\n\n" + side_by_side(study, variant, names))
     versus = history_versus(study, variant, names)
     if versus:
         text += ("\nThe construction history, wedge − layered (docs/reproduction/numbers.md defines the "
