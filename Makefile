@@ -15,7 +15,11 @@ TEST_STAMP := $(VENV)/.installed-test
 # constraints: they pin what is installed, they install nothing themselves).
 CONSTRAINTS := workflow/envs/constraints.txt
 PROFILE := workflow/profiles/default
+# Each configuration writes its own results folder (config `results`), its
+# report there too: the study results/study, the smoke run results/smoke,
+# make reproduction results/reproduction.
 SMOKE := --configfile config/smoke.yaml --replace-workflow-config
+REPRODUCTION := --configfile config/config.yaml config/scenes/elastic_probes.yaml config/reproduction.yaml
 
 # One Numba cache for every process started from here (the workflow's rules set
 # the same directory themselves).
@@ -38,8 +42,8 @@ $(TEST_STAMP): $(STAMP)
 	$(PY) -m pip install --quiet -c $(CONSTRAINTS) -e '.[test]'
 	touch $@
 
-# The paper's study (config/config.yaml): all piles, pictures and the analysis.
-# While Snakemake runs, a line on the piles done, running and left and the time
+# The paper's study (config/config.yaml): all piles, pictures and the analysis,
+# in results/study/. While Snakemake runs, a line on the piles done, running and left and the time
 # left (workflow/scripts/study_progress.py) comes every PROGRESS_EVERY seconds,
 # and once at the end, into the terminal and logs/make-run.log (through the
 # same tee: a second writer appending to the file would be overwritten by
@@ -56,33 +60,39 @@ run: venv
 	  kill $$progress 2>/dev/null || true; $(PROGRESS) 2>&1 || true; \
 	  exit $$status; } | tee logs/make-run.log
 
-# The progress line of the study, once (e.g. from another terminal during `make run`).
+# The progress line of the study, once (e.g. from another terminal during
+# `make run`); it names the configuration and counts the piles of its results
+# folder only (another: workflow/scripts/study_progress.py --configfile FILE).
 .PHONY: progress
 progress: venv
 	@$(PROGRESS)
 
 # The study's ensembles, fits and figures, and the table of finished piles,
 # rebuilt from the per-pile results committed under docs/reproduction/ alone
-# (no state file, no simulation): docs/reproduction/figures/, piles.md; with
-# the extra probes' scene, the general fit of the piles whose probes are there.
+# (no state file, no simulation; config/reproduction.yaml): results/reproduction/,
+# docs/reproduction/figures/, piles.md; with the extra probes' scene, the
+# general fit of the piles whose probes are there. Then its report,
+# results/reproduction/report.html.
 reproduction: venv
 	mkdir -p logs
-	$(SNAKEMAKE) reproduction --cores all --profile $(PROFILE) \
-	    --configfile config/config.yaml config/scenes/elastic_probes.yaml --config committed=docs/reproduction \
-	    'outputs=[fields,strain,fabric,fits,figures]' 2>&1 | tee logs/make-reproduction.log
+	$(SNAKEMAKE) reproduction --cores all --profile $(PROFILE) $(REPRODUCTION) 2>&1 | tee logs/make-reproduction.log
+	$(SNAKEMAKE) --profile $(PROFILE) $(REPRODUCTION) --report results/reproduction/report.html
 
 # The study's HTML report (snakemake --report, one self-contained page): every
 # figure, the pictures and films of the piles, the run-time table, each with
-# its caption (workflow/report/). Open results/report.html in a browser.
-REPORT := results/report.html
+# its caption (workflow/report/), of what the study has made so far (target
+# `made`); its first lines name the configuration, the folder and the piles
+# there. Open results/study/report.html in a browser.
 report: venv
-	$(SNAKEMAKE) --profile $(PROFILE) --report $(REPORT)
+	mkdir -p results/study
+	$(SNAKEMAKE) made --profile $(PROFILE) --report results/study/report.html
 
-# Tiny piles (config/smoke.yaml), end to end in minutes, and their report.
+# Tiny piles (config/smoke.yaml), end to end in minutes, in results/smoke/, and
+# their report results/smoke/report.html.
 smoke: venv
 	mkdir -p logs
 	$(SNAKEMAKE) --cores all --profile $(PROFILE) $(SMOKE) 2>&1 | tee logs/make-smoke.log
-	$(SNAKEMAKE) --profile $(PROFILE) $(SMOKE) --report $(REPORT)
+	$(SNAKEMAKE) --profile $(PROFILE) $(SMOKE) --report results/smoke/report.html
 
 # The test of the report opens it in headless Chromium (tests/test_workflow.py):
 # Debian's chromium and chromium-driver, installed here when missing (as root
@@ -118,8 +128,9 @@ lint: venv
 	$(SNAKEMAKE) --lint
 	$(SNAKEMAKE) --lint $(SMOKE)
 
-# Removes everything the workflow made (results/ except its README, logs,
-# benchmarks, Snakemake's metadata) and the caches; keeps .venv.
+# Removes everything the workflow made (results/ except its README: every
+# configuration's folder; logs/ of make; logs/ and benchmarks/ of a tree made
+# before the results folders; Snakemake's metadata) and the caches; keeps .venv.
 clean:
 	find results -mindepth 1 -maxdepth 1 ! -name README.md -exec rm -rf {} +
 	rm -rf logs benchmarks .bench .snakemake .numba_cache .pytest_cache

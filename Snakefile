@@ -49,6 +49,13 @@ include: "workflow/rules/numerics_piles.smk"
 include: "workflow/rules/reproduction.smk"
 
 
+# The first paragraph of the report (workflow/report/workflow.rst) names the
+# configuration files, the results folder and the piles there; a --report
+# under results/ but outside that folder is refused.
+_check_report_path()
+config["_report"] = report_description()
+
+
 rule all:
     # What the scene asks for (config `outputs`; by default everything: every
     # pile stage, the picture of every relaxed pile, and the analysis).
@@ -62,4 +69,12 @@ rule piles:
     # The simulation part only: poured, relaxed and every gravity probe.
     input:
         pile_targets(),
+    localrule: True
+
+
+rule made:
+    # What of `all` exists now (made_targets()): `make report` reports it, so
+    # that the report of a study in progress shows its finished piles.
+    input:
+        made_targets(),
     localrule: True

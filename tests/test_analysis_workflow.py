@@ -1,7 +1,7 @@
 """workflow/rules/analysis.smk and its schema, driven by a stand-in Snakefile.
 
 The stand-in defines what common.smk provides (PROTOCOLS, seeds, probe_stages,
-extra_probe_stages, ANALYSIS_CODE, PY) and scene.smk for the full study (every output, a gravity probe), validates the analysis section against the schema, includes the rules
+extra_probe_stages, results_path, ANALYSIS_DIGEST, PY) and scene.smk for the full study (every output, a gravity probe), validates the analysis section against the schema, includes the rules
 and asks for analysis_targets(). The dry run is fast; the full run is marked slow.
 """
 
@@ -34,11 +34,14 @@ def _project(tmp_path, analysis_cfg=None):
         config.setdefault("committed", None)
         REPO = Path(workflow.basedir)
         PROTOCOLS = ["wedge", "layered"]
+        def results_path(path):
+            return "results/" + path
         def pile(protocol, seed, stage):
-            return f"results/piles/{{protocol}}/seed{{seed}}/{{stage}}.nc"
+            return results_path(f"piles/{{protocol}}/seed{{seed}}/{{stage}}.nc")
         def seeds(protocol):
             return [1, 2]
-        ANALYSIS_CODE = sorted(glob.glob("{REPO}/analysis/*.py"))
+        from workflow.digest import code_digest
+        ANALYSIS_DIGEST = code_digest("{REPO}/analysis")
         PY = "{sys.executable}"
         def py_shell(command):
             return PY + " " + command
@@ -112,4 +115,4 @@ def test_full_run_produces_every_output(tmp_path):
         assert (p / "results" / "fields" / "wedge" / f"seed{seed}.convergence.nc").exists()
     assert len(glob.glob(str(p / "results" / "figures" / "*.png"))) == 6
     assert len(glob.glob(str(p / "results" / "figures" / "*.pdf"))) == 6
-    assert glob.glob(str(p / "benchmarks" / "analysis" / "fields" / "wedge" / "*.tsv"))
+    assert glob.glob(str(p / "results" / "benchmarks" / "analysis" / "fields" / "wedge" / "*.tsv"))

@@ -185,7 +185,7 @@ def test_numerics_piles_target_on_tiny_piles(tmp_path):
                      "--replace-workflow-config", "numerics_piles", "--show-failed-logs", timeout=1200)
     assert proc.returncode == 0, proc.output[-20000:]
     p = cfg["numerics"]["piles"]
-    with xr.open_dataset(root / "results/numerics/piles.nc") as ds:
+    with xr.open_dataset(root / "results/numerics_piles_ci/numerics/piles.nc") as ds:
         assert ds.sizes == {"integrator": 2, "dt_factor": 2, "seed": 2, "x": ds.sizes["x"]}
         for attr in ("Conventions", "title", "source", "history", "config"):
             assert ds.attrs[attr]
@@ -197,15 +197,15 @@ def test_numerics_piles_target_on_tiny_piles(tmp_path):
         assert np.all(ds["cpu_time"].values > 0)
         assert np.all(ds["steps"].values * ds["dt"].values == pytest.approx(ds["sim_time"].values, rel=1e-6))
         assert np.all(ds["base_pressure_error"].values[0, -1] == 0)  # the reference against itself
-    with xr.open_dataset(root / "results/numerics/ensemble.nc") as ds:
+    with xr.open_dataset(root / "results/numerics_piles_ci/numerics/ensemble.nc") as ds:
         assert list(ds["n"].values) == [1, 2]
         assert np.all(ds["compute_time"].values > 0)
-    table = (root / "results/numerics/piles.md").read_text()
+    table = (root / "results/numerics_piles_ci/numerics/piles.md").read_text()
     for integ in p["integrators"]:
         for f in p["dt_factors"]:
             assert f"| {integ} | {f:g} |" in table
     for png in ("pile_error.png", "ensemble_error.png"):
-        assert (root / "results/numerics" / png).read_bytes()[:4] == b"\x89PNG"
+        assert (root / "results/numerics_piles_ci/numerics" / png).read_bytes()[:4] == b"\x89PNG"
     again = snakemake(root, "-n", "--cores", "2", "--configfile", "config/numerics_piles_ci.yaml",
                       "--replace-workflow-config", "numerics_piles")
     assert again.returncode == 0 and job_counts(again.output) == {}, again.output

@@ -134,7 +134,7 @@ def test_workflow_target_dry_run(tmp_path):
         assert f"rule {rule}:" in out
     assert "numerics collisions --params" in out and "numerics stability --params" in out
     assert '"stiffness": [100000.0, 10000000000.0]' in out
-    assert "results/numerics/stable_dt.png" in out
+    assert "results/study/numerics/stable_dt.png" in out
     assert set(CASE_NAMES) >= {"jammed_box", "impact_10_m_s"}
 
 

@@ -49,3 +49,28 @@ def test_same_run_names_a_run_under_the_runs_folder_or_an_absolute_one(tmp_path)
     assert sweep.same_run(f"0={tmp_path}/friction/0.5", Path("/elsewhere")) == (0, tmp_path / "friction" / "0.5")
     with pytest.raises(SystemExit, match="expected VALUE=NAME/VALUE"):
         sweep.same_run("0.02", tmp_path)
+
+
+def _benchmark(path, cpu):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(f"s\tcpu_time\n{2 * cpu}\t{cpu}\n")
+
+
+@pytest.mark.parametrize("layout", ["results folder", "before the results folders"])
+def test_the_piles_of_a_value_are_read_in_either_layout(tmp_path, layout):
+    """A value's working directory holds its piles in the configuration's
+    results folder (results/study/fields, results/study/benchmarks: issue 29,
+    item 2), or, poured by an older clone (--from), in results/fields with
+    benchmarks/ beside results/; both are read."""
+    if layout == "results folder":
+        fields, benchmarks = tmp_path / "results" / "study" / "fields", tmp_path / "results" / "study" / "benchmarks"
+    else:
+        fields, benchmarks = tmp_path / "results" / "fields", tmp_path / "benchmarks"
+    (fields / "wedge").mkdir(parents=True)
+    for rule, cpu in (("pour", 100.0), ("relax", 10.0)):
+        _benchmark(benchmarks / rule / "wedge" / "seed1.tsv", cpu)
+    _benchmark(benchmarks / "probe" / "wedge" / "seed1_reduced.tsv", 1.0)
+    assert sweep.folders(tmp_path, "results/study") == (fields.parent, benchmarks)
+    assert sweep.cpu_seconds(tmp_path, "wedge", 1) == 111.0
+    assert np.isnan(sweep.cpu_seconds(tmp_path, "wedge", 2))
+    assert sweep.results_setting(sweep.MEDIUM, {}) == "results/study"

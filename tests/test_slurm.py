@@ -122,7 +122,7 @@ def run_and_cancel_one_pour(root, env):
     seen as {id: (state, comment, time limit)}, id of the cancelled job)."""
     protocol, seed = KILLED
     comment = f"rule_pour_wildcards_{protocol}_{seed}"
-    checkpoint = root / f"results/piles/{protocol}/seed{seed}/pour.checkpoint.nc"
+    checkpoint = root / f"results/smoke/piles/{protocol}/seed{seed}/pour.checkpoint.nc"
     log = open(root / "snakemake.log", "w")
     start = time.monotonic()
     proc = subprocess.Popen([*SNAKEMAKE, *SLURM_PROFILE, *SLURM_TEST_ARGS, *study(root)],
@@ -170,7 +170,7 @@ def test_slurm_run_survives_a_cancelled_pour_and_matches_a_local_run(cluster, lo
     assert pours[0][0] == cancelled
     first, second = (minutes(limit) for _, (_, _, limit) in pours)
     assert second == 2 * first
-    pour_log = (root / f"logs/pour/{protocol}/seed{seed}.log").read_text()
+    pour_log = (root / f"results/smoke/logs/pour/{protocol}/seed{seed}.log").read_text()
     assert f"resuming {protocol} seed {seed} from checkpoint" in pour_log, pour_log
     assert not list((root / "results").rglob("*.checkpoint.nc"))
     again = snakemake(root, "-n", *SLURM_PROFILE, *study(root))

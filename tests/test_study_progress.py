@@ -1,5 +1,6 @@
 """workflow/scripts/study_progress.py: the one-line progress of the study
-(issue 15, item 4), on fake results/, logs/ and benchmarks/ trees."""
+(issue 15, item 4), on fake piles/, logs/ and benchmarks/ trees in the
+configuration's results folder (results/study, issue 29 item 2)."""
 
 import importlib.util
 import os
@@ -31,6 +32,11 @@ OLD_ETA_LINE = ("2026-12-01 18:35:03,828 INFO pour wedge seed 3: t = 31.9 s simu
                 "to go, 2743 particles, 4705393 steps, 1100 ns per particle-step, ETA 397 s\n")
 
 
+def F(root):
+    """The results folder of the configuration in `root` (config `results`'s default)."""
+    return Path(root) / "results" / "study"
+
+
 def write_config(root, wedge=(1, 2, 3), layered=(1, 2)):
     """A small study (schema defaults for the rest: 3500 particles, one probe)."""
     protocols = {name: {"seeds": list(seeds)} for name, seeds in
@@ -51,19 +57,19 @@ def touch(path, mtime=None, text=""):
     return path
 
 
-def benchmark(root, protocol, seed, stage, cpu_time, wall=None):
+def benchmark(folder, protocol, seed, stage, cpu_time, wall=None):
     header = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
     wall = 2 * cpu_time if wall is None else wall
-    touch(sp.benchmark_file(root, protocol, seed, stage),
+    touch(sp.benchmark_file(folder, protocol, seed, stage),
           text=header + f"{wall}\t0:00:00\t258\t492\t187\t209\t0\t67\t50\t{cpu_time}\n")
 
 
-def finished_pile(root, protocol, seed, cpu, now):
-    """State files, old logs and benchmarks of a finished pile."""
+def finished_pile(folder, protocol, seed, cpu, now):
+    """State files, old logs and benchmarks of a finished pile in the results `folder`."""
     for stage, cpu_time in zip(STAGES, cpu):
-        touch(sp.stage_file(root, protocol, seed, stage))
-        touch(sp.log_file(root, protocol, seed, stage), mtime=now - 3600, text="done\n")
-        benchmark(root, protocol, seed, stage, cpu_time)
+        touch(sp.stage_file(folder, protocol, seed, stage))
+        touch(sp.log_file(folder, protocol, seed, stage), mtime=now - 3600, text="done\n")
+        benchmark(folder, protocol, seed, stage, cpu_time)
 
 
 def fake_study(root, now=NOW):
@@ -72,13 +78,13 @@ def fake_study(root, now=NOW):
     layered 1 not started."""
     write_config(root)
     for (protocol, seed), cpu in CPU.items():
-        finished_pile(root, protocol, seed, cpu, now)
-    touch(sp.checkpoint_file(root, "wedge", 3))
-    touch(sp.log_file(root, "wedge", 3, "poured"), mtime=now - 7,
+        finished_pile(F(root), protocol, seed, cpu, now)
+    touch(sp.checkpoint_file(F(root), "wedge", 3))
+    touch(sp.log_file(F(root), "wedge", 3, "poured"), mtime=now - 7,
           text="2026-12-01 18:30:00,000 INFO pouring 3500 particles (wedge, seed 3)\n" + ETA_LINE)
-    touch(sp.stage_file(root, "layered", 2, "poured"))
-    touch(sp.log_file(root, "layered", 2, "poured"), mtime=now - 900, text="poured\n")
-    touch(sp.log_file(root, "layered", 2, "relaxed"), mtime=now - 60,
+    touch(sp.stage_file(F(root), "layered", 2, "poured"))
+    touch(sp.log_file(F(root), "layered", 2, "poured"), mtime=now - 900, text="poured\n")
+    touch(sp.log_file(F(root), "layered", 2, "relaxed"), mtime=now - 60,
           text="2026-12-01 18:30:00,000 INFO relaxing 3500 particles\n")
     return root
 
@@ -90,7 +96,7 @@ def config_of(root):
 def states(root, now=NOW):
     config = config_of(root)
     return {(p.protocol, p.seed): p for p in (
-        sp.pile_state(root, protocol, seed, STAGES, 3500, now)
+        sp.pile_state(F(root), protocol, seed, STAGES, 3500, now)
         for protocol, seed in sp.study_piles(config))}
 
 
@@ -103,7 +109,9 @@ def test_stages_and_paths():
     assert (sp.benchmark_file(root, "wedge", 3, "reduced")
             == root / "benchmarks/probe/wedge/seed3_reduced.tsv")
     assert sp.log_file(root, "layered", 1, "relaxed") == root / "logs/relax/layered/seed1.log"
-    assert sp.checkpoint_file(root, "wedge", 3) == root / "results/piles/wedge/seed3/pour.checkpoint.nc"
+    assert sp.checkpoint_file(root, "wedge", 3) == root / "piles/wedge/seed3/pour.checkpoint.nc"
+    assert sp.stage_file(root, "wedge", 3, "poured") == root / "piles/wedge/seed3/poured.nc"
+    assert sp.results_folder(root, {"results": "results/smoke"}) == root / "results/smoke"
 
 
 def test_parse_progress_lines():
@@ -127,8 +135,8 @@ def test_parse_progress_lines():
 
 
 def test_benchmark_cpu(tmp_path):
-    benchmark(tmp_path, "wedge", 1, "poured", 4756.78, wall=8339.04)
-    assert sp.benchmark_cpu(sp.benchmark_file(tmp_path, "wedge", 1, "poured")) == 4756.78
+    benchmark(F(tmp_path), "wedge", 1, "poured", 4756.78, wall=8339.04)
+    assert sp.benchmark_cpu(sp.benchmark_file(F(tmp_path), "wedge", 1, "poured")) == 4756.78
     assert sp.benchmark_cpu(tmp_path / "missing.tsv") is None
     two = touch(tmp_path / "two.tsv", text="s\tcpu_time\n10\t4\n12\t6\n")
     assert sp.benchmark_cpu(two) == 5.0  # --benchmark-repeats: the mean
@@ -157,8 +165,8 @@ def test_killed_pour_keeps_its_eta(tmp_path, line):
     work its pour still needs, not reduced by the time since (also from a log
     in the format before issue 29)."""
     write_config(tmp_path)
-    touch(sp.checkpoint_file(tmp_path, "wedge", 1))
-    touch(sp.log_file(tmp_path, "wedge", 1, "poured"), mtime=NOW - 86400, text=line)
+    touch(sp.checkpoint_file(F(tmp_path), "wedge", 1))
+    touch(sp.log_file(F(tmp_path), "wedge", 1, "poured"), mtime=NOW - 86400, text=line)
     pile = states(tmp_path)["wedge", 1]
     assert (pile.state, pile.eta) == ("running", 397.0)
     assert pile.fraction == pytest.approx(2743 / 3500)
@@ -185,7 +193,7 @@ def test_reads_the_line_the_simulator_writes():
 def test_fraction_done_by_hand(tmp_path):
     root = fake_study(tmp_path)
     piles = list(states(root).values())
-    means, _ = sp.stage_means(root, piles, STAGES)
+    means, _ = sp.stage_means(F(root), piles, STAGES)
     # Work left as in test_time_left_by_hand, of 5 piles of 1375 s each.
     left = (390 + 120 + 55) + (120 + 55) + 1375
     assert sp.fraction_done(piles, means, cores=1, threads=1) == pytest.approx(1 - left / (5 * 1375))
@@ -196,14 +204,14 @@ def test_fraction_done_by_hand(tmp_path):
 
 def test_stale_log_without_checkpoint_is_left(tmp_path):
     write_config(tmp_path)
-    touch(sp.log_file(tmp_path, "wedge", 1, "poured"), mtime=NOW - 2 * sp.RECENT_S, text=ETA_LINE)
+    touch(sp.log_file(F(tmp_path), "wedge", 1, "poured"), mtime=NOW - 2 * sp.RECENT_S, text=ETA_LINE)
     assert states(tmp_path)["wedge", 1].state == "left"
 
 
 def test_time_left_by_hand(tmp_path):
     root = fake_study(tmp_path)
     piles = list(states(root).values())
-    means, counted = sp.stage_means(root, piles, STAGES)
+    means, counted = sp.stage_means(F(root), piles, STAGES)
     assert counted == 2
     assert means == {"poured": 1200.0, "relaxed": 120.0, "reduced": 55.0}
     # wedge 3: its ETA 390 s, then relax 120 + probe 55; layered 2: relax 120
@@ -232,7 +240,7 @@ def test_progress_line(tmp_path):
     root = fake_study(tmp_path)
     line = sp.progress_line(root, config_of(root), cores=1, now=NOW)
     # 2115 s of work left of 5 x 1375 s: 69 % done (see test_fraction_done_by_hand)
-    assert line == ("study: 2 of 5 piles done, 2 running (wedge 3: pour 78 %, ETA 0:06:30; "
+    assert line == ("study (results/study/): 2 of 5 piles done, 2 running (wedge 3: pour 78 %, ETA 0:06:30; "
                     "layered 2: relax), 1 left; 69 % of the simulation done, about 0:35:15 left "
                     "at 1 job at a time (mean of 2 finished piles: 0:22:55 of CPU per pile)")
     assert "done, about 0:22:55 left at 2 jobs" in sp.progress_line(root, config_of(root), 2, NOW)
@@ -241,32 +249,33 @@ def test_progress_line(tmp_path):
 def test_unknown_before_a_pile_has_finished(tmp_path):
     root = fake_study(tmp_path)
     for seed in (1, 2):  # the finished piles' last stage gone
-        sp.stage_file(root, "wedge", seed, "reduced").unlink()
+        sp.stage_file(F(root), "wedge", seed, "reduced").unlink()
     line = sp.progress_line(root, config_of(root), cores=2, now=NOW)
-    assert line.startswith("study: 0 of 5 piles done, 2 running (wedge 3: pour 78 %, ETA 0:06:30;")
+    assert line.startswith("study (results/study/): 0 of 5 piles done, 2 running "
+                           "(wedge 3: pour 78 %, ETA 0:06:30;")
     assert "time left unknown" in line and "about" not in line and "% of the simulation" not in line
     empty = tmp_path / "empty"
     write_config(empty)
     assert sp.progress_line(empty, config_of(empty), 2, NOW) == (
-        "study: 0 of 5 piles done, 0 running, 5 left; "
+        "study (results/study/): 0 of 5 piles done, 0 running, 5 left; "
         "time left unknown until a pile has finished (with benchmark files)")
 
 
 def test_seed10_is_not_seed1(tmp_path):
     """A benchmark or log of seed 10 does not count for seed 1."""
     write_config(tmp_path, wedge=(1, 10), layered=())
-    finished_pile(tmp_path, "wedge", 10, (1000.0, 100.0, 50.0), NOW)
-    touch(sp.log_file(tmp_path, "wedge", 10, "poured"), mtime=NOW - 10, text=ETA_LINE)
+    finished_pile(F(tmp_path), "wedge", 10, (1000.0, 100.0, 50.0), NOW)
+    touch(sp.log_file(F(tmp_path), "wedge", 10, "poured"), mtime=NOW - 10, text=ETA_LINE)
     line = sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW)
-    assert line.startswith("study: 1 of 2 piles done, 0 running, 1 left; "
+    assert line.startswith("study (results/study/): 1 of 2 piles done, 0 running, 1 left; "
                            "50 % of the simulation done, about 0:19:10 left")
 
 
 def test_all_done(tmp_path):
     write_config(tmp_path, wedge=(1,), layered=())
-    finished_pile(tmp_path, "wedge", 1, (1000.0, 100.0, 50.0), NOW)
+    finished_pile(F(tmp_path), "wedge", 1, (1000.0, 100.0, 50.0), NOW)
     assert sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW) == (
-        "study: 1 of 1 piles done, 0 running, 0 left; all piles simulated")
+        "study (results/study/): 1 of 1 piles done, 0 running, 0 left; all piles simulated")
 
 
 def test_no_probe_levels(tmp_path):
@@ -275,10 +284,10 @@ def test_no_probe_levels(tmp_path):
     config = yaml.safe_load(path.read_text())
     config["probe"] = {"levels": []}
     path.write_text(yaml.safe_dump(config))
-    touch(sp.stage_file(tmp_path, "wedge", 1, "poured"))
-    touch(sp.stage_file(tmp_path, "wedge", 1, "relaxed"))
+    touch(sp.stage_file(F(tmp_path), "wedge", 1, "poured"))
+    touch(sp.stage_file(F(tmp_path), "wedge", 1, "relaxed"))
     assert sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW).startswith(
-        "study: 1 of 1 piles done")
+        "study (results/study/): 1 of 1 piles done")
 
 
 def test_script_on_a_fake_tree(tmp_path):
@@ -290,14 +299,15 @@ def test_script_on_a_fake_tree(tmp_path):
     assert len(lines) == 1
     print(lines[0])
     assert re.fullmatch(
-        r"study: 2 of 5 piles done, 2 running \(wedge 3: pour 78 %, ETA 0:0[56]:[0-5]\d; layered 2: "
+        r"config/config\.yaml \(results/study/\): 2 of 5 piles done, 2 running \(wedge 3: pour 78 %, ETA 0:0[56]:[0-5]\d; layered 2: "
         r"relax\), 1 left; 69 % of the simulation done, about 0:22:55 left at 2 jobs at a time "
         r"\(mean of 2 finished piles: 0:22:55 of CPU per pile\)", lines[0])
     other = write_config(tmp_path / "elsewhere", wedge=(1, 2), layered=())
     result = subprocess.run([sys.executable, str(SCRIPT), "--directory", str(root),
                              "--configfile", str(other)],
                             capture_output=True, text=True, check=True)
-    assert result.stdout.startswith("study: 2 of 2 piles done, 0 running, 0 left")
+    assert result.stdout.startswith("elsewhere/config/config.yaml (results/study/): 2 of 2 piles done, "
+                                    "0 running, 0 left")
 
 
 def test_every_prints_until_killed(tmp_path):
@@ -309,4 +319,43 @@ def test_every_prints_until_killed(tmp_path):
     finally:
         proc.terminate()
         proc.wait(timeout=10)
-    assert first.startswith("study: 2 of 5 piles done") and second.startswith("study: 2 of 5")
+    assert first.startswith("config/config.yaml (results/study/): 2 of 5 piles done")
+    assert second.startswith("config/config.yaml (results/study/): 2 of 5")
+
+
+def test_counts_only_the_piles_of_its_own_results_folder(tmp_path):
+    """The smoke run's piles (results/smoke) are not the study's: make progress
+    after make smoke once said "4 of 19 piles done" (issue 29, item 2)."""
+    write_config(tmp_path, wedge=(1, 2), layered=())
+    smoke = tmp_path / "config" / "smoke.yaml"
+    smoke.write_text(yaml.safe_dump({"protocols": {"wedge": {"seeds": [1, 2]}}, "threads": 1,
+                                     "results": "results/smoke", "pour": {"n_particles": 150}}))
+    for seed in (1, 2):
+        finished_pile(tmp_path / "results" / "smoke", "wedge", seed, (10.0, 1.0, 1.0), NOW)
+    assert sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW).startswith(
+        "study (results/study/): 0 of 2 piles done, 0 running, 2 left; time left unknown")
+    line = sp.progress_line(tmp_path, sp.load_config(smoke), 2, NOW, label="config/smoke.yaml")
+    assert line == "config/smoke.yaml (results/smoke/): 2 of 2 piles done, 0 running, 0 left; all piles simulated"
+    result = subprocess.run([sys.executable, str(SCRIPT), "--directory", str(tmp_path), "--configfile",
+                             str(tmp_path / "config" / "config.yaml"), str(smoke)],
+                            capture_output=True, text=True, check=True, cwd=tmp_path)
+    assert result.stdout.startswith("config/config.yaml, config/smoke.yaml (results/smoke/): 2 of 2 piles done")
+
+
+def test_a_tree_from_before_the_results_folders_is_named(tmp_path):
+    """Piles under results/piles/ (the layout before issue 29) are not counted, but named."""
+    write_config(tmp_path, wedge=(1,), layered=())
+    finished_pile(tmp_path / "results", "wedge", 1, (10.0, 1.0, 1.0), NOW)
+    line = sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW)
+    assert line.startswith("study (results/study/): 0 of 1 piles done")
+    assert "results/piles holds piles made before" in line and "move them to results/study/" in line
+
+
+def test_committed_results_have_nothing_to_simulate(tmp_path):
+    """make reproduction's configuration (committed results) pours no pile."""
+    write_config(tmp_path)
+    config = config_of(tmp_path)
+    config.update(committed="docs/reproduction", results="results/reproduction")
+    assert sp.progress_line(tmp_path, config, 2, NOW, label="config/reproduction.yaml") == (
+        "config/reproduction.yaml (results/reproduction/): built from the per-pile results committed "
+        "under docs/reproduction/, nothing to simulate")

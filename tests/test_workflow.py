@@ -151,11 +151,11 @@ def test_smoke_dry_run_lists_the_pile_jobs(workdir):
     assert {rule: counts.get(rule) for rule in expected} == expected, proc.output
     assert counts["all"] == 1
     for protocol, seed in smoke_piles():
-        base = f"results/piles/{protocol}/seed{seed}"
+        base = f"results/smoke/piles/{protocol}/seed{seed}"
         for stage in ("poured", "relaxed", "reduced"):
             assert f"{base}/{stage}.nc" in proc.output
         assert f"--checkpoint {base}/pour.checkpoint.nc" in proc.output
-        assert f"results/figures/piles/{protocol}_seed{seed}_relaxed.png" in proc.output
+        assert f"results/smoke/figures/piles/{protocol}_seed{seed}_relaxed.png" in proc.output
     assert "--level 0.1 " in proc.output
     assert "NUMBA_NUM_THREADS=1 " in proc.output  # smoke.yaml: threads 1
 
@@ -167,13 +167,84 @@ def test_paper_dry_run_has_19_piles(workdir):
     assert counts == {"compile_kernels": 1, "pour": 19, "relax": 19, "probe": 19, "piles": 1}
 
 
+def job_files(output, field):
+    """Every path a dry run lists in the jobs' `field:` lines (input, output, log, benchmark)."""
+    return [path for line in output.splitlines() if line.startswith(f"    {field}: ")
+            for path in line.split(": ", 1)[1].split(", ")]
+
+
+REPRODUCTION = ["--configfile", "config/config.yaml", "config/scenes/elastic_probes.yaml",
+                "config/reproduction.yaml"]
+
+
+@pytest.mark.parametrize("args, target, folder", [
+    ([], "all", "results/study/"),
+    (SMOKE, "all", "results/smoke/"),
+    (REPRODUCTION, "reproduction", "results/reproduction/"),
+], ids=["study", "smoke", "reproduction"])
+def test_each_configuration_writes_its_own_results_folder(workdir, args, target, folder):
+    """Issue 29, item 2: make reproduction once rewrote the smoke's ensembles and
+    figures, and make report and the smoke the same report. Every output, log
+    and benchmark of a configuration lies in its own folder (config `results`);
+    only make reproduction writes the committed records' figures and tables,
+    which are its purpose."""
+    if target == "reproduction" and not (workdir / "docs" / "reproduction").exists():
+        shutil.copytree(REPO / "docs" / "reproduction", workdir / "docs" / "reproduction")
+    proc = snakemake(workdir, target, "-n", "--cores", "2", *args)
+    assert proc.returncode == 0, proc.output
+    written = job_files(proc.output, "output") + job_files(proc.output, "log") \
+        + job_files(proc.output, "benchmark")
+    assert len(written) > 20
+    records = ("docs/reproduction/", f"{workdir}/docs/reproduction/")
+    committed = {path for path in written if path.startswith(records)}
+    assert [path for path in written if not path.startswith(folder) and path not in committed] == []
+    assert bool(committed) == (target == "reproduction")
+
+
+def test_a_report_among_another_configurations_results_is_refused(workdir):
+    """The smoke's report belongs in results/smoke/: results/report.html (the
+    one file make report and make smoke both wrote) and the study's folder
+    are refused before anything is read, naming where it belongs."""
+    for path in ("results/report.html", "results/study/report.html"):
+        proc = snakemake(workdir, *SMOKE, "--report", path)
+        assert proc.returncode != 0
+        assert f"--report {path}: this configuration (config/smoke.yaml) writes its results to " \
+            "results/smoke/" in proc.output, proc.output
+        assert not (workdir / path).exists()
+
+
+def test_no_job_lists_the_sources_as_inputs(workdir):
+    """Issue 29, item 7: every rule once listed sim/*.py or all 33 analysis/*.py
+    as inputs, so each job's entry in the log was that long; the code now
+    travels as a digest param, and the inputs are the job's own files."""
+    proc = snakemake(workdir, "-n", "--cores", "2", *SMOKE)
+    assert proc.returncode == 0, proc.output
+    inputs = job_files(proc.output, "input")
+    assert inputs and not [path for path in inputs if path.endswith(".py")]
+
+
+def test_the_simulation_digest_is_the_code_version_of_the_states():
+    """The param `code` of the simulation rules is the code version every state
+    file records (sim.io.code_version), from the same files."""
+    import importlib.util
+
+    from sim.io import code_version
+
+    spec = importlib.util.spec_from_file_location("workflow_digest", REPO / "workflow" / "digest.py")
+    digest = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(digest)
+    code_digest = digest.code_digest
+    assert code_digest(REPO / "sim") == code_version()
+    assert code_digest(REPO / "analysis") != code_digest(REPO / "sim")
+
+
 def test_each_probe_level_is_a_stage(workdir):
     config = with_overrides(workdir, "levels", {"probe": {"levels": [0.1, 0.05]}})
     proc = snakemake(workdir, "-n", "-p", "--cores", "2", *config, "piles")
     assert proc.returncode == 0, proc.output
     assert job_counts(proc.output)["probe"] == 2 * len(smoke_piles())
-    assert "results/piles/wedge/seed1/reduced.nc" in proc.output
-    assert "results/piles/wedge/seed1/reduced05.nc" in proc.output
+    assert "results/smoke/piles/wedge/seed1/reduced.nc" in proc.output
+    assert "results/smoke/piles/wedge/seed1/reduced05.nc" in proc.output
     assert "--level 0.05 " in proc.output
 
 
@@ -258,7 +329,7 @@ def test_the_elastic_probes_scene_tilts_and_restores_every_pile(workdir):
     n = len(smoke_piles())
     assert job_counts(proc.output)["probe"] == 4 * n
     for protocol, seed in smoke_piles():
-        folder = f"results/piles/{protocol}/seed{seed}"
+        folder = f"results/smoke/piles/{protocol}/seed{seed}"
         for start, option, stage in (("relaxed", "--level 0.1", "reduced"),
                                      ("relaxed", "--tilt 0.05", "tiltp05"),
                                      ("relaxed", "--tilt -0.05", "tiltm05"),
@@ -389,7 +460,7 @@ def ran(tmp_path_factory):
     (root / "sim" / "__main__.py").write_text(FAKE_SIM_MAIN)
     (root / "sim" / "kernels.py").write_text("# stands for the Numba kernels\n")
     (root / "analysis" / "__main__.py").write_text(FAKE_ANALYSIS_MAIN)
-    targets = ["piles"] + [f"results/figures/piles/{p}_seed{s}_relaxed.png"
+    targets = ["piles"] + [f"results/smoke/figures/piles/{p}_seed{s}_relaxed.png"
                            for p, s in smoke_piles()]
     proc = snakemake(root, "--cores", "2", *SMOKE, *targets)
     assert proc.returncode == 0, proc.output
@@ -425,21 +496,21 @@ class edited:
 
 def test_fake_run_passed_the_expected_command_lines(ran):
     root, _ = ran
-    pour = json.loads((root / "results/piles/wedge/seed1/poured.nc").read_text())
+    pour = json.loads((root / "results/smoke/piles/wedge/seed1/poured.nc").read_text())
     assert pour["args"]["protocol"] == "wedge" and pour["args"]["seed"] == "1"
-    assert pour["args"]["checkpoint"] == "results/piles/wedge/seed1/pour.checkpoint.nc"
+    assert pour["args"]["checkpoint"] == "results/smoke/piles/wedge/seed1/pour.checkpoint.nc"
     assert pour["env"]["NUMBA_NUM_THREADS"] == str(SMOKE_CONFIG["threads"])
     assert pour["env"]["NUMBA_CACHE_DIR"] == str(root / ".numba_cache")
     params = json.loads(pour["args"]["params"])
     assert params["pour"]["n_particles"] == SMOKE_CONFIG["pour"]["n_particles"]
     # smoke.yaml's integrator, every other model setting filled in by the schema
     assert params["model"] == {**SimConfig().to_dict()["model"], **SMOKE_CONFIG["model"]}
-    probe = json.loads((root / "results/piles/layered/seed2/reduced.nc").read_text())
-    assert probe["args"]["input"] == "results/piles/layered/seed2/relaxed.nc"
+    probe = json.loads((root / "results/smoke/piles/layered/seed2/reduced.nc").read_text())
+    assert probe["args"]["input"] == "results/smoke/piles/layered/seed2/relaxed.nc"
     assert float(probe["args"]["level"]) == 0.1
-    figure = json.loads((root / "results/figures/piles/layered_seed2_relaxed.png").read_text())
+    figure = json.loads((root / "results/smoke/figures/piles/layered_seed2_relaxed.png").read_text())
     assert figure["cmd"] == "draw"
-    assert figure["args"]["input"] == "results/piles/layered/seed2/relaxed.nc"
+    assert figure["args"]["input"] == "results/smoke/piles/layered/seed2/relaxed.nc"
 
 
 def test_nothing_to_do_after_a_run(ran):
@@ -512,13 +583,67 @@ def test_a_scene_without_film_repours_nothing_a_scene_with_film_poured(ran):
     without the film output need no pour again (the frames are an extra
     output, passed outside the recorded params)."""
     root, targets = ran
-    for frames in root.glob("results/piles/*/seed*/frames.nc"):
+    for frames in root.glob("results/smoke/piles/*/seed*/frames.nc"):
         assert frames.exists()
-    assert len(list(root.glob("results/piles/*/seed*/frames.nc"))) == len(smoke_piles())
+    assert len(list(root.glob("results/smoke/piles/*/seed*/frames.nc"))) == len(smoke_piles())
     without = with_overrides(root, "no_film", {"outputs": ["states", "figures"]})
     proc = snakemake(root, "-n", "--cores", "2", *without, *targets)
     assert proc.returncode == 0, proc.output
     assert job_counts(proc.output) == {}, proc.output
+
+
+# python -m analysis, any command, faked: writes what it was given into every
+# file named after --out (one or two), --checks, --html and --vtk (and the
+# contacts file beside a --vtk one), so the whole smoke study runs in seconds.
+FAKE_ANALYSIS_ANY = '''
+import json, sys
+from pathlib import Path
+
+args = sys.argv[1:]
+outs = []
+for k, option in enumerate(args):
+    if option in ("--out", "--checks", "--html", "--vtk"):
+        for value in args[k + 1:]:
+            if value.startswith("--"):
+                break
+            outs += [value] + ([value.replace(".vtu", "_contacts.vtu")] if option == "--vtk" else [])
+for out in outs:
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    Path(out).write_text(json.dumps({"args": args}))
+'''
+
+
+@pytest.fixture(scope="module")
+def ran_all(tmp_path_factory):
+    """A copy with a fake simulator and analysis in which the whole smoke study
+    (rule all: piles, pictures, VTK, films, fields, ensembles, fits, figures) has run."""
+    root = copy_workflow(tmp_path_factory.mktemp("all"), with_sim=False)
+    (root / "sim").mkdir()
+    (root / "sim" / "__init__.py").write_text("")
+    (root / "sim" / "__main__.py").write_text(FAKE_SIM_MAIN)
+    (root / "sim" / "kernels.py").write_text("# stands for the Numba kernels\n")
+    (root / "analysis" / "__main__.py").write_text(FAKE_ANALYSIS_ANY)
+    proc = snakemake(root, "--cores", "2", *SMOKE, timeout=600)
+    assert proc.returncode == 0, proc.output[-5000:]
+    full = snakemake(root, "-n", "--cores", "2", *SMOKE, "--forceall")
+    assert full.returncode == 0, full.output
+    return root, job_counts(full.output)
+
+
+def test_editing_an_analysis_file_reruns_the_analysis_jobs_and_nothing_else(ran_all):
+    """With the code a digest param instead of 33 inputs per job (issue 29, item
+    7) an edit of analysis/ still re-runs every job that runs the analysis,
+    each once, and no simulation; an edit of sim/ the simulations and all after."""
+    root, everything = ran_all
+    assert dry_run(root, []) == {}
+    with edited(root / "analysis" / "fields.py"):
+        counts = dry_run(root, [])
+    simulation = {*PILE_RULES, "pile_summary"}
+    assert counts == {rule: n for rule, n in everything.items() if rule not in simulation}, counts
+    assert {"analysis_fields", "analysis_moduli", "analysis_figure_moduli", "draw_pile",
+            "film_pile", "export_pile", "run_times_table"} <= set(counts)
+    with edited(root / "sim" / "kernels.py"):
+        assert dry_run(root, []) == everything
 
 
 # --- (d) the smoke study, end to end ----------------------------------------
@@ -541,18 +666,18 @@ def test_smoke_study_end_to_end(tmp_path):
     assert proc.returncode == 0, proc.output[-20000:]
     for protocol, seed in smoke_piles():
         for stage in ("poured", "relaxed", "reduced"):
-            path = root / f"results/piles/{protocol}/seed{seed}/{stage}.nc"
+            path = root / f"results/smoke/piles/{protocol}/seed{seed}/{stage}.nc"
             with xr.open_dataset(path) as ds:
                 missing = [v for v in CONTRACT_VARIABLES if v not in ds.variables]
                 assert not missing, (path, missing)
                 assert ds.attrs["protocol"] == protocol and int(ds.attrs["seed"]) == seed
                 assert 0 < ds.sizes["particle"] <= SMOKE_CONFIG["pour"]["n_particles"]
-        assert not (root / f"results/piles/{protocol}/seed{seed}/pour.checkpoint.nc").exists()
-        png = root / f"results/figures/piles/{protocol}_seed{seed}_relaxed.png"
+        assert not (root / f"results/smoke/piles/{protocol}/seed{seed}/pour.checkpoint.nc").exists()
+        png = root / f"results/smoke/figures/piles/{protocol}_seed{seed}_relaxed.png"
         assert png.read_bytes()[:4] == b"\x89PNG"
-        assert (root / f"benchmarks/pour/{protocol}/seed{seed}.tsv").exists()
-        check_vtk_files(root / f"results/vtk/{protocol}_seed{seed}_relaxed.vtu",
-                        root / f"results/piles/{protocol}/seed{seed}/relaxed.nc")
+        assert (root / f"results/smoke/benchmarks/pour/{protocol}/seed{seed}.tsv").exists()
+        check_vtk_files(root / f"results/smoke/vtk/{protocol}_seed{seed}_relaxed.vtu",
+                        root / f"results/smoke/piles/{protocol}/seed{seed}/relaxed.nc")
         check_film(root, protocol, seed)
     # A second run has nothing to do: no parameter or code trigger fires spuriously.
     again = snakemake(root, "-n", "--cores", "2", *SMOKE)
@@ -593,17 +718,17 @@ def check_film(root, protocol, seed):
     import imageio_ffmpeg
     import xarray as xr
 
-    with xr.open_dataset(root / f"results/piles/{protocol}/seed{seed}/frames.nc") as frames, \
-            xr.open_dataset(root / f"results/piles/{protocol}/seed{seed}/poured.nc") as poured:
+    with xr.open_dataset(root / f"results/smoke/piles/{protocol}/seed{seed}/frames.nc") as frames, \
+            xr.open_dataset(root / f"results/smoke/piles/{protocol}/seed{seed}/poured.nc") as poured:
         n_frames = frames.sizes["frame"]
         assert frames["released"].values[-1] == poured.sizes["particle"]
         assert frames["time"].values[-1] == poured.attrs["time"]
     # a frame every pour.frame_interval of a pour of n_particles / rate seconds, and more while it settles
     pour = SMOKE_CONFIG["pour"]
     assert n_frames >= pour["n_particles"] / 100.0 / pour["frame_interval"]
-    counted, _ = imageio_ffmpeg.count_frames_and_secs(str(root / f"results/films/{protocol}_seed{seed}.mp4"))
+    counted, _ = imageio_ffmpeg.count_frames_and_secs(str(root / f"results/smoke/films/{protocol}_seed{seed}.mp4"))
     assert counted == n_frames
-    assert "data:video/mp4;base64," in (root / f"results/films/{protocol}_seed{seed}.html").read_text()
+    assert "data:video/mp4;base64," in (root / f"results/smoke/films/{protocol}_seed{seed}.html").read_text()
 
 
 # Every result of the report, decoded by the browser: images loaded (their
@@ -639,7 +764,7 @@ def check_report(root):
     """snakemake --report of the smoke study, opened in headless Chromium (make
     test installs it): the first page loads with the workflow's description
     and the result categories, and its screenshot is saved as
-    results/report_first_page.png (here and in the repository's results/);
+    results/smoke/report_first_page.png (here and in the repository's results/smoke/);
     every figure of the report decodes, every film plays, the run-time table
     is there, and the captions say with how many piles."""
     from selenium import webdriver
@@ -647,7 +772,7 @@ def check_report(root):
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import WebDriverWait
 
-    report = root / "results" / "report.html"
+    report = root / "results" / "smoke" / "report.html"
     proc = snakemake(root, *SMOKE, "--report", str(report), timeout=600)
     assert proc.returncode == 0, proc.output[-5000:]
     chromium, driver_path = shutil.which("chromium"), shutil.which("chromedriver")
@@ -665,8 +790,12 @@ def check_report(root):
         categories = ("Analysis", "Films of the pours", "Piles", "Run times")
         WebDriverWait(browser, 120).until(
             lambda b: all(c in b.find_element(By.TAG_NAME, "body").text for c in categories))
-        assert "discrete-element simulations of sand piles" in browser.find_element(By.TAG_NAME, "body").text
-        shot = root / "results" / "report_first_page.png"
+        body = words(browser.find_element(By.TAG_NAME, "body").text)
+        assert "discrete-element simulations of sand piles" in body
+        # it names what it describes (the smoke's once said "Configuration: config/config.yaml")
+        assert ("Configuration: config/smoke.yaml; results: results/smoke/, 4 of 4 piles of 150 "
+                "particles made so far") in body, body[:2000]
+        shot = root / "results" / "smoke" / "report_first_page.png"
         assert browser.save_screenshot(str(shot))
         browser.set_script_timeout(120)
         found = browser.execute_async_script(REPORT_RESULTS_JS)
@@ -675,23 +804,23 @@ def check_report(root):
         profile.cleanup()
     assert shot.read_bytes()[:4] == b"\x89PNG"
     if root != REPO:
-        (REPO / "results").mkdir(exist_ok=True)
-        shutil.copy(shot, REPO / "results" / shot.name)
+        (REPO / "results" / "smoke").mkdir(parents=True, exist_ok=True)
+        shutil.copy(shot, REPO / "results" / "smoke" / shot.name)
     piles = smoke_piles()
-    films = {f"results/films/{p}_seed{s}.html" for p, s in piles}
-    pictures = {f"results/figures/piles/{p}_seed{s}_relaxed.png" for p, s in piles}
-    figures = {f"results/figures/{name}.png" for name in (
+    films = {f"results/smoke/films/{p}_seed{s}.html" for p, s in piles}
+    pictures = {f"results/smoke/figures/piles/{p}_seed{s}_relaxed.png" for p, s in piles}
+    figures = {f"results/smoke/figures/{name}.png" for name in (
         "fig1_convergence", "fig2_vertical_strain", "fig3_fabric", "fig4_moduli", "fig5_invariants",
         "base_pressure")}
-    assert set(found) == films | pictures | figures | {"results/run_times.html"}, sorted(found)
+    assert set(found) == films | pictures | figures | {"results/smoke/run_times.html"}, sorted(found)
     for path in pictures | figures:
         assert found[path]["kind"] == "image" and found[path]["width"] > 500, (path, found[path])
     for path in films:
         assert found[path]["kind"] == "film" and found[path]["width"] == 1280, (path, found[path])
         assert found[path]["seconds"] > 1.0, (path, found[path])
         assert "the scene has 2 piles of this protocol" in words(found[path]["caption"])
-    assert found["results/run_times.html"]["table"]
-    for path in figures - {"results/figures/fig1_convergence.png"} | {"results/run_times.html"}:
+    assert found["results/smoke/run_times.html"]["table"]
+    for path in figures - {"results/smoke/figures/fig1_convergence.png"} | {"results/smoke/run_times.html"}:
         assert "2 wedge and 2 layered" in words(found[path]["caption"]), (path, found[path]["caption"])
 
 
@@ -719,7 +848,7 @@ def check_reproduction_from_recorded_piles(root):
     # convergence of every recorded pile, base pressure and summary per pile
     assert job_counts(proc.output)["record_pile"] == len(smoke_piles())
     full = root / "full_study"
-    shutil.copytree(root / "results" / "ensemble", full)
+    shutil.copytree(root / "results" / "smoke" / "ensemble", full)
     shutil.rmtree(root / "results")
     committed = ["--config", "committed=docs/reproduction",
                  "outputs=[fields,strain,fabric,fits,figures]"]
@@ -741,7 +870,7 @@ def check_reproduction_from_recorded_piles(root):
     assert "## Extra probes, wedge" in numbers and "## Extra probes, layered" in numbers
     for p in ("wedge", "layered"):
         for name in ("fields.nc", "moduli.nc", "invariants.nc", "base_pressure.nc", "general_moduli.nc"):
-            with xr.open_dataset(root / "results" / "ensemble" / p / name) as again, \
+            with xr.open_dataset(root / "results" / "smoke" / "ensemble" / p / name) as again, \
                     xr.open_dataset(full / p / name) as first:
                 assert set(again.data_vars) == set(first.data_vars)
                 for var in first.data_vars:
@@ -759,7 +888,7 @@ def check_stress_only_scene_gives_the_same_values(root):
 
     full = root / "full"
     for name in ("fields", "ensemble"):
-        shutil.copytree(root / "results" / name, full / name)
+        shutil.copytree(root / "results" / "smoke" / name, full / name)
     proc = snakemake(root, "--cores", "2", *scene_args("stress_only"), "--show-failed-logs",
                      timeout=600)
     assert proc.returncode == 0, proc.output[-20000:]
@@ -768,7 +897,7 @@ def check_stress_only_scene_gives_the_same_values(root):
     files = [f"fields/{p}/seed{s}.nc" for p, s in smoke_piles()]
     files += [f"ensemble/{p}/fields.nc" for p in ("wedge", "layered")]
     for name in files:
-        with xr.open_dataset(root / "results" / name) as part, \
+        with xr.open_dataset(root / "results" / "smoke" / name) as part, \
                 xr.open_dataset(full / name) as whole:
             assert "stress" in part and "stress_increment" not in part and "fabric" not in part
             assert set(part.data_vars) < set(whole.data_vars)

@@ -5,11 +5,12 @@
 #   PROTOCOLS      list of protocol names of the study
 #   seeds(p)       list of int seeds of protocol p
 #   probe_stages(), extra_probe_stages()  the gravity reductions, and the tilts and restore
-#   ANALYSIS_CODE  list of the analysis/*.py files (an input: code edits rerun the analysis)
+#   ANALYSIS_DIGEST  digest of the analysis/*.py files (param `code`: code edits rerun the analysis)
+#   results_path(p)  p in the configuration's results folder (config `results`)
 #   PY, py_shell   the python executable and the helper that prefixes it to a shell command
 #   and the global wildcard_constraints of protocol and seed
 # and from workflow/rules/scene.smk has_probes() and field_quantities() (the scene's outputs),
-# and the state files results/piles/{protocol}/seed{seed}/{stage}.nc (docs/formats.md#state-files).
+# and the state files {results}/piles/{protocol}/seed{seed}/{stage}.nc (docs/formats.md#state-files).
 #
 # Every rule passes config["analysis"] as sorted JSON in params, so a change of
 # an analysis setting reruns exactly the rules that read it. Figure captions
@@ -21,20 +22,20 @@
 
 rule analysis_fields:
     input:
-        relaxed="results/piles/{protocol}/seed{seed}/relaxed.nc",
+        relaxed=results_path("piles/{protocol}/seed{seed}/relaxed.nc"),
         reduced=_analysis_fields_reduced,
-        code=ANALYSIS_CODE,
     output:
-        fields="results/fields/{protocol}/seed{seed}.nc",
-        checks="results/fields/{protocol}/seed{seed}.checks.json",
+        fields=results_path("fields/{protocol}/seed{seed}.nc"),
+        checks=results_path("fields/{protocol}/seed{seed}.checks.json"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
         reduced=_analysis_reduced_option,
         quantities=field_quantities(),
     log:
-        "logs/analysis/fields/{protocol}/seed{seed}.log",
+        results_path("logs/analysis/fields/{protocol}/seed{seed}.log"),
     benchmark:
-        "benchmarks/analysis/fields/{protocol}/seed{seed}.tsv"
+        results_path("benchmarks/analysis/fields/{protocol}/seed{seed}.tsv")
     localrule: True
     threads: 1
     resources:
@@ -52,13 +53,13 @@ rule analysis_fields:
 rule analysis_ensemble:
     input:
         fields=_analysis_fields,
-        code=ANALYSIS_CODE,
     output:
-        "results/ensemble/{protocol}/fields.nc",
+        results_path("ensemble/{protocol}/fields.nc"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
     log:
-        "logs/analysis/ensemble/{protocol}.log",
+        results_path("logs/analysis/ensemble/{protocol}.log"),
     localrule: True
     threads: 1
     resources:
@@ -74,15 +75,15 @@ rule analysis_ensemble:
 
 rule analysis_moduli:
     input:
-        ensemble="results/ensemble/{protocol}/fields.nc",
+        ensemble=results_path("ensemble/{protocol}/fields.nc"),
         fields=_analysis_fields,
-        code=ANALYSIS_CODE,
     output:
-        "results/ensemble/{protocol}/moduli.nc",
+        results_path("ensemble/{protocol}/moduli.nc"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
     log:
-        "logs/analysis/moduli/{protocol}.log",
+        results_path("logs/analysis/moduli/{protocol}.log"),
     localrule: True
     threads: 1
     resources:
@@ -100,13 +101,13 @@ rule analysis_moduli:
 rule analysis_base_pressure_pile:
     input:
         state=lambda wc: pile(wc.protocol, wc.seed, _analysis_setting("base_pressure", "stage", "relaxed")),
-        code=ANALYSIS_CODE,
     output:
-        "results/fields/{protocol}/seed{seed}.base_pressure.nc",
+        results_path("fields/{protocol}/seed{seed}.base_pressure.nc"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
     log:
-        "logs/analysis/base_pressure/{protocol}/seed{seed}.log",
+        results_path("logs/analysis/base_pressure/{protocol}/seed{seed}.log"),
     localrule: True
     threads: 1
     resources:
@@ -123,13 +124,13 @@ rule analysis_base_pressure_pile:
 rule analysis_base_pressure:
     input:
         piles=_analysis_base_pressure_piles,
-        code=ANALYSIS_CODE,
     output:
-        "results/ensemble/{protocol}/base_pressure.nc",
+        results_path("ensemble/{protocol}/base_pressure.nc"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
     log:
-        "logs/analysis/base_pressure/{protocol}.log",
+        results_path("logs/analysis/base_pressure/{protocol}.log"),
     localrule: True
     threads: 1
     resources:
@@ -145,14 +146,14 @@ rule analysis_base_pressure:
 
 rule analysis_invariants:
     input:
-        ensemble="results/ensemble/{protocol}/fields.nc",
-        code=ANALYSIS_CODE,
+        ensemble=results_path("ensemble/{protocol}/fields.nc"),
     output:
-        "results/ensemble/{protocol}/invariants.nc",
+        results_path("ensemble/{protocol}/invariants.nc"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
     log:
-        "logs/analysis/invariants/{protocol}.log",
+        results_path("logs/analysis/invariants/{protocol}.log"),
     localrule: True
     threads: 1
     resources:
@@ -172,13 +173,13 @@ rule analysis_convergence:
     input:
         relaxed=pile("{protocol}", "{seed}", "relaxed"),
         reduced=pile("{protocol}", "{seed}", "reduced"),
-        code=ANALYSIS_CODE,
     output:
-        "results/fields/{protocol}/seed{seed}.convergence.nc",
+        results_path("fields/{protocol}/seed{seed}.convergence.nc"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
     log:
-        "logs/analysis/convergence/{protocol}/seed{seed}.log",
+        results_path("logs/analysis/convergence/{protocol}/seed{seed}.log"),
     localrule: True
     threads: 1
     resources:
@@ -196,17 +197,17 @@ rule analysis_convergence:
 rule analysis_figure_convergence:
     input:
         data=_analysis_convergence_files,
-        code=ANALYSIS_CODE,
     output:
-        png=report("results/figures/fig1_convergence.png", caption="../report/analysis/fig1_convergence.rst",
+        png=report(results_path("figures/fig1_convergence.png"), caption="../report/analysis/fig1_convergence.rst",
                    category="Analysis", subcategory="Fig. 1"),
-        pdf="results/figures/fig1_convergence.pdf",
+        pdf=results_path("figures/fig1_convergence.pdf"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
         inputs=lambda wc, input: _labelled(input.data, [f"seed{s}" for s in
                                                         _analysis_convergence_seeds(_analysis_protocol("convergence_protocol"))]),
     log:
-        "logs/analysis/figures/fig1_convergence.log",
+        results_path("logs/analysis/figures/fig1_convergence.log"),
     localrule: True
     threads: 1
     resources:
@@ -223,17 +224,17 @@ rule analysis_figure_convergence:
 
 rule analysis_figure_vertical_strain:
     input:
-        data=expand("results/ensemble/{protocol}/fields.nc", protocol=PROTOCOLS),
-        code=ANALYSIS_CODE,
+        data=expand(results_path("ensemble/{protocol}/fields.nc"), protocol=PROTOCOLS),
     output:
-        png=report("results/figures/fig2_vertical_strain.png", caption="../report/analysis/fig2_vertical_strain.rst",
+        png=report(results_path("figures/fig2_vertical_strain.png"), caption="../report/analysis/fig2_vertical_strain.rst",
                    category="Analysis", subcategory="Fig. 2"),
-        pdf="results/figures/fig2_vertical_strain.pdf",
+        pdf=results_path("figures/fig2_vertical_strain.pdf"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
         inputs=lambda wc, input: _labelled(input.data, PROTOCOLS),
     log:
-        "logs/analysis/figures/fig2_vertical_strain.log",
+        results_path("logs/analysis/figures/fig2_vertical_strain.log"),
     localrule: True
     threads: 1
     resources:
@@ -250,17 +251,17 @@ rule analysis_figure_vertical_strain:
 
 rule analysis_figure_fabric:
     input:
-        data=lambda wc: f"results/ensemble/{_analysis_protocol('fabric_protocol')}/fields.nc",
-        code=ANALYSIS_CODE,
+        data=lambda wc: results_path(f"ensemble/{_analysis_protocol('fabric_protocol')}/fields.nc"),
     output:
-        png=report("results/figures/fig3_fabric.png", caption="../report/analysis/fig3_fabric.rst",
+        png=report(results_path("figures/fig3_fabric.png"), caption="../report/analysis/fig3_fabric.rst",
                    category="Analysis", subcategory="Fig. 3"),
-        pdf="results/figures/fig3_fabric.pdf",
+        pdf=results_path("figures/fig3_fabric.pdf"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
         inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("fabric_protocol")]),
     log:
-        "logs/analysis/figures/fig3_fabric.log",
+        results_path("logs/analysis/figures/fig3_fabric.log"),
     localrule: True
     threads: 1
     resources:
@@ -277,17 +278,17 @@ rule analysis_figure_fabric:
 
 rule analysis_figure_moduli:
     input:
-        data=lambda wc: f"results/ensemble/{_analysis_protocol('moduli_protocol')}/moduli.nc",
-        code=ANALYSIS_CODE,
+        data=lambda wc: results_path(f"ensemble/{_analysis_protocol('moduli_protocol')}/moduli.nc"),
     output:
-        png=report("results/figures/fig4_moduli.png", caption="../report/analysis/fig4_moduli.rst",
+        png=report(results_path("figures/fig4_moduli.png"), caption="../report/analysis/fig4_moduli.rst",
                    category="Analysis", subcategory="Fig. 4"),
-        pdf="results/figures/fig4_moduli.pdf",
+        pdf=results_path("figures/fig4_moduli.pdf"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
         inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("moduli_protocol")]),
     log:
-        "logs/analysis/figures/fig4_moduli.log",
+        results_path("logs/analysis/figures/fig4_moduli.log"),
     localrule: True
     threads: 1
     resources:
@@ -304,17 +305,17 @@ rule analysis_figure_moduli:
 
 rule analysis_figure_invariants:
     input:
-        data=lambda wc: f"results/ensemble/{_analysis_protocol('invariants_protocol')}/invariants.nc",
-        code=ANALYSIS_CODE,
+        data=lambda wc: results_path(f"ensemble/{_analysis_protocol('invariants_protocol')}/invariants.nc"),
     output:
-        png=report("results/figures/fig5_invariants.png", caption="../report/analysis/fig5_invariants.rst",
+        png=report(results_path("figures/fig5_invariants.png"), caption="../report/analysis/fig5_invariants.rst",
                    category="Analysis", subcategory="Fig. 5"),
-        pdf="results/figures/fig5_invariants.pdf",
+        pdf=results_path("figures/fig5_invariants.pdf"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
         inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("invariants_protocol")]),
     log:
-        "logs/analysis/figures/fig5_invariants.log",
+        results_path("logs/analysis/figures/fig5_invariants.log"),
     localrule: True
     threads: 1
     resources:
@@ -331,17 +332,17 @@ rule analysis_figure_invariants:
 
 rule analysis_figure_base_pressure:
     input:
-        data=expand("results/ensemble/{protocol}/base_pressure.nc", protocol=PROTOCOLS),
-        code=ANALYSIS_CODE,
+        data=expand(results_path("ensemble/{protocol}/base_pressure.nc"), protocol=PROTOCOLS),
     output:
-        png=report("results/figures/base_pressure.png", caption="../report/analysis/base_pressure.rst",
+        png=report(results_path("figures/base_pressure.png"), caption="../report/analysis/base_pressure.rst",
                    category="Analysis", subcategory="Base pressure"),
-        pdf="results/figures/base_pressure.pdf",
+        pdf=results_path("figures/base_pressure.pdf"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
         inputs=lambda wc, input: _labelled(input.data, PROTOCOLS),
     log:
-        "logs/analysis/figures/base_pressure.log",
+        results_path("logs/analysis/figures/base_pressure.log"),
     localrule: True
     threads: 1
     resources:
@@ -364,15 +365,15 @@ rule analysis_probes:
     input:
         relaxed=pile("{protocol}", "{seed}", "relaxed"),
         probes=lambda wc: [pile(wc.protocol, wc.seed, st) for st in probe_stages() + extra_probe_stages()],
-        code=ANALYSIS_CODE,
     output:
-        "results/fields/{protocol}/seed{seed}.probes.nc",
+        results_path("fields/{protocol}/seed{seed}.probes.nc"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
         probes=lambda wc, input: [f"{st}={path}" for st, path in
                                   zip(probe_stages() + extra_probe_stages(), input.probes)],
     log:
-        "logs/analysis/probes/{protocol}_seed{seed}.log",
+        results_path("logs/analysis/probes/{protocol}_seed{seed}.log"),
     threads: 1
     resources:
         mem_mb=ANALYSIS_MEM_MB,
@@ -390,14 +391,14 @@ rule analysis_general_fit:
     # The general 2D elastic fit of all loading probes over the piles, and reversibility.
     input:
         probes=lambda wc: [pile_result(wc.protocol, s, "probes") for s in analysis_seeds(wc.protocol, "probes")],
-        ensemble="results/ensemble/{protocol}/fields.nc",
-        code=ANALYSIS_CODE,
+        ensemble=results_path("ensemble/{protocol}/fields.nc"),
     output:
-        "results/ensemble/{protocol}/general_moduli.nc",
+        results_path("ensemble/{protocol}/general_moduli.nc"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
     log:
-        "logs/analysis/general_fit/{protocol}.log",
+        results_path("logs/analysis/general_fit/{protocol}.log"),
     localrule: True
     threads: 1
     resources:
@@ -414,17 +415,17 @@ rule analysis_general_fit:
 
 rule analysis_figure_general:
     input:
-        data=expand("results/ensemble/{protocol}/general_moduli.nc", protocol=general_fit_protocols()),
-        code=ANALYSIS_CODE,
+        data=expand(results_path("ensemble/{protocol}/general_moduli.nc"), protocol=general_fit_protocols()),
     output:
-        png=report("results/figures/general_fit.png", caption="../report/analysis/general_fit.rst",
+        png=report(results_path("figures/general_fit.png"), caption="../report/analysis/general_fit.rst",
                    category="Analysis", subcategory="General fit"),
-        pdf="results/figures/general_fit.pdf",
+        pdf=results_path("figures/general_fit.pdf"),
     params:
+        code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
         inputs=lambda wc, input: _labelled(input.data, general_fit_protocols()),
     log:
-        "logs/analysis/figures/general_fit.log",
+        results_path("logs/analysis/figures/general_fit.log"),
     localrule: True
     threads: 1
     resources:

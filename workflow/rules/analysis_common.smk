@@ -15,7 +15,7 @@ ANALYSIS_FIGURES = {"fig1_convergence": "strain", "fig2_vertical_strain": "strai
                     "fig4_moduli": "fits", "fig5_invariants": "fits", "base_pressure": "fields"}
 # The ensemble files of each output.
 ANALYSIS_ENSEMBLE = {"fields": ("fields.nc", "base_pressure.nc"), "fits": ("moduli.nc", "invariants.nc")}
-# A pile's compact results, by kind: its file under results/fields/ and, under
+# A pile's compact results, by kind: its file under {results}/fields/ and, under
 # `committed`, under that folder (docs/reproduction/ as committed).
 PILE_RESULTS = {"fields": ("{protocol}/seed{seed}.nc", "{protocol}/seed{seed}.fields.nc"),
                 "checks": ("{protocol}/seed{seed}.checks.json", "{protocol}/seed{seed}.checks.json"),
@@ -35,7 +35,7 @@ def pile_result(protocol, seed, kind):
     """The file of one pile's compact result of `kind` (a key of PILE_RESULTS)."""
     computed, committed = PILE_RESULTS[kind]
     if COMMITTED is None:
-        return f"results/fields/{computed.format(protocol=protocol, seed=seed)}"
+        return results_path(f"fields/{computed.format(protocol=protocol, seed=seed)}")
     return str(COMMITTED / committed.format(protocol=protocol, seed=seed))
 
 
@@ -117,23 +117,23 @@ def _analysis_convergence_files(wildcards):
 def analysis_targets():
     """The final outputs of the analysis that the scene asks for (for `rule all`)."""
     names = [name for output, files in ANALYSIS_ENSEMBLE.items() if wants(output) for name in files]
-    targets = [f"results/ensemble/{p}/{name}" for p in PROTOCOLS for name in names]
+    targets = [results_path(f"ensemble/{p}/{name}") for p in PROTOCOLS for name in names]
     if wants("strain"):
         targets += _analysis_convergence_files(None)
     if wants("figures"):
-        targets += [f"results/figures/{stem}.{ext}" for stem, output in ANALYSIS_FIGURES.items()
+        targets += [results_path(f"figures/{stem}.{ext}") for stem, output in ANALYSIS_FIGURES.items()
                     if wants(output) for ext in ("png", "pdf")]
     general = reported_general_protocols()
     if general:
-        targets += [f"results/ensemble/{p}/general_moduli.nc" for p in general]
+        targets += [results_path(f"ensemble/{p}/general_moduli.nc") for p in general]
         if wants("figures"):
-            targets += [f"results/figures/general_fit.{ext}" for ext in ("png", "pdf")]
+            targets += [results_path(f"figures/general_fit.{ext}") for ext in ("png", "pdf")]
     return targets
 
 
 def _analysis_fields_reduced(wildcards):
     """The reduced state of a pile's fields: with a gravity probe only (the stress increment and strain)."""
-    return f"results/piles/{wildcards.protocol}/seed{wildcards.seed}/reduced.nc" if has_probes() else []
+    return pile(wildcards.protocol, wildcards.seed, "reduced") if has_probes() else []
 
 
 def _analysis_reduced_option(wildcards, input):

@@ -14,6 +14,7 @@ from snakemake.logging import logger
 from snakemake.settings.types import DeploymentMethod
 
 from sim.config import BOOKKEEPING, result_settings
+from workflow.digest import code_digest
 
 REPO = Path(workflow.basedir).resolve()
 
@@ -27,12 +28,29 @@ def seeds(protocol):
     return [int(s) for s in config["protocols"][protocol]["seeds"]]
 
 
-# Code as input: Snakemake re-runs a job when an input is newer than its
-# output, but it does not look inside imported packages. Listing the package
-# sources as inputs makes an edit of sim/ re-run the simulations and an edit of
-# analysis/ re-run only the analysis. Absolute, sorted paths.
-SIM_CODE = sorted(str(p) for p in (REPO / "sim").glob("*.py"))
-ANALYSIS_CODE = sorted(str(p) for p in (REPO / "analysis").glob("*.py"))
+# The folder of everything this configuration makes (config `results`,
+# relative to the working directory): its piles, fields, ensembles, figures,
+# films, report, and the logs and benchmarks of its jobs. Each configuration
+# has its own (results/study, results/smoke, results/reproduction), so two of
+# them never write the same file.
+RESULTS = config["results"]
+
+
+def results_path(path):
+    """`path` (e.g. "piles/{protocol}/seed{seed}/poured.nc") in this
+    configuration's results folder: "results/study/piles/..."."""
+    return f"{RESULTS}/{path}"
+
+
+# Code as a param: Snakemake does not look inside the packages a command
+# imports, but it re-runs a job whose recorded params changed. Each rule that
+# runs the simulator carries SIM_DIGEST (sim/*.py) as param `code`, each that
+# runs the analysis ANALYSIS_DIGEST (analysis/*.py), so an edit of sim/
+# re-runs the simulations and an edit of analysis/ only the analysis, and the
+# log lists a job's files, not the package's 33 sources. A file only touched
+# (same content) re-runs nothing.
+SIM_DIGEST = code_digest(REPO / "sim")
+ANALYSIS_DIGEST = code_digest(REPO / "analysis")
 
 # Python that runs the jobs: the interpreter running Snakemake (the project's
 # venv under `make run`), so jobs see the same packages without activating
@@ -69,7 +87,7 @@ def py_shell(command):
 
 # Flag file written by rule compile_kernels; every simulation rule takes it as
 # input so that no two jobs compile (and write the Numba cache) at once.
-COMPILED_FLAG = "results/.numba/compiled.ok"
+COMPILED_FLAG = results_path(".numba/compiled.ok")
 
 SIM_THREADS = int(config["threads"])
 
@@ -85,14 +103,14 @@ PILE_STAGE_PATTERN = rf"poured|relaxed|{STAGE_PATTERN}"
 
 def pile(protocol, seed, stage):
     """Path of a particle-state file (docs/formats.md#state-files)."""
-    return f"results/piles/{protocol}/seed{seed}/{stage}.nc"
+    return results_path(f"piles/{protocol}/seed{seed}/{stage}.nc")
 
 
 def pour_checkpoint(protocol, seed):
     """Checkpoint of a running pour. Deliberately not a Snakemake output: it
     must survive a killed job so that the re-run resumes from it; the
     simulator deletes it when the pour has finished."""
-    return f"results/piles/{protocol}/seed{seed}/pour.checkpoint.nc"
+    return results_path(f"piles/{protocol}/seed{seed}/pour.checkpoint.nc")
 
 
 def stage_for_level(level):
@@ -230,11 +248,11 @@ def pile_targets(stages=None):
 
 def pile_figure(protocol, seed, stage):
     """Path of the picture of one pile state."""
-    return f"results/figures/piles/{protocol}_seed{seed}_{stage}.png"
+    return results_path(f"figures/piles/{protocol}_seed{seed}_{stage}.png")
 
 
 # The table of the simulation jobs' run times (rule run_times_table, in the report).
-RUN_TIMES_TABLE = "results/run_times.html"
+RUN_TIMES_TABLE = results_path("run_times.html")
 
 
 def pile_benchmarks():
@@ -244,28 +262,28 @@ def pile_benchmarks():
         path
         for protocol in PROTOCOLS
         for seed in seeds(protocol)
-        for path in [f"benchmarks/pour/{protocol}/seed{seed}.tsv",
-                     f"benchmarks/relax/{protocol}/seed{seed}.tsv"]
-        + [f"benchmarks/probe/{protocol}/seed{seed}_{stage}.tsv"
+        for path in [results_path(f"benchmarks/pour/{protocol}/seed{seed}.tsv"),
+                     results_path(f"benchmarks/relax/{protocol}/seed{seed}.tsv")]
+        + [results_path(f"benchmarks/probe/{protocol}/seed{seed}_{stage}.tsv")
            for stage in probe_stages() + extra_probe_stages()]
     ]
 
 
 def pile_frames(protocol, seed):
     """Path of the frames of a pile's pour (python -m sim pour --frames; output film)."""
-    return f"results/piles/{protocol}/seed{seed}/frames.nc"
+    return results_path(f"piles/{protocol}/seed{seed}/frames.nc")
 
 
 def pile_film(protocol, seed, ext="mp4"):
     """Path of the film of a pile's pour (python -m analysis film): the MP4,
     or with ext="html" the page holding it that the report shows."""
-    return f"results/films/{protocol}_seed{seed}.{ext}"
+    return results_path(f"films/{protocol}_seed{seed}.{ext}")
 
 
 def pile_vtk(protocol, seed, stage):
     """Path of the VTK file of one pile state's particles (python -m analysis
     export; its contact network is the same name with _contacts)."""
-    return f"results/vtk/{protocol}_seed{seed}_{stage}.vtu"
+    return results_path(f"vtk/{protocol}_seed{seed}_{stage}.vtu")
 
 
 def pile_figure_targets(stage="relaxed"):

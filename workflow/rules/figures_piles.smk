@@ -6,7 +6,6 @@
 rule draw_pile:
     input:
         state=pile("{protocol}", "{seed}", "{stage}"),
-        code=ANALYSIS_CODE,
     output:
         report(
             pile_figure("{protocol}", "{seed}", "{stage}"),
@@ -17,8 +16,10 @@ rule draw_pile:
         ),
     wildcard_constraints:
         stage=PILE_STAGE_PATTERN,
+    params:
+        code=ANALYSIS_DIGEST,
     log:
-        "logs/draw_pile/{protocol}_seed{seed}_{stage}.log",
+        results_path("logs/draw_pile/{protocol}_seed{seed}_{stage}.log"),
     # Seconds per picture: under a cluster executor it runs on the submitting
     # machine instead of queueing a cluster job.
     localrule: True
@@ -37,14 +38,15 @@ rule export_pile:
     # contact network with its forces (analysis/vtk.py).
     input:
         state=pile("{protocol}", "{seed}", "{stage}"),
-        code=ANALYSIS_CODE,
     output:
         particles=pile_vtk("{protocol}", "{seed}", "{stage}"),
         contacts=pile_vtk("{protocol}", "{seed}", "{stage}").replace(".vtu", "_contacts.vtu"),
     wildcard_constraints:
         stage=PILE_STAGE_PATTERN,
+    params:
+        code=ANALYSIS_DIGEST,
     log:
-        "logs/export_pile/{protocol}_seed{seed}_{stage}.log",
+        results_path("logs/export_pile/{protocol}_seed{seed}_{stage}.log"),
     localrule: True
     threads: 1
     resources:
@@ -62,7 +64,6 @@ rule film_pile:
     # the MP4, and an HTML page holding it that the report shows inline.
     input:
         frames=pile_frames("{protocol}", "{seed}"),
-        code=ANALYSIS_CODE,
     output:
         film=pile_film("{protocol}", "{seed}"),
         page=report(
@@ -72,10 +73,12 @@ rule film_pile:
             subcategory="{protocol}",
             labels={"protocol": "{protocol}", "seed": "{seed}"},
         ),
+    params:
+        code=ANALYSIS_DIGEST,
     log:
-        "logs/film_pile/{protocol}_seed{seed}.log",
+        results_path("logs/film_pile/{protocol}_seed{seed}.log"),
     benchmark:
-        "benchmarks/film_pile/{protocol}_seed{seed}.tsv"
+        results_path("benchmarks/film_pile/{protocol}_seed{seed}.tsv")
     # Seconds per film (10-20 s at full size): on the submitting machine
     # under a cluster executor, like the pictures.
     localrule: True
@@ -97,11 +100,12 @@ rule run_times_table:
     # benchmark files Snakemake wrote for them, as a table in the report.
     input:
         benchmarks=pile_benchmarks(),
-        code=ANALYSIS_CODE,
     output:
         report(RUN_TIMES_TABLE, caption="../report/run_times.rst", category="Run times"),
+    params:
+        code=ANALYSIS_DIGEST,
     log:
-        "logs/run_times_table.log",
+        results_path("logs/run_times_table.log"),
     localrule: True
     threads: 1
     resources:

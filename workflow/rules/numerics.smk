@@ -6,34 +6,32 @@
 #   numerics_stability: stiff and extreme cases, largest stable time step
 #     (python -m sim numerics stability: sim/numerics/stability.py)
 # Each rule receives only its own section of config["numerics"] (sorted JSON),
-# so changing one re-runs only that rule. Inputs: the kernels and the
-# sim/numerics/ sources (SIM_CODE globs sim/*.py only).
+# so changing one re-runs only that rule. Param `code`: the digests of the
+# kernels' sources sim/*.py and of the sim/numerics/ sources.
 
-NUMERICS_CODE = SIM_CODE + sorted(
-    str(p) for p in (REPO / "sim" / "numerics").glob("*.py")
-)
+NUMERICS_DIGEST = f"{SIM_DIGEST}-{code_digest(REPO / 'sim' / 'numerics')}"
 
 
 rule numerics_collisions:
     input:
-        code=NUMERICS_CODE,
         compiled=COMPILED_FLAG,
     output:
-        nc="results/numerics/collisions.nc",
+        nc=results_path("numerics/collisions.nc"),
         figure=report(
-            "results/numerics/collisions.png",
+            results_path("numerics/collisions.png"),
             caption="../report/numerics_collisions.rst",
             category="Numerics",
         ),
-        table="results/numerics/collisions.md",
+        table=results_path("numerics/collisions.md"),
     params:
+        code=NUMERICS_DIGEST,
         numerics=json.dumps(
             {"numerics": {"collisions": config["numerics"]["collisions"]}}, sort_keys=True
         ),
     log:
-        "logs/numerics/collisions.log",
+        results_path("logs/numerics/collisions.log"),
     benchmark:
-        "benchmarks/numerics/collisions.tsv"
+        results_path("benchmarks/numerics/collisions.tsv")
     # one thread: the wall times are those of a serial run
     threads: 1
     resources:
@@ -50,24 +48,24 @@ rule numerics_collisions:
 
 rule numerics_stability:
     input:
-        code=NUMERICS_CODE,
         compiled=COMPILED_FLAG,
     output:
-        nc="results/numerics/stability.nc",
+        nc=results_path("numerics/stability.nc"),
         figure=report(
-            "results/numerics/stable_dt.png",
+            results_path("numerics/stable_dt.png"),
             caption="../report/numerics_stability.rst",
             category="Numerics",
         ),
-        table="results/numerics/stability.md",
+        table=results_path("numerics/stability.md"),
     params:
+        code=NUMERICS_DIGEST,
         numerics=json.dumps(
             {"numerics": {"stability": config["numerics"]["stability"]}}, sort_keys=True
         ),
     log:
-        "logs/numerics/stability.log",
+        results_path("logs/numerics/stability.log"),
     benchmark:
-        "benchmarks/numerics/stability.tsv"
+        results_path("benchmarks/numerics/stability.tsv")
     threads: 1
     resources:
         mem_mb=2000,
@@ -82,7 +80,7 @@ rule numerics_stability:
 
 
 rule numerics:
-    # Both numerical checks: data, figures and tables under results/numerics/.
+    # Both numerical checks: data, figures and tables under {results}/numerics/.
     input:
         rules.numerics_collisions.output,
         rules.numerics_stability.output,

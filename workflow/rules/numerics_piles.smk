@@ -11,8 +11,8 @@
 # fields and base pressure, and the benchmark files of their simulations.
 #
 # Expects from common.smk: config (validated, defaults filled), PROTOCOLS,
-# seeds(), pile(), probe_stages(), sim_shell(), py_shell(), SIM_CODE,
-# ANALYSIS_CODE, COMPILED_FLAG, SIM_THREADS, SIM_MEM_MB; from analysis_common.smk:
+# seeds(), pile(), probe_stages(), sim_shell(), py_shell(), results_path(), SIM_DIGEST,
+# ANALYSIS_DIGEST, COMPILED_FLAG, SIM_THREADS, SIM_MEM_MB; from analysis_common.smk:
 # ANALYSIS_PARAMS. Helpers: numerics_piles_common.smk.
 
 include: "numerics_piles_common.smk"
@@ -25,19 +25,19 @@ wildcard_constraints:
 
 rule numerics_pile_pour:
     input:
-        code=SIM_CODE,
         compiled=COMPILED_FLAG,
     output:
         state=numerics_pile("{integrator}", "{factor}", "{seed}", "poured"),
         cpu=numerics_pile_cpu("{integrator}", "{factor}", "{seed}", "pour"),
     params:
+        code=SIM_DIGEST,
         sim=lambda wildcards: numerics_pile_params(wildcards, ("particles",)),
         bookkeeping=sim_bookkeeping(),
         protocol=NUMERICS_PILES["protocol"],
         checkpoint=lambda wildcards: numerics_pile(wildcards.integrator, wildcards.factor, wildcards.seed,
                                                    "pour.checkpoint"),
     log:
-        "logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_pour.log",
+        results_path("logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_pour.log"),
     benchmark:
         numerics_pile_benchmark("{integrator}", "{factor}", "{seed}", "pour")
     threads: SIM_THREADS
@@ -58,16 +58,16 @@ rule numerics_pile_pour:
 rule numerics_pile_relax:
     input:
         state=numerics_pile("{integrator}", "{factor}", "{seed}", "poured"),
-        code=SIM_CODE,
         compiled=COMPILED_FLAG,
     output:
         state=numerics_pile("{integrator}", "{factor}", "{seed}", "relaxed"),
         cpu=numerics_pile_cpu("{integrator}", "{factor}", "{seed}", "relax"),
     params:
+        code=SIM_DIGEST,
         sim=lambda wildcards: numerics_pile_params(wildcards, ("relax",)),
         bookkeeping=sim_bookkeeping(),
     log:
-        "logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_relax.log",
+        results_path("logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_relax.log"),
     benchmark:
         numerics_pile_benchmark("{integrator}", "{factor}", "{seed}", "relax")
     threads: SIM_THREADS
@@ -92,7 +92,7 @@ rule numerics_pile_summary:
     output:
         numerics_pile_summary("{integrator}", "{factor}", "{seed}", "relaxed"),
     log:
-        "logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_summary.log",
+        results_path("logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_summary.log"),
     localrule: True
     threads: 1
     conda:
@@ -110,13 +110,13 @@ rule numerics_piles_data:
         relax=_numerics_pile_inputs("relax"),
         pour_cpu=_numerics_pile_inputs("pour_cpu"),
         relax_cpu=_numerics_pile_inputs("relax_cpu"),
-        code=ANALYSIS_CODE,
     output:
         f"{NUMERICS_DIR}/piles.nc",
     params:
+        code=ANALYSIS_DIGEST,
         cfg=json.dumps(NUMERICS_PILES, sort_keys=True),
     log:
-        "logs/numerics/piles_data.log",
+        results_path("logs/numerics/piles_data.log"),
     threads: 1
     resources:
         mem_mb=sim_mem_mb,
@@ -140,15 +140,15 @@ rule numerics_ensemble:
         pour=_numerics_ensemble_inputs("pour"),
         relax=_numerics_ensemble_inputs("relax"),
         probe=_numerics_ensemble_inputs("probe"),
-        code=ANALYSIS_CODE,
     output:
         f"{NUMERICS_DIR}/ensemble.nc",
     params:
+        code=ANALYSIS_DIGEST,
         cfg=json.dumps(NUMERICS_ENSEMBLE, sort_keys=True),
         analysis=ANALYSIS_PARAMS,
         protocols=_numerics_ensemble_args,
     log:
-        "logs/numerics/ensemble.log",
+        results_path("logs/numerics/ensemble.log"),
     threads: 1
     resources:
         mem_mb=sim_mem_mb,
@@ -166,7 +166,6 @@ rule numerics_piles_figures:
     input:
         piles=f"{NUMERICS_DIR}/piles.nc",
         ensemble=f"{NUMERICS_DIR}/ensemble.nc",
-        code=ANALYSIS_CODE,
     output:
         piles=report(f"{NUMERICS_DIR}/pile_error.png", caption="../report/numerics/pile_error.rst",
                      category="Numerics", subcategory="Piles"),
@@ -174,8 +173,10 @@ rule numerics_piles_figures:
         ensemble=report(f"{NUMERICS_DIR}/ensemble_error.png", caption="../report/numerics/ensemble_error.rst",
                         category="Numerics", subcategory="Ensemble"),
         ensemble_pdf=f"{NUMERICS_DIR}/ensemble_error.pdf",
+    params:
+        code=ANALYSIS_DIGEST,
     log:
-        "logs/numerics/piles_figures.log",
+        results_path("logs/numerics/piles_figures.log"),
     threads: 1
     resources:
         mem_mb=sim_mem_mb,
@@ -197,14 +198,14 @@ rule numerics_piles_table:
     input:
         piles=f"{NUMERICS_DIR}/piles.nc",
         ensemble=f"{NUMERICS_DIR}/ensemble.nc",
-        code=ANALYSIS_CODE,
     output:
         report(f"{NUMERICS_DIR}/piles.md", caption="../report/numerics/piles_table.rst",
                category="Numerics", subcategory="Tables"),
     params:
+        code=ANALYSIS_DIGEST,
         model=json.dumps(config["model"], sort_keys=True),
     log:
-        "logs/numerics/piles_table.log",
+        results_path("logs/numerics/piles_table.log"),
     threads: 1
     resources:
         mem_mb=sim_mem_mb,

@@ -3,7 +3,7 @@
 
 NUMERICS_PILES = config["numerics"]["piles"]
 NUMERICS_ENSEMBLE = config["numerics"]["ensemble"]
-NUMERICS_DIR = "results/numerics"
+NUMERICS_DIR = results_path("numerics")
 
 
 def _numerics_factor_label(factor):
@@ -23,13 +23,13 @@ def numerics_pile_summary(integrator, factor_label, seed, stage):
 
 def numerics_pile_benchmark(integrator, factor_label, seed, step):
     """Benchmark file (wall time) of one simulation job of a small pile."""
-    return f"benchmarks/numerics/piles/{integrator}/dt_factor{factor_label}/seed{seed}_{step}.tsv"
+    return results_path(f"benchmarks/numerics/piles/{integrator}/dt_factor{factor_label}/seed{seed}_{step}.tsv")
 
 
 def numerics_pile_cpu(integrator, factor_label, seed, step):
     """CPU time (bash `times`) of one simulation job of a small pile: unlike the
     wall time it does not grow when other processes share the cores."""
-    return f"benchmarks/numerics/piles/{integrator}/dt_factor{factor_label}/seed{seed}_{step}.times"
+    return results_path(f"benchmarks/numerics/piles/{integrator}/dt_factor{factor_label}/seed{seed}_{step}.times")
 
 
 def numerics_pile_runs():
@@ -71,13 +71,13 @@ def _numerics_pile_inputs(kind):
 
 def _numerics_ensemble_inputs(kind):
     if kind == "fields":
-        return [f"results/fields/{p}/seed{s}.nc" for p in PROTOCOLS for s in seeds(p)]
+        return [results_path(f"fields/{p}/seed{s}.nc") for p in PROTOCOLS for s in seeds(p)]
     if kind == "base_pressure":
-        return [f"results/ensemble/{p}/base_pressure.nc" for p in PROTOCOLS]
+        return [results_path(f"ensemble/{p}/base_pressure.nc") for p in PROTOCOLS]
     if kind == "probe":
-        return [f"benchmarks/probe/{p}/seed{s}_{st}.tsv"
+        return [results_path(f"benchmarks/probe/{p}/seed{s}_{st}.tsv")
                 for p in PROTOCOLS for s in seeds(p) for st in probe_stages()]
-    return [f"benchmarks/{kind}/{p}/seed{s}.tsv" for p in PROTOCOLS for s in seeds(p)]
+    return [results_path(f"benchmarks/{kind}/{p}/seed{s}.tsv") for p in PROTOCOLS for s in seeds(p)]
 
 
 def numerics_piles_targets():
@@ -110,9 +110,9 @@ def _numerics_ensemble_args(wildcards, input):
     for p in PROTOCOLS:
         s = seeds(p)
         args += ["--protocol", p, "--seeds", *map(str, s),
-                 "--fields", *[f for f in input.fields if f.startswith(f"results/fields/{p}/")],
-                 "--base-pressure", f"results/ensemble/{p}/base_pressure.nc"]
+                 "--fields", *[f for f in input.fields if f.startswith(results_path(f"fields/{p}/"))],
+                 "--base-pressure", results_path(f"ensemble/{p}/base_pressure.nc")]
         for kind in ("pour", "relax", "probe"):
-            files = [f for f in getattr(input, kind) if f.startswith(f"benchmarks/{kind}/{p}/")]
+            files = [f for f in getattr(input, kind) if f.startswith(results_path(f"benchmarks/{kind}/{p}/"))]
             args += [f"--{kind}-benchmarks", *files]
     return args

@@ -5,14 +5,14 @@
 rule compile_kernels:
     # Compile (and cache in .numba_cache) every Numba kernel once, before the
     # simulation jobs fan out, so that parallel jobs do not race on the cache.
-    input:
-        code=SIM_CODE,
     output:
         touch(COMPILED_FLAG),
+    params:
+        code=SIM_DIGEST,
     log:
-        "logs/compile_kernels.log",
+        results_path("logs/compile_kernels.log"),
     benchmark:
-        "benchmarks/compile_kernels.tsv"
+        results_path("benchmarks/compile_kernels.tsv")
     threads: SIM_THREADS
     resources:
         mem_mb=sim_mem_mb,
@@ -27,13 +27,13 @@ rule compile_kernels:
 
 rule pour:
     input:
-        code=SIM_CODE,
         compiled=COMPILED_FLAG,
     output:
         poured=pile("{protocol}", "{seed}", "poured"),
         # the frames of a film of the pour, only when the scene asks for one
         **({"frames": pile_frames("{protocol}", "{seed}")} if wants("film") else {}),
     params:
+        code=SIM_DIGEST,
         sim=sim_params("model", "particles", "pour", "physics"),
         bookkeeping=sim_bookkeeping(),
         checkpoint=lambda wildcards: pour_checkpoint(wildcards.protocol, wildcards.seed),
@@ -42,9 +42,9 @@ rule pour:
         # scene without film re-pours nothing that a scene with film poured
         frames=lambda wildcards, output: Unrecorded(output.frames if wants("film") else ""),
     log:
-        "logs/pour/{protocol}/seed{seed}.log",
+        results_path("logs/pour/{protocol}/seed{seed}.log"),
     benchmark:
-        "benchmarks/pour/{protocol}/seed{seed}.tsv"
+        results_path("benchmarks/pour/{protocol}/seed{seed}.tsv")
     threads: SIM_THREADS
     resources:
         mem_mb=sim_mem_mb,

@@ -11,20 +11,20 @@
 rule probe:
     input:
         state=lambda wc: pile(wc.protocol, wc.seed, probe_input_stage(wc.stage)),
-        code=SIM_CODE,
         compiled=COMPILED_FLAG,
     output:
         pile("{protocol}", "{seed}", "{stage}"),
     wildcard_constraints:
         stage=STAGE_PATTERN,
     params:
+        code=SIM_DIGEST,
         sim=lambda wildcards: probe_sim_params(wildcards.stage),
         bookkeeping=sim_bookkeeping(),
         change=lambda wildcards: probe_change(wildcards.stage),
     log:
-        "logs/probe/{protocol}/seed{seed}_{stage}.log",
+        results_path("logs/probe/{protocol}/seed{seed}_{stage}.log"),
     benchmark:
-        "benchmarks/probe/{protocol}/seed{seed}_{stage}.tsv"
+        results_path("benchmarks/probe/{protocol}/seed{seed}_{stage}.tsv")
     threads: SIM_THREADS
     resources:
         mem_mb=sim_mem_mb,

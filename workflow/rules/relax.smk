@@ -4,17 +4,17 @@
 rule relax:
     input:
         state=pile("{protocol}", "{seed}", "poured"),
-        code=SIM_CODE,
         compiled=COMPILED_FLAG,
     output:
         pile("{protocol}", "{seed}", "relaxed"),
     params:
+        code=SIM_DIGEST,
         sim=sim_params("model", "pour", "relax"),
         bookkeeping=sim_bookkeeping(),
     log:
-        "logs/relax/{protocol}/seed{seed}.log",
+        results_path("logs/relax/{protocol}/seed{seed}.log"),
     benchmark:
-        "benchmarks/relax/{protocol}/seed{seed}.tsv"
+        results_path("benchmarks/relax/{protocol}/seed{seed}.tsv")
     threads: SIM_THREADS
     resources:
         mem_mb=sim_mem_mb,

@@ -20,9 +20,9 @@ rule pile_summary:
     input:
         states=lambda wc: [pile(wc.protocol, wc.seed, s) for s in ["poured", "relaxed"] + probe_stages()],
     output:
-        "results/fields/{protocol}/seed{seed}.summary.json",
+        results_path("fields/{protocol}/seed{seed}.summary.json"),
     log:
-        "logs/pile_summary/{protocol}/seed{seed}.log",
+        results_path("logs/pile_summary/{protocol}/seed{seed}.log"),
     localrule: True
     threads: 1
     conda:
@@ -40,11 +40,11 @@ if not config["committed"]:
         # extra probes (config/scenes/elastic_probes.yaml) their increments.
         input:
             **{kind: pile_result("{protocol}", "{seed}", kind) for kind in PILE_RESULTS},
-            pour="benchmarks/pour/{protocol}/seed{seed}.tsv",
+            pour=results_path("benchmarks/pour/{protocol}/seed{seed}.tsv"),
         output:
             **{kind: f"{RECORD}/{name}" for kind, name in RECORD_FILES.items()},
         log:
-            "logs/record_pile/{protocol}/seed{seed}.log",
+            results_path("logs/record_pile/{protocol}/seed{seed}.log"),
         localrule: True
         threads: 1
         conda:
@@ -76,11 +76,11 @@ if config["committed"]:
 
     rule reproduction_figure:
         input:
-            "results/figures/{stem}.png",
+            results_path("figures/{stem}.png"),
         output:
             str(COMMITTED / "figures" / "{stem}.png"),
         log:
-            "logs/reproduction/{stem}.log",
+            results_path("logs/reproduction/{stem}.log"),
         localrule: True
         conda:
             "../envs/polypile.yaml"
@@ -94,7 +94,7 @@ if config["committed"]:
         output:
             str(COMMITTED / "piles.md"),
         log:
-            "logs/reproduction/piles_table.log",
+            results_path("logs/reproduction/piles_table.log"),
         localrule: True
         conda:
             "../envs/polypile.yaml"
@@ -104,7 +104,7 @@ if config["committed"]:
     rule reproduction_numbers:
         # The numbers docs/reproduction.md sets against the paper's.
         input:
-            ensembles=expand("results/ensemble/{protocol}/{name}", protocol=PROTOCOLS,
+            ensembles=expand(results_path("ensemble/{protocol}/{name}"), protocol=PROTOCOLS,
                              name=["fields.nc", "base_pressure.nc", "moduli.nc", "invariants.nc"]),
             convergence=[pile_result(p, s, "convergence") for p in PROTOCOLS
                          for s in analysis_seeds(p, "convergence")],
@@ -112,12 +112,14 @@ if config["committed"]:
             fields=[pile_result(p, s, "fields") for p in PROTOCOLS for s in analysis_seeds(p, "fields")],
             base_pressure=[pile_result(p, s, "base_pressure") for p in PROTOCOLS
                            for s in analysis_seeds(p, "base_pressure")],
-            general=expand("results/ensemble/{protocol}/general_moduli.nc", protocol=reported_general_protocols()),
+            general=expand(results_path("ensemble/{protocol}/general_moduli.nc"), protocol=reported_general_protocols()),
             probes=[path for _, path in reported_probes()],
             script="workflow/scripts/reproduction_numbers.py",
         output:
             str(COMMITTED / "numbers.md"),
         params:
+            # the folder of the ensembles: {results}/ensemble
+            ensemble=lambda wc, input: os.path.dirname(os.path.dirname(input.ensembles[0])),
             protocols=PROTOCOLS,
             heights=config["analysis"]["figures"]["heights"],
             general=lambda wc, input: _labelled(input.general, reported_general_protocols()),
@@ -127,13 +129,13 @@ if config["committed"]:
                            for s in analysis_seeds(p, "base_pressure")],
             cfg=ANALYSIS_PARAMS,
         log:
-            "logs/reproduction/numbers.log",
+            results_path("logs/reproduction/numbers.log"),
         localrule: True
         conda:
             "../envs/polypile.yaml"
         shell:
             py_shell(
-                "{input.script:q} --ensemble results/ensemble --protocols {params.protocols:q} "
+                "{input.script:q} --ensemble {params.ensemble:q} --protocols {params.protocols:q} "
                 "--convergence {input.convergence:q} --checks {input.checks:q} --heights {params.heights:q} "
                 "--general {params.general:q} --probes {params.probes:q} --fields {params.fields:q} "
                 "--base-pressure {params.base_pressure:q} --params {params.cfg:q} > {output:q} 2> {log:q}"
@@ -154,7 +156,7 @@ if config["committed"]:
             protocols=PROTOCOLS,
             cfg=ANALYSIS_PARAMS,
         log:
-            "logs/reproduction/variant_{variant}.log",
+            results_path("logs/reproduction/variant_{variant}.log"),
         localrule: True
         conda:
             "../envs/polypile.yaml"

@@ -106,3 +106,83 @@ def scene_targets():
     if wants("numerics"):
         targets += list(rules.numerics.input) + numerics_piles_targets()
     return targets + analysis_targets()
+
+
+def made_targets():
+    """The scene's targets (scene_targets()) that exist now, the input of rule
+    `made`: `make report` reports those, so that the report of a study half
+    run (or not run at all) shows what there is instead of failing on a
+    figure not yet drawn."""
+    return [path for path in scene_targets() if os.path.exists(path)]
+
+
+def _shown_path(path):
+    """A configuration file's path as the report names it: relative to the
+    repository, else to the working directory, else absolute."""
+    path = Path(path).absolute()
+    for base in (REPO, Path.cwd()):
+        try:
+            return str(path.relative_to(base))
+        except ValueError:
+            pass
+    return str(path)
+
+
+def configuration_files():
+    """The configuration files of this run, as given (--configfile, in order),
+    or config/config.yaml when none is, and the --config settings
+    (`key=value`): what the report and its description name."""
+    files = [_shown_path(f) for f in workflow.overwrite_configfiles] or ["config/config.yaml"]
+    settings = [f"{key}={value}" for key, value in workflow.config_settings.config.items()]
+    return files + (["--config " + " ".join(settings)] if settings else [])
+
+
+def report_description():
+    """What the report describes, in words for its first paragraph
+    (workflow/report/workflow.rst): the configuration files, the results
+    folder and how many of the configuration's piles are there; committed
+    results (config `committed`) are named with the piles recorded there."""
+    piles = [(p, s) for p in PROTOCOLS for s in seeds(p)]
+    if config["committed"]:
+        there = sum(len(analysis_seeds(p)) for p in PROTOCOLS)
+        made = (f"from the per-pile results committed under {config['committed']}/ "
+                f"({there} of the {len(piles)} piles recorded)")
+    else:
+        last = probe_stages() + extra_probe_stages() or ["relaxed"]   # as make progress counts
+        there = sum(all(os.path.exists(pile(p, s, st)) for st in last) for p, s in piles)
+        made = (f"{there} of {len(piles)} piles of {config['pour']['n_particles']} particles "
+                "made so far")
+    return {"configfiles": ", ".join(configuration_files()), "results": f"{RESULTS}/", "piles": made}
+
+
+def _report_path():
+    """The path given to --report on this Snakemake's command line; None
+    without one (and in the jobs, which never get it)."""
+    for k, arg in enumerate(sys.argv):
+        if arg.startswith("--report="):
+            value = arg.split("=", 1)[1]
+        elif arg == "--report" and k + 1 < len(sys.argv):
+            value = sys.argv[k + 1]
+        else:
+            continue
+        if value.endswith((".html", ".zip")):
+            return value
+    return None
+
+
+def _check_report_path():
+    """Refuse a report written under results/ but outside this
+    configuration's results folder: it would overwrite or sit among another
+    configuration's files (make report and make smoke once wrote the same
+    results/report.html). A report outside results/ is the user's choice."""
+    value = _report_path()
+    if value is None:
+        return
+    path = (Path.cwd() / value).resolve()
+    ours, top = (Path.cwd() / RESULTS).resolve(), (Path.cwd() / "results").resolve()
+    if path.is_relative_to(top) and not path.is_relative_to(ours):
+        raise ValueError(
+            f"--report {value}: this configuration ({', '.join(configuration_files())}) writes "
+            f"its results to {RESULTS}/ (config `results`); write its report there, e.g. "
+            f"--report {RESULTS}/report.html, so that the reports of two configurations never "
+            "overwrite each other")

@@ -39,6 +39,7 @@ from analysis.ensemble import slipped  # noqa: E402
 from analysis.history import mean_sem  # noqa: E402
 from analysis.params import parse_params  # noqa: E402
 from analysis.probes import reversibility  # noqa: E402
+from workflow.layout import folders  # noqa: E402
 
 LEVELS = {"reduced05": 0.05, "reduced": 0.10, "reduced15": 0.15}
 
@@ -113,8 +114,9 @@ def main(argv=None):
         ap.error("give --step DIR, --ramp DIR or both")
     cfg = yaml.safe_load(args.piles.read_text())
     params = parse_params(json.dumps(cfg.get("analysis", {})))
-    ramp_time = yaml.safe_load((Path(__file__).resolve().parents[2] / "config" / "config.yaml").read_text())[
-        "probe"]["ramp_time"]
+    study = yaml.safe_load((Path(__file__).resolve().parents[2] / "config" / "config.yaml").read_text())
+    ramp_time = study["probe"]["ramp_time"]
+    tree = cfg.get("results", study["results"])  # the piles' results folder in each working directory
     results = {}
     for mode, work in (("step", args.step), ("ramp", args.ramp)):
         if work is None:
@@ -122,7 +124,7 @@ def main(argv=None):
         results[mode] = {}
         for protocol, v in cfg["protocols"].items():
             for seed in v["seeds"]:
-                path = work / "results" / "fields" / protocol / f"seed{seed}.probes.nc"
+                path = folders(work, tree)[0] / "fields" / protocol / f"seed{seed}.probes.nc"
                 if not path.exists():
                     raise SystemExit(f"--{mode} {work}: {path} is missing; run the probes first")
                 with xr.open_dataset(path) as pr:

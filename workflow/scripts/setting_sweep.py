@@ -4,7 +4,8 @@ Runs the piles of ``--piles`` (``config/medium_piles.yaml``, 800 particles, by
 default; ``config/sweep_piles.yaml``, 1600, for the unknown parameters of
 issue 25), merged over the study's ``config/config.yaml``, at each value of
 one setting, each value in its own
-Snakemake working directory ``results/sweeps/{name}/{value}/``, then compares
+Snakemake working directory ``results/sweeps/{name}/{value}/`` (its piles in
+the configuration's results folder there, ``results/study/``), then compares
 per protocol, with the seed mean and its standard error:
 
 * the angle of repose: mean of both flank angles of the relaxed pile
@@ -63,6 +64,7 @@ from analysis.history import mean_sem  # noqa: E402
 from analysis.params import parse_params  # noqa: E402
 from analysis.pile_quantities import MODULI, SHAPE, pile_quantities  # noqa: E402
 from analysis.pile_quantities import quantities as pile_quantity_names  # noqa: E402
+from workflow.layout import folders  # noqa: E402
 from workflow.validation import ConfigurationError, validate_config  # noqa: E402
 from workflow.validation import merge_configs as merged  # noqa: E402
 
@@ -98,7 +100,8 @@ def run_value(name: str, setting: str, value, cores: int, piles: Path) -> Path:
     work.mkdir(parents=True, exist_ok=True)
     (work / "setting.yaml").write_text(yaml.safe_dump(overlay(setting, value)))
     cfg = yaml.safe_load(piles.read_text())
-    summaries = [f"results/fields/{p}/seed{s}.summary.json" for p, v in cfg["protocols"].items()
+    tree = results_setting(piles, overlay(setting, value))
+    summaries = [f"{tree}/fields/{p}/seed{s}.summary.json" for p, v in cfg["protocols"].items()
                  for s in v["seeds"]]
     cmd = [sys.executable, "-m", "snakemake", "all", *summaries, "-s", str(REPO / "Snakefile"),
            "--directory", str(work), "--cores", str(cores),
@@ -119,10 +122,17 @@ def check_values(setting: str, values: list, piles: Path = MEDIUM) -> None:
             raise SystemExit(f"setting_sweep.py --setting {setting} --values ... {label(value)}: {exc}") from None
 
 
-def cpu_seconds(work: Path, protocol: str, seed: int) -> float:
-    """CPU seconds of the pile's simulation jobs (pour, relax, probes) from Snakemake's benchmark files."""
-    files = [work / "benchmarks" / rule / protocol / f"seed{seed}.tsv" for rule in ("pour", "relax")]
-    files += sorted((work / "benchmarks" / "probe" / protocol).glob(f"seed{seed}_*.tsv"))
+def results_setting(piles: Path, layer: dict) -> str:
+    """The ``results`` folder of the sweep's configuration (the study's, ``results/study``)."""
+    return _configuration(piles, layer).get("results", "results/study")
+
+
+def cpu_seconds(work: Path, protocol: str, seed: int, results: str = "results/study") -> float:
+    """CPU seconds of the pile's simulation jobs (pour, relax, probes) from Snakemake's benchmark
+    files, in the working directory `work` whose configuration writes to `results`."""
+    benchmarks = folders(work, results)[1]
+    files = [benchmarks / rule / protocol / f"seed{seed}.tsv" for rule in ("pour", "relax")]
+    files += sorted((benchmarks / "probe" / protocol).glob(f"seed{seed}_*.tsv"))
     total = 0.0
     for f in files:
         if not f.exists():
@@ -132,11 +142,13 @@ def cpu_seconds(work: Path, protocol: str, seed: int) -> float:
     return total
 
 
-def pile_values(work: Path, protocol: str, seed: int, params: dict) -> dict:
-    """The compared quantities of one pile (:func:`analysis.pile_quantities.pile_quantities`) and its CPU time."""
-    stem = work / "results" / "fields" / protocol / f"seed{seed}"
+def pile_values(work: Path, protocol: str, seed: int, params: dict, results: str = "results/study") -> dict:
+    """The compared quantities of one pile (:func:`analysis.pile_quantities.pile_quantities`) and its CPU time,
+    in the working directory `work` whose configuration writes to `results`
+    (or in the layout before the results folders, :func:`workflow.layout.folders`)."""
+    stem = folders(work, results)[0] / "fields" / protocol / f"seed{seed}"
     out = pile_quantities(Path(f"{stem}.summary.json"), Path(f"{stem}.nc"), Path(f"{stem}.base_pressure.nc"), params)
-    out["cpu_s"] = cpu_seconds(work, protocol, seed)
+    out["cpu_s"] = cpu_seconds(work, protocol, seed, results)
     return out
 
 
@@ -253,7 +265,8 @@ def main() -> None:
     for value in values:
         work = works.get(label(value)) or run_value(args.name, args.setting, value, args.cores, piles)
         for p, v in cfg["protocols"].items():
-            results["piles"][p][label(value)] = [pile_values(work, p, s, params) for s in v["seeds"]]
+            tree = results_setting(piles, overlay(args.setting, value))
+            results["piles"][p][label(value)] = [pile_values(work, p, s, params, tree) for s in v["seeds"]]
         results["runs"][label(value)] = commit_of(work)
     record.write_text(json.dumps(results, indent=1) + "\n")
     keys = sorted(results["runs"], key=_order)

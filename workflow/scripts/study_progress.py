@@ -1,7 +1,11 @@
 """One line on the progress of the study: piles done, running and left, and
 the time left (issue 15, item 4).
 
-The piles are those of the validated configuration (``protocols``); a pile is
+The piles are those of the validated configuration (``protocols``), looked
+for in its own results folder (config ``results``: ``results/study`` for
+``config/config.yaml``, ``results/smoke`` for ``config/smoke.yaml``), so the
+piles of another configuration never count; the line begins with the
+configuration files and that folder. A pile is
 
 * **done** when its last stage exists: every gravity probe of
   ``probe.levels`` (``reduced.nc``, ``reducedNN.nc``), or ``relaxed.nc``
@@ -14,7 +18,7 @@ The piles are those of the validated configuration (``protocols``); a pile is
 The time left is the work still to do divided by the cores it can use. The
 work is counted in CPU seconds: a stage not yet run costs the mean
 ``cpu_time`` of that stage in the Snakemake benchmark files
-(``benchmarks/{pour,relax,probe}/...tsv``) of the finished piles; the stage
+(``{results}/benchmarks/{pour,relax,probe}/...tsv``) of the finished piles; the stage
 a running pile is in costs what the ETA of its log's last progress line
 (``sim.protocols.Progress``) says instead, when there is one. The cores it
 can use are the jobs that run side by side, ``cores // threads``, but no more
@@ -26,8 +30,10 @@ the analysis after them. Times are written ``h:mm:ss`` (``sim.durations.hms``).
 
 Usage::
 
-    .venv/bin/python workflow/scripts/study_progress.py [--configfile config/config.yaml]
+    .venv/bin/python workflow/scripts/study_progress.py [--configfile config/config.yaml [FILE ...]]
         [--cores N] [--directory DIR] [--every SECONDS]
+
+Several ``--configfile`` files are merged in order, as Snakemake merges them.
 
 ``--every`` prints the line every SECONDS seconds until killed (``make run``
 starts it in the background), or until the process that started it is gone.
@@ -98,24 +104,33 @@ class PileState:
     fraction: float | None = None
 
 
-def load_config(path):
-    """The workflow configuration in `path`, validated and with every default
-    filled in (``workflow/validation.py``, as the Snakefile does).
+def load_config(*paths):
+    """The workflow configuration of `paths`, merged in order, validated and
+    with every default filled in (``workflow/validation.py``, as the Snakefile
+    does).
 
     Parameters
     ----------
-    path : path-like
-        A YAML configuration such as ``config/config.yaml``.
+    *paths : path-like
+        YAML configurations such as ``config/config.yaml`` (and overlays).
 
     Returns
     -------
     dict
     """
-    from workflow.validation import validate_config
+    from workflow.validation import merge_configs, validate_config
 
-    config = yaml.safe_load(Path(path).read_text()) or {}
+    config = {}
+    for path in paths:
+        config = merge_configs(config, yaml.safe_load(Path(path).read_text()) or {})
     validate_config(config)
     return config
+
+
+def results_folder(root, config):
+    """The folder of the configuration's piles, logs and benchmarks: config
+    ``results`` under the workflow's directory `root`."""
+    return Path(root) / config["results"]
 
 
 def study_piles(config):
@@ -160,14 +175,15 @@ def rule_of(stage):
     return RULES.get(stage, "probe")
 
 
-def stage_file(root, protocol, seed, stage):
-    """Path of a pile's state file (``pile`` in workflow/rules/common.smk)."""
-    return Path(root) / "results" / "piles" / protocol / f"seed{seed}" / f"{stage}.nc"
+def stage_file(folder, protocol, seed, stage):
+    """Path of a pile's state file in the results `folder` (``pile`` in
+    workflow/rules/common.smk)."""
+    return Path(folder) / "piles" / protocol / f"seed{seed}" / f"{stage}.nc"
 
 
-def checkpoint_file(root, protocol, seed):
+def checkpoint_file(folder, protocol, seed):
     """Path of a running pour's checkpoint (``pour_checkpoint`` in common.smk)."""
-    return Path(root) / "results" / "piles" / protocol / f"seed{seed}" / "pour.checkpoint.nc"
+    return Path(folder) / "piles" / protocol / f"seed{seed}" / "pour.checkpoint.nc"
 
 
 def _job_name(seed, stage):
@@ -176,14 +192,14 @@ def _job_name(seed, stage):
     return f"seed{seed}" if rule_of(stage) != "probe" else f"seed{seed}_{stage}"
 
 
-def log_file(root, protocol, seed, stage):
+def log_file(folder, protocol, seed, stage):
     """Path of the log of the job making `stage` (the rules' ``log:``)."""
-    return Path(root) / "logs" / rule_of(stage) / protocol / f"{_job_name(seed, stage)}.log"
+    return Path(folder) / "logs" / rule_of(stage) / protocol / f"{_job_name(seed, stage)}.log"
 
 
-def benchmark_file(root, protocol, seed, stage):
+def benchmark_file(folder, protocol, seed, stage):
     """Path of the benchmark TSV of the job making `stage` (the rules' ``benchmark:``)."""
-    return Path(root) / "benchmarks" / rule_of(stage) / protocol / f"{_job_name(seed, stage)}.tsv"
+    return Path(folder) / "benchmarks" / rule_of(stage) / protocol / f"{_job_name(seed, stage)}.tsv"
 
 
 def benchmark_cpu(path):
@@ -289,7 +305,7 @@ def pile_state(root, protocol, seed, stages, n_particles, now):
     Parameters
     ----------
     root : path-like
-        The workflow's directory (holding results/, logs/).
+        The configuration's results folder (holding piles/, logs/).
     protocol : str
     seed : int
     stages : list of str
@@ -432,27 +448,43 @@ def describe_running(pile):
     return text
 
 
-def progress_line(root, config, cores, now):
+def progress_line(root, config, cores, now, label="study"):
     """The line on the progress of the study.
 
     Parameters
     ----------
     root : path-like
-        The workflow's directory (holding results/, logs/, benchmarks/).
+        The workflow's directory; the piles, logs and benchmarks are in its
+        :func:`results_folder`.
     config : dict
         Validated configuration (:func:`load_config`).
     cores : int
     now : float
         Time (s since the epoch).
+    label : str
+        What the line begins with: the configuration files.
 
     Returns
     -------
     str
-        E.g. ``study: 3 of 19 piles done, 2 running (wedge 3: pour 78 %, ETA
-        0:06:30; layered 2: relax), 14 left; 26 % of the simulation done, about
-        9:30:00 left at 2 jobs at a time (mean of 3 finished piles: 1:22:00 of
-        CPU per pile)``.
+        E.g. ``config/config.yaml (results/study/): 3 of 19 piles done, 2
+        running (wedge 3: pour 78 %, ETA 0:06:30; layered 2: relax), 14 left;
+        26 % of the simulation done, about 9:30:00 left at 2 jobs at a time
+        (mean of 3 finished piles: 1:22:00 of CPU per pile)``.
     """
+    if config.get("committed"):
+        return (f"{label} ({config['results']}/): built from the per-pile results committed under "
+                f"{config['committed']}/, nothing to simulate")
+    line = f"{label} ({config['results']}/): " + _progress(results_folder(root, config), config, cores, now)
+    legacy = Path(root) / "results" / "piles"
+    if not results_folder(root, config).is_dir() and legacy.is_dir():
+        line += (f"; {legacy} holds piles made before each configuration had its results folder: "
+                 f"move them to {config['results']}/ (docs/workflow.md, \"Results folders\")")
+    return line
+
+
+def _progress(root, config, cores, now):
+    """:func:`progress_line` after its label, for the results folder `root`."""
     stages = pile_stages(config["probe"]["levels"])
     n_particles = int(config["pour"]["n_particles"])
     piles = [pile_state(root, protocol, seed, stages, n_particles, now)
@@ -460,7 +492,7 @@ def progress_line(root, config, cores, now):
     done = [p for p in piles if p.state == "done"]
     running = [p for p in piles if p.state == "running"]
     left = len(piles) - len(done) - len(running)
-    line = f"study: {len(done)} of {len(piles)} piles done, {len(running)} running"
+    line = f"{len(done)} of {len(piles)} piles done, {len(running)} running"
     if running:
         line += " (" + "; ".join(describe_running(p) for p in running) + ")"
     line += f", {left} left; "
@@ -476,6 +508,18 @@ def progress_line(root, config, cores, now):
             f"{jobs} job{'s' * (jobs != 1)} "
             f"at a time (mean of {counted} finished pile{'s' * (counted != 1)}: "
             f"{per_pile} of CPU per pile)")
+
+
+def _shown(path, root):
+    """A configuration file's path as the line names it: relative to the
+    workflow's directory `root` or to this one when it lies below, else as given."""
+    path = Path(path)
+    for base in (Path(root), Path.cwd()):
+        try:
+            return str(path.absolute().relative_to(base.absolute()))
+        except ValueError:
+            pass
+    return str(path)
 
 
 def available_cores():
@@ -508,20 +552,23 @@ def watch(every, line):
 def main(argv=None):
     """Command line: print the line once, or every ``--every`` seconds."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--configfile", help="configuration (default: DIR/config/config.yaml)")
+    parser.add_argument("--configfile", nargs="+",
+                        help="configuration files, merged in order (default: DIR/config/config.yaml)")
     parser.add_argument("--cores", type=int, default=available_cores(),
                         help="cores Snakemake runs on (default: all of this machine)")
     parser.add_argument("--directory", default=".", help="the workflow's directory DIR (default: .)")
     parser.add_argument("--every", type=float, help="print the line every EVERY seconds until killed")
     args = parser.parse_args(argv)
     root = Path(args.directory)
-    config = load_config(args.configfile or root / "config" / "config.yaml")
+    files = args.configfile or [root / "config" / "config.yaml"]
+    config = load_config(*files)
+    label = ", ".join(_shown(f, root) for f in files)
 
     def line():
         try:
-            return progress_line(root, config, args.cores, time.time())
+            return progress_line(root, config, args.cores, time.time(), label)
         except (OSError, ValueError, KeyError) as exc:  # one line, also mid-write
-            return f"study: progress unknown ({type(exc).__name__}: {exc})"
+            return f"{label}: progress unknown ({type(exc).__name__}: {exc})"
 
     if args.every:
         watch(args.every, line)
