@@ -151,8 +151,9 @@ if config["committed"]:
         output:
             str(COMMITTED / "variants" / "{variant}.md"),
         params:
-            study=str(COMMITTED),
-            variant=lambda wc: str(COMMITTED / "variants" / wc.variant),
+            # relative to the repository, as the table names them
+            study=config["committed"],
+            variant=lambda wc: f"{config['committed']}/variants/{wc.variant}",
             protocols=PROTOCOLS,
             cfg=ANALYSIS_PARAMS,
         log:
