@@ -184,6 +184,7 @@ def cmd_moduli(args, params) -> None:
 def cmd_voigt(args, params) -> None:
     import numpy as np
 
+    from .elastic import moduli_dataset
     from .netcdf import write_json
     from .voigt import compare_with_fit
 
@@ -191,7 +192,7 @@ def cmd_voigt(args, params) -> None:
     for p in args.fields:
         ds = _read(p)
         _require(ds, p, ("voigt_bulk_modulus", "voigt_shear_modulus", "stress_increment", "strain_increment"))
-        out[p] = compare_with_fit(ds, params, {"x": args.core_x, "y": args.core_y})
+        out[p] = compare_with_fit(ds, moduli_dataset(ds, [], params), {"x": args.core_x, "y": args.core_y})
         row = out[p]["average/m5"]
         print(f"{p}: Voigt/fit K {row['bulk_ratio']:.3g}, G {row['shear_ratio']:.3g} (median over {row['n']} core "
               f"RVEs; Voigt K {row['voigt_bulk_modulus']:.4g}, G {row['voigt_shear_modulus']:.4g}, fit K "

@@ -262,7 +262,7 @@ def summary_attributes(stiffness: dict[str, np.ndarray]) -> dict[str, Any]:
 CORE = {"x": 0.03, "y": 0.05}
 
 
-def compare_with_fit(fields, params: dict[str, Any], core: dict[str, float] = CORE) -> dict[str, Any]:
+def compare_with_fit(fields, mod, core: dict[str, float] = CORE) -> dict[str, Any]:
     """Voigt K, G of one pile against its own isotropic fit: their ratios, median over the core RVEs.
 
     Parameters
@@ -270,8 +270,10 @@ def compare_with_fit(fields, params: dict[str, Any], core: dict[str, float] = CO
     fields : xarray.Dataset
         A per-pile fields file with ``voigt_bulk_modulus``, ``voigt_shear_modulus``
         and the increments the fit needs.
-    params : dict
-        Resolved analysis settings (the fit's, :func:`analysis.elastic.moduli_dataset`).
+    mod : xarray.Dataset
+        The pile's own fits, :func:`analysis.elastic.moduli_dataset` of ``fields``
+        (passed in: ``analysis.elastic`` imports the ensemble, which imports
+        the fields and so this module).
     core : dict
         ``{"x": half width, "y": top}`` of the core, m.
 
@@ -284,9 +286,6 @@ def compare_with_fit(fields, params: dict[str, Any], core: dict[str, float] = CO
         the medians of the Voigt and fitted K and G there; the keys are
         ``"{fit}/m{points}"``.
     """
-    from .elastic import moduli_dataset
-
-    mod = moduli_dataset(fields, [], params)
     inside = (np.abs(fields["x"]) <= core["x"]) & (fields["y"] <= core["y"])
     kv = fields["voigt_bulk_modulus"].where(inside)
     gv = fields["voigt_shear_modulus"].where(inside)

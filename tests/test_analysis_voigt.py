@@ -248,7 +248,7 @@ def test_the_comparison_with_the_fit_is_the_median_ratio_over_the_core(tmp_path,
     ds["voigt_shear_modulus"] = (4.0 * fit["shear_modulus"]).transpose("y", "x")
     for v in ("voigt_bulk_modulus", "voigt_shear_modulus"):
         ds[v].attrs = {"units": "N m-1", "long_name": v}
-    got = compare_with_fit(ds, params)
+    got = compare_with_fit(ds, moduli_dataset(ds, [], params))
     core = (np.abs(ds["x"]) <= 0.03) & (ds["y"] <= 0.05)
     n = int((np.isfinite(fit["bulk_modulus"]) & np.isfinite(fit["shear_modulus"]) & core).sum())
     assert got["average/m5"]["n"] == n > 3
