@@ -21,14 +21,9 @@ and never imports the simulator. Modules, one concern each:
 ``draw``          pictures of particle states (polygons by Eq. 2 pressure, force network)
 ``netcdf``        CF attributes and atomic writes
 
-Numerics of whole piles (the workflow's target ``numerics_piles``):
+Numerics of whole piles, their error and cost against run time (the workflow's
+target ``numerics_piles``), live in the subpackage :mod:`analysis.numerics`.
 
-``pile_precision``   error of pile observables against run time
-``ensemble_cost``    standard error of the headline results against compute time
-``piles_report``     their Markdown tables
-``numerics_figures`` their figures
-``run_times``        Snakemake benchmark files and bash ``times`` output
-``numerics_cli``     their ``data`` / ``figure`` command lines
 Command line: ``python -m analysis --help``.
 """
 

@@ -59,7 +59,7 @@ def _labelled(items: list[str]) -> dict[str, str]:
 # ------------------------------------------------------------------ commands
 def cmd_run_times(args, params) -> None:
     from .netcdf import atomic_path
-    from .run_times import job_label, run_times_html
+    from .numerics.run_times import job_label, run_times_html
 
     missing = [p for p in args.benchmarks if not os.path.exists(p)]
     if missing:

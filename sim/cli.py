@@ -192,7 +192,7 @@ def main(argv=None):
             warmup()
             return 0
         if args.command == "bench":
-            from .bench import main as bench_main, main_scenes
+            from .numerics.bench import main as bench_main, main_scenes
             if args.scenes:
                 main_scenes(args.scenes, args.steps, args.repeats)
             else:

@@ -2,7 +2,7 @@
 
 import pytest
 
-from sim.bench import derived_figures
+from sim.numerics.bench import derived_figures
 
 
 def _row(n, integrator, threads, ns):

@@ -143,7 +143,7 @@ def test_rebuilding_the_pair_list_at_any_step_changes_no_bit():
     bits, positions and contact springs, since ``_rebuild`` carries each
     pair's spring and narrow-phase witness (the warm start and the clipping
     agree only to rounding, so a lost witness shows in the last bits)."""
-    from sim.bench import dense_packing
+    from sim.numerics.bench import dense_packing
 
     sim, twin = dense_packing(150, seed=3), dense_packing(150, seed=3)
     for s in (sim, twin):

@@ -327,12 +327,12 @@ def test_numerics_collisions_and_stability(made, monkeypatch):
 
 
 def test_numerics_piles_and_ensemble(made):
-    """``python -m analysis.pile_precision data`` on tiny hand-made states of both integrators, and
-    ``python -m analysis.ensemble_cost data`` on the committed piles."""
+    """``python -m analysis.numerics.pile_precision data`` on tiny hand-made states of both integrators, and
+    ``python -m analysis.numerics.ensemble_cost data`` on the committed piles."""
     import yaml
     from synthetic_states import make_state, square_lattice, square_nodes, write_state
 
-    from analysis import ensemble_cost, pile_precision
+    from analysis.numerics import ensemble_cost, pile_precision
 
     tmp = made["_tmp"]
     piles = yaml.safe_load((REPO / "config" / "numerics_piles_ci.yaml").read_text())["numerics"]["piles"]

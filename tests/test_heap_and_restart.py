@@ -96,7 +96,7 @@ def test_state_file_has_contract_variables(tmp_path, heap):
 def compare_parallel_and_serial_kernels():
     """Run a packing on 2 threads and on the serial kernels; raise unless equal."""
     import numba
-    from sim.bench import dense_packing
+    from sim.numerics.bench import dense_packing
 
     runs = []
     for threads in (2, 1):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from shapely.geometry import Point, Polygon
 
-from sim.bench import _shapes
+from sim.numerics.bench import _shapes
 from sim.config import ModelParams
 from sim.numerics.lammps_peer import (PeerUnavailable, data_file, disk_pile, find_lmp,
                                       lammps_input, parse_log, ratios)

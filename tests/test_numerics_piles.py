@@ -1,5 +1,5 @@
-"""Numerics of whole piles (analysis/pile_precision.py, ensemble_cost.py,
-piles_report.py, run_times.py, numerics_figures.py, workflow/rules/numerics_piles.smk): the error estimator on
+"""Numerics of whole piles (analysis/numerics/: pile_precision.py, ensemble_cost.py,
+piles_report.py, run_times.py, figures.py; workflow/rules/numerics_piles.smk): the error estimator on
 synthetic data with a known dt^p error and seed noise, the 1/sqrt(n) law of
 the standard error, the profile-norm and dip-depth definitions on hand-built
 profiles, the moduli read at the core, CPU-time files, and (slow) the target
@@ -14,11 +14,11 @@ import pytest
 import xarray as xr
 import yaml
 
-from analysis.ensemble_cost import (check_params as check_ensemble_params, core_moduli, dip_depth,
+from analysis.numerics.ensemble_cost import (check_params as check_ensemble_params, core_moduli, dip_depth,
                                     piles_needed, standard_error_curve)
-from analysis.pile_precision import (RESOLVED, check_params, convergence_order, profile_edges, profile_error,
+from analysis.numerics.pile_precision import (RESOLVED, check_params, convergence_order, profile_edges, profile_error,
                                      scalar_error)
-from analysis.run_times import children_cpu_time
+from analysis.numerics.run_times import children_cpu_time
 from test_workflow import REPO, copy_workflow, job_counts, snakemake
 
 PILES = {"integrators": ["gear", "verlet"], "dt_factors": [1.0, 0.5], "seeds": [1, 2],
@@ -213,8 +213,8 @@ def test_numerics_piles_target_on_tiny_piles(tmp_path):
 
 def test_figures_draw_panels_without_finite_values(tmp_path):
     """Tiny piles give NaN angles and moduli; the figures still come out (a note instead of log axes)."""
-    from analysis import ensemble_cost, pile_precision
-    from analysis.numerics_figures import ensemble_error_figure, pile_error_figure
+    from analysis.numerics import ensemble_cost, pile_precision
+    from analysis.numerics.figures import ensemble_error_figure, pile_error_figure
 
     dims = ("integrator", "dt_factor")
     ds = xr.Dataset(coords={"integrator": ["gear", "verlet"], "dt_factor": [1.0, 0.5], "seed": [1, 2]})

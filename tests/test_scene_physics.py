@@ -142,7 +142,7 @@ def test_physics_reaches_the_simulation_and_no_probe_is_allowed(tmp_path):
 
 
 def test_scene_bench_times_every_variant_from_the_same_state(tmp_path):
-    from sim.bench import SCENE_VARIANTS, scene_costs
+    from sim.numerics.bench import SCENE_VARIANTS, scene_costs
     from sim.io import save_state
 
     sim = _heap(ModelParams())

@@ -27,13 +27,13 @@ import sys
 import numba
 import numpy as np
 
-from sim.bench import dense_packing
+from sim.numerics.bench import dense_packing
 
 JOB = """
 import hashlib, json
 import numba
 import numpy as np
-from sim.bench import dense_packing
+from sim.numerics.bench import dense_packing
 
 small = dense_packing(50, seed=1)
 small.run(steps=20)                      # serial kernels: compiled or loaded first

@@ -316,7 +316,7 @@ def ratios(rows, peers):
     Parameters
     ----------
     rows : list of dict
-        Rows of :func:`sim.bench.measure`.
+        Rows of :func:`sim.numerics.bench.measure`.
     peers : list of dict
         Rows of :func:`time_peer`.
 

@@ -48,9 +48,12 @@ def results_path(path):
 # runs the analysis ANALYSIS_DIGEST (analysis/*.py), so an edit of sim/
 # re-runs the simulations and an edit of analysis/ only the analysis, and the
 # log lists a job's files, not the package's 33 sources. A file only touched
-# (same content) re-runs nothing.
+# (same content) re-runs nothing. The analysis' numerics (analysis/numerics/:
+# run times, precision and cost of piles) add their own digest to the rules that
+# run them, so an edit there re-runs those and nothing else.
 SIM_DIGEST = code_digest(REPO / "sim")
 ANALYSIS_DIGEST = code_digest(REPO / "analysis")
+ANALYSIS_NUMERICS_DIGEST = f"{ANALYSIS_DIGEST}-{code_digest(REPO / 'analysis' / 'numerics')}"
 
 # Python that runs the jobs: the interpreter running Snakemake (the project's
 # venv under `make run`), so jobs see the same packages without activating

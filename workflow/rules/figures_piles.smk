@@ -103,7 +103,7 @@ rule run_times_table:
     output:
         report(RUN_TIMES_TABLE, caption="../report/run_times.rst", category="Run times"),
     params:
-        code=ANALYSIS_DIGEST,
+        code=ANALYSIS_NUMERICS_DIGEST,
     log:
         results_path("logs/run_times_table.log"),
     localrule: True

@@ -12,7 +12,7 @@
 #
 # Expects from common.smk: config (validated, defaults filled), PROTOCOLS,
 # seeds(), pile(), probe_stages(), sim_shell(), py_shell(), results_path(), SIM_DIGEST,
-# ANALYSIS_DIGEST, COMPILED_FLAG, SIM_THREADS, SIM_MEM_MB; from analysis_common.smk:
+# ANALYSIS_NUMERICS_DIGEST, COMPILED_FLAG, SIM_THREADS, SIM_MEM_MB; from analysis_common.smk:
 # ANALYSIS_PARAMS. Helpers: numerics_piles_common.smk.
 
 include: "numerics_piles_common.smk"
@@ -113,7 +113,7 @@ rule numerics_piles_data:
     output:
         f"{NUMERICS_DIR}/piles.nc",
     params:
-        code=ANALYSIS_DIGEST,
+        code=ANALYSIS_NUMERICS_DIGEST,
         cfg=json.dumps(NUMERICS_PILES, sort_keys=True),
     log:
         results_path("logs/numerics/piles_data.log"),
@@ -125,7 +125,7 @@ rule numerics_piles_data:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis.pile_precision data --params {params.cfg:q} --states {input.states:q}"
+            "-m analysis.numerics.pile_precision data --params {params.cfg:q} --states {input.states:q}"
             " --summaries {input.summaries:q}"
             " --pour-benchmarks {input.pour:q} --relax-benchmarks {input.relax:q}"
             " --pour-cpu {input.pour_cpu:q} --relax-cpu {input.relax_cpu:q} --out {output:q} > {log:q} 2>&1"
@@ -143,7 +143,7 @@ rule numerics_ensemble:
     output:
         f"{NUMERICS_DIR}/ensemble.nc",
     params:
-        code=ANALYSIS_DIGEST,
+        code=ANALYSIS_NUMERICS_DIGEST,
         cfg=json.dumps(NUMERICS_ENSEMBLE, sort_keys=True),
         analysis=ANALYSIS_PARAMS,
         protocols=_numerics_ensemble_args,
@@ -157,7 +157,7 @@ rule numerics_ensemble:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis.ensemble_cost data --params {params.cfg:q} --analysis-params {params.analysis:q}"
+            "-m analysis.numerics.ensemble_cost data --params {params.cfg:q} --analysis-params {params.analysis:q}"
             " {params.protocols:q} --out {output:q} > {log:q} 2>&1"
         )
 
@@ -174,7 +174,7 @@ rule numerics_piles_figures:
                         category="Numerics", subcategory="Ensemble"),
         ensemble_pdf=f"{NUMERICS_DIR}/ensemble_error.pdf",
     params:
-        code=ANALYSIS_DIGEST,
+        code=ANALYSIS_NUMERICS_DIGEST,
     log:
         results_path("logs/numerics/piles_figures.log"),
     threads: 1
@@ -185,10 +185,10 @@ rule numerics_piles_figures:
         "../envs/polypile.yaml"
     shell:
         "("
-        + py_shell("-m analysis.pile_precision figure --data {input.piles:q} "
+        + py_shell("-m analysis.numerics.pile_precision figure --data {input.piles:q} "
                    "--out {output.piles:q} {output.piles_pdf:q}")
         + " && "
-        + py_shell("-m analysis.ensemble_cost figure --data {input.ensemble:q} "
+        + py_shell("-m analysis.numerics.ensemble_cost figure --data {input.ensemble:q} "
                    "--out {output.ensemble:q} {output.ensemble_pdf:q}")
         + ") > {log:q} 2>&1"
 
@@ -202,7 +202,7 @@ rule numerics_piles_table:
         report(f"{NUMERICS_DIR}/piles.md", caption="../report/numerics/piles_table.rst",
                category="Numerics", subcategory="Tables"),
     params:
-        code=ANALYSIS_DIGEST,
+        code=ANALYSIS_NUMERICS_DIGEST,
         model=json.dumps(config["model"], sort_keys=True),
     log:
         results_path("logs/numerics/piles_table.log"),
@@ -214,7 +214,7 @@ rule numerics_piles_table:
         "../envs/polypile.yaml"
     shell:
         py_shell(
-            "-m analysis.piles_report --piles {input.piles:q} --ensemble {input.ensemble:q}"
+            "-m analysis.numerics.piles_report --piles {input.piles:q} --ensemble {input.ensemble:q}"
             " --model {params.model:q} --out {output:q} > {log:q} 2>&1"
         )
 

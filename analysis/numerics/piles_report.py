@@ -1,13 +1,13 @@
 """Markdown tables of the pile and ensemble numerics (``results/numerics/piles.md``).
 
-Reads ``piles.nc`` (:mod:`analysis.pile_precision`) and ``ensemble.nc``
-(:mod:`analysis.ensemble_cost`) and the configuration's ``model``
+Reads ``piles.nc`` (:mod:`analysis.numerics.pile_precision`) and ``ensemble.nc``
+(:mod:`analysis.numerics.ensemble_cost`) and the configuration's ``model``
 section, and writes the error of each observable per (integrator, dt factor)
 with the run (CPU) time per pile, the cheapest run whose errors are all within
 seed scatter, the standard error of the headline results against the number
 of piles and compute time, and the piles a relative precision needs::
 
-    python -m analysis.piles_report --piles piles.nc --ensemble ensemble.nc \
+    python -m analysis.numerics.piles_report --piles piles.nc --ensemble ensemble.nc \
         --model JSON --out piles.md
 """
 
@@ -21,7 +21,7 @@ import numpy as np
 import xarray as xr
 
 from .ensemble_cost import HEADLINES
-from .netcdf import write_text
+from ..netcdf import write_text
 from .pile_precision import OBSERVABLES, RESOLVED
 
 
@@ -151,7 +151,7 @@ def report(piles: xr.Dataset, ensemble: xr.Dataset, model: dict) -> str:
 
 def main(argv=None) -> int:
     """Command line; returns the exit status."""
-    ap = argparse.ArgumentParser(prog="python -m analysis.piles_report", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m analysis.numerics.piles_report", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--piles", required=True)
     ap.add_argument("--ensemble", required=True)

@@ -35,16 +35,16 @@ is *resolved* when it exceeds twice its error bar.
 Run time of a pile: the CPU time (user + system, from bash ``times``) of its
 pour and relax jobs, which includes a fixed start-up cost per job (imports,
 loading the kernels); their wall time (Snakemake benchmark files) is kept
-too but grows when other processes share the cores (:mod:`analysis.run_times`).
+too but grows when other processes share the cores (:mod:`analysis.numerics.run_times`).
 
 Command line (run by the rule ``numerics_piles_data``; ``figure`` by
 ``numerics_piles_figures``)::
 
-    python -m analysis.pile_precision data --params JSON --states ... --summaries ... \
+    python -m analysis.numerics.pile_precision data --params JSON --states ... --summaries ... \
         --pour-benchmarks ... --relax-benchmarks ... --pour-cpu ... --relax-cpu ... --out piles.nc
-    python -m analysis.pile_precision figure --data piles.nc --out a.png a.pdf
+    python -m analysis.numerics.pile_precision figure --data piles.nc --out a.png a.pdf
 
-The figure is :func:`analysis.numerics_figures.pile_error_figure`.
+The figure is :func:`analysis.numerics.figures.pile_error_figure`.
 """
 
 from __future__ import annotations
@@ -57,14 +57,14 @@ import sys
 import numpy as np
 import xarray as xr
 
-from .base_pressure import support_force_density
-from .ensemble import nan_mean_sem
-from .netcdf import var, write_dataset
-from .numerics_cli import data_or_figure, module_command
-from .numerics_figures import pile_error_figure
+from ..base_pressure import support_force_density
+from ..ensemble import nan_mean_sem
+from ..netcdf import var, write_dataset
+from ..solid_fraction import solid_fraction
+from ..states import State, load_state
+from .command import data_or_figure, module_command
+from .figures import pile_error_figure
 from .run_times import benchmark_time, children_cpu_time
-from .solid_fraction import solid_fraction
-from .states import State, load_state
 
 log = logging.getLogger("analysis.numerics")
 
@@ -308,7 +308,7 @@ def piles_dataset(states: list[State], summaries: list[dict], wall: list[float],
 
 
 def _parser():
-    ap = argparse.ArgumentParser(prog="python -m analysis.pile_precision", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m analysis.numerics.pile_precision", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="command", required=True)
     p = sub.add_parser("data", help="observables and errors of the small piles (netCDF)")

@@ -35,14 +35,14 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from .config import ModelParams, ParticleParams, RelaxParams, SimConfig
-from .engine import Simulation
-from .forces import KERNELS_PARALLEL, KERNELS_SERIAL
-from .integrators import INTEGRATORS
-from .io import load_simulation, read_state, save_state
-from .numerics import lammps_peer
-from .protocols import RelaxationError, relax
-from .shapes import make_shapes
+from ..config import ModelParams, ParticleParams, RelaxParams, SimConfig
+from ..engine import Simulation
+from ..forces import KERNELS_PARALLEL, KERNELS_SERIAL
+from ..integrators import INTEGRATORS
+from ..io import load_simulation, read_state, save_state
+from ..protocols import RelaxationError, relax
+from ..shapes import make_shapes
+from . import lammps_peer
 
 log = logging.getLogger("sim")
 

@@ -1,6 +1,6 @@
 """Figures of the pile and ensemble numerics: error against run time per pile
-(:mod:`analysis.pile_precision`) and standard error against compute time
-(:mod:`analysis.ensemble_cost`), written atomically (:func:`analysis.figures.save`)."""
+(:mod:`analysis.numerics.pile_precision`) and standard error against compute time
+(:mod:`analysis.numerics.ensemble_cost`), written atomically (:func:`analysis.figures.save`)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import xarray as xr
 from matplotlib.ticker import NullFormatter
 
-from .figures import plt, save
+from ..figures import plt, save
 
 
 def log_axes(ax) -> None:
@@ -31,7 +31,7 @@ def pile_error_figure(ds: xr.Dataset, outputs: list[str], observables: tuple[str
     of the error. The dashed line is the seed scatter of the reference's own
     mean (the smallest error this number of seeds can resolve) and the dotted
     line its wall time. ``observables``: the names of the panels
-    (:data:`analysis.pile_precision.OBSERVABLES`), four.
+    (:data:`analysis.numerics.pile_precision.OBSERVABLES`), four.
     """
 
     ref_i = list(ds.integrator.values).index(ds.attrs["reference_integrator"])
@@ -70,7 +70,7 @@ def ensemble_error_figure(ds: xr.Dataset, outputs: list[str], headlines: tuple[s
     Solid: the first n piles (n labelled); dashed: the extrapolation
     ``s_N / (sqrt(n) |mean_N|)`` at the mean compute time per pile.
     ``headlines``: the names of the panels
-    (:data:`analysis.ensemble_cost.HEADLINES`), three.
+    (:data:`analysis.numerics.ensemble_cost.HEADLINES`), three.
     """
 
     fig, axes = plt.subplots(1, 3, figsize=(12, 4), constrained_layout=True)

@@ -26,12 +26,12 @@ needs ``n = ceil((s_N / (q |mean_N|))^2)`` piles (at least 2).
 
 Command line (rules ``numerics_ensemble`` and ``numerics_piles_figures``)::
 
-    python -m analysis.ensemble_cost data --params JSON --analysis-params TEXT \
+    python -m analysis.numerics.ensemble_cost data --params JSON --analysis-params TEXT \
         --protocol wedge --fields ... --base-pressure bp.nc --pour-benchmarks ... \
         --relax-benchmarks ... --probe-benchmarks ... [--protocol layered ...] --out ensemble.nc
-    python -m analysis.ensemble_cost figure --data ensemble.nc --out a.png a.pdf
+    python -m analysis.numerics.ensemble_cost figure --data ensemble.nc --out a.png a.pdf
 
-The figure is :func:`analysis.numerics_figures.ensemble_error_figure`.
+The figure is :func:`analysis.numerics.figures.ensemble_error_figure`.
 """
 
 from __future__ import annotations
@@ -45,12 +45,12 @@ import sys
 import numpy as np
 import xarray as xr
 
-from .elastic import FITS, POINTS, fit_all
-from .ensemble import nan_mean_sem
-from .netcdf import var, write_dataset
-from .numerics_cli import data_or_figure, module_command
-from .numerics_figures import ensemble_error_figure
-from .params import resolve_params, settings_from_text
+from ..elastic import FITS, POINTS, fit_all
+from ..ensemble import nan_mean_sem
+from ..netcdf import var, write_dataset
+from ..params import resolve_params, settings_from_text
+from .command import data_or_figure, module_command
+from .figures import ensemble_error_figure
 from .run_times import benchmark_time
 
 log = logging.getLogger("analysis.numerics")
@@ -230,7 +230,7 @@ def ensemble_dataset(protocols: dict, params: dict, analysis_params: dict) -> xr
 
 
 def _parser():
-    ap = argparse.ArgumentParser(prog="python -m analysis.ensemble_cost", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m analysis.numerics.ensemble_cost", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="command", required=True)
     p = sub.add_parser("data", help="headline results, standard error and compute time (netCDF)")

@@ -1,5 +1,5 @@
 """The command lines of the pile and ensemble numerics
-(``python -m analysis.pile_precision``, ``python -m analysis.ensemble_cost``):
+(``python -m analysis.numerics.pile_precision``, ``python -m analysis.numerics.ensemble_cost``):
 two subcommands, ``data`` (compute and write a netCDF file) and ``figure``
 (draw it)."""
 

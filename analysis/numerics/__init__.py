@@ -1,0 +1,10 @@
+"""Numerics of whole piles (the workflow's target ``numerics_piles``): how precise
+a pile's observables and the ensemble's results are against what they cost.
+
+``pile_precision``  error of pile observables against run time
+``ensemble_cost``   standard error of the headline results against compute time
+``piles_report``    their Markdown tables
+``figures``         their figures
+``run_times``       Snakemake benchmark files and bash ``times`` output
+``command``         their ``data`` / ``figure`` command lines
+"""
