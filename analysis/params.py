@@ -1,12 +1,11 @@
 """The ``analysis`` section of the configuration: defaults and validation.
 
 The keys, defaults and ranges are those of the JSON schema
-``workflow/schemas/analysis.schema.yaml`` (:data:`SCHEMA_FILE`), read when this
-module is imported: the workflow validates against that schema before anything
+``analysis/params.schema.yaml`` (:data:`SCHEMA_FILE`), which ships inside the
+package and is read when this module is imported: the workflow's
+configuration schema refers to it and validates against it before anything
 runs, and :data:`DEFAULTS` and the checks here are built from it, so both agree
-by construction (tests/test_settings_single_source.py probes it).  The schema
-is a file of the repository, not of the package: ``analysis`` works from a
-checkout or an editable install (``pip install -e .``).  What a schema cannot
+by construction (tests/test_settings_single_source.py probes it).  What a schema cannot
 express (an ordered grid, a grid of at most 10^6 points, the raster pixel
 against the RVE size, the bins inside the base-pressure range, the order of the history windows) is checked in
 :func:`resolve_params`.
@@ -36,11 +35,10 @@ MAX_RASTER_BYTES = 2**30
 
 #: The JSON schema (YAML) of the ``analysis`` section: the source of every
 #: key, default and bound below.
-SCHEMA_FILE = Path(__file__).resolve().parent.parent / "workflow" / "schemas" / "analysis.schema.yaml"
+SCHEMA_FILE = Path(__file__).resolve().parent / "params.schema.yaml"
 
-
-# a file of the repository: a checkout or an editable install (pip install -e .) has it
-_SCHEMA = yaml.safe_load(SCHEMA_FILE.read_text(encoding="utf-8"))
+# the section's schema, $defs/analysis (the file's root refers to it)
+_SCHEMA = yaml.safe_load(SCHEMA_FILE.read_text(encoding="utf-8"))["$defs"]["analysis"]
 
 #: Every setting's default, ``{section: {key: value}}`` (the schema's ``default``).
 DEFAULTS: dict[str, Any] = {

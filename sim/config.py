@@ -7,13 +7,12 @@ compiled code.
 The defaults and the allowed values (bounds, integers, choices) are not
 written here: they are read, when this module is imported, from the one place
 that holds them, the sections ``model``, ``particles``, ``pour``, ``relax``,
-``probe`` and ``physics`` of ``workflow/schemas/config.schema.yaml``
-(:data:`SCHEMA_FILE`), so the command line and the workflow agree by
-construction (tests/test_settings_single_source.py probes it).  What a schema
-cannot express (``corners_max >= corners_min``, ``hold_time <= max_time``, the
-walls' order and spacing) is checked in the dataclasses below.  The schema is
-a file of the repository, not of the package: ``sim`` works from a checkout
-or an editable install (``pip install -e .``).
+``probe`` and ``physics`` of ``sim/config.schema.yaml`` (:data:`SCHEMA_FILE`),
+which ships inside the package and which the workflow's configuration schema
+refers to, so the command line and the workflow agree by construction
+(tests/test_settings_single_source.py probes it).  What a schema cannot
+express (``corners_max >= corners_min``, ``hold_time <= max_time``, the
+walls' order and spacing) is checked in the dataclasses below.
 
 Units are SI in two dimensions: lengths in m, masses in kg, the particle
 Young's modulus in N/m, 2D densities in kg/m².
@@ -39,12 +38,10 @@ class ConfigError(ValueError):
 #: passes them outside the rule params so that changing them re-runs nothing.
 BOOKKEEPING = {"pour": ("checkpoint_interval", "progress_interval", "frame_interval")}
 
-#: The JSON schema (YAML) of the workflow configuration: the source of every
-#: default and bound of the simulator's settings.
-SCHEMA_FILE = Path(__file__).resolve().parent.parent / "workflow" / "schemas" / "config.schema.yaml"
+#: The JSON schema (YAML) of the simulator's sections of a configuration: the
+#: source of every default and bound of the simulator's settings.
+SCHEMA_FILE = Path(__file__).resolve().parent / "config.schema.yaml"
 
-
-# a file of the repository: a checkout or an editable install (pip install -e .) has it
 _SCHEMA = yaml.safe_load(SCHEMA_FILE.read_text(encoding="utf-8"))
 
 
@@ -62,7 +59,7 @@ def setting_schema(section: str, name: str) -> dict:
         The setting's entry of :data:`SCHEMA_FILE` (do not modify it).
     """
     try:
-        return _SCHEMA["properties"][section]["properties"][name]
+        return _SCHEMA["$defs"][section]["properties"][name]
     except KeyError:
         raise KeyError(f"{section}.{name} is not a setting of {SCHEMA_FILE}") from None
 

@@ -31,7 +31,7 @@ __all__ = [
 #: Largest corner count :func:`random_polygon` accepts.  The configuration
 #: (and so :func:`sim.shapes.make_shapes`, which takes its settings) allows
 #: fewer: the bounds of ``particles.corners_min`` / ``corners_max`` in
-#: ``workflow/schemas/config.schema.yaml``, up to the largest count that the
+#: ``sim/config.schema.yaml``, up to the largest count that the
 #: stability suite checks.
 MAX_CORNERS = 64
 

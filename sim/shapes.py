@@ -169,7 +169,7 @@ def make_shapes(
     polygon is then drawn by :func:`random_polygon`.
 
     The arguments named like settings of the configuration take their
-    defaults and allowed ranges from ``workflow/schemas/config.schema.yaml``
+    defaults and allowed ranges from ``sim/config.schema.yaml``
     (``particles.*`` and ``model.density``, see :mod:`sim.config`).
 
     Parameters

@@ -14,12 +14,13 @@ from analysis.errors import ParamError
 from analysis.params import DEFAULTS, resolve_params
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SCHEMA = os.path.join(REPO, "workflow", "schemas", "analysis.schema.yaml")
+SCHEMA = os.path.join(REPO, "analysis", "params.schema.yaml")
 
 
 def _schema():
+    """The schema of the ``analysis`` section ($defs/analysis of :data:`SCHEMA`)."""
     with open(SCHEMA, encoding="utf-8") as fh:
-        return yaml.safe_load(fh)
+        return yaml.safe_load(fh)["$defs"]["analysis"]
 
 
 def _fill_defaults(schema, instance):

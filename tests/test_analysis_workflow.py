@@ -30,7 +30,7 @@ def _project(tmp_path, analysis_cfg=None):
         from pathlib import Path
         from snakemake.utils import validate
         configfile: "config.yaml"
-        validate(config["analysis"], "{REPO}/workflow/schemas/analysis.schema.yaml")
+        validate(config["analysis"], "{REPO}/analysis/params.schema.yaml")
         config.setdefault("committed", None)
         REPO = Path(workflow.basedir)
         PROTOCOLS = ["wedge", "layered"]

@@ -14,8 +14,9 @@ from snakemake.utils import validate
 
 REPO = Path(__file__).resolve().parents[1]
 SCHEMA = str(REPO / "workflow" / "schemas" / "config.schema.yaml")
-# the numerics section's schema, which SCHEMA refers to
+# the numerics section's schema and the simulator's, which SCHEMA refers to
 NUMERICS_SCHEMA = str(REPO / "workflow" / "schemas" / "numerics.schema.yaml")
+SIM_SCHEMA = str(REPO / "sim" / "config.schema.yaml")
 
 
 def load(name):
@@ -58,11 +59,13 @@ def test_defaults_are_filled_in():
     config = {"protocols": {"wedge": {"seeds": [3]}}}
     validate(config, SCHEMA)
     assert config["threads"] == 2
-    # every simulator default is filled in, equal to the simulator's own
+    # every simulator and analysis default is filled in, equal to the package's own
+    # (the schema refers to the schemas that the packages ship)
+    from analysis.params import DEFAULTS
     from sim.config import SimConfig
     for section, values in SimConfig().to_dict().items():
         assert config[section] == values, section
-    assert config["analysis"] == {}
+    assert config["analysis"] == DEFAULTS
     assert "layered" not in config["protocols"]  # a protocol not asked for is not run
 
 
@@ -127,14 +130,14 @@ def _objects(node, path=()):
             yield from _objects(value, path + (key,))
 
 
-@pytest.mark.parametrize("file", [SCHEMA, NUMERICS_SCHEMA], ids=["config", "numerics"])
+@pytest.mark.parametrize("file", [SCHEMA, NUMERICS_SCHEMA, SIM_SCHEMA], ids=["config", "numerics", "sim"])
 def test_every_object_is_closed_and_lists_its_keys(file):
     for path, obj in _objects(schema(file)):
         assert obj.get("additionalProperties") is False, path
         assert obj["propertyNames"]["enum"] == list(obj["properties"]), path
 
 
-@pytest.mark.parametrize("file", [SCHEMA, NUMERICS_SCHEMA], ids=["config", "numerics"])
+@pytest.mark.parametrize("file", [SCHEMA, NUMERICS_SCHEMA, SIM_SCHEMA], ids=["config", "numerics", "sim"])
 def test_every_key_is_documented_and_optional_keys_have_defaults(file):
     for path, obj in _objects(schema(file)):
         required = set(obj.get("required", []))
@@ -175,5 +178,5 @@ def test_the_settings_tables_of_the_docs_are_the_schemas():
     assert proc.returncode == 0, proc.stderr
     page = (REPO / "docs" / "parameters.md").read_text()
     for section in ("model", "particles", "pour", "relax", "probe", "physics"):
-        for key, spec in schema()["properties"][section]["properties"].items():
+        for key, spec in schema(SIM_SCHEMA)["$defs"][section]["properties"].items():
             assert f"| `{section}.{key}` |" in page, (section, key)

@@ -410,13 +410,13 @@ def test_nan_in_state_file_is_refused(tmp_path):
         load_simulation(bad)
 
 
-def test_config_defaults_match_the_workflow_schema():
-    """The simulator's defaults and the workflow schema's agree, setting by setting."""
-    with open("workflow/schemas/config.schema.yaml") as f:
+def test_config_defaults_match_the_schema():
+    """The simulator's defaults and its schema's (sim/config.schema.yaml) agree, setting by setting."""
+    with open("sim/config.schema.yaml") as f:
         schema = yaml.safe_load(f)
     defaults = SimConfig().to_dict()
     for section, values in defaults.items():
-        props = schema["properties"][section]["properties"]
+        props = schema["$defs"][section]["properties"]
         assert set(props) == set(values), section
         for key, value in values.items():
             assert props[key].get("default") == value, f"{section}.{key}"

@@ -1,8 +1,8 @@
 """Every setting has one source: its JSON schema.
 
-workflow/schemas/config.schema.yaml holds the default and the allowed values
-of every simulator setting, workflow/schemas/analysis.schema.yaml those of
-every analysis setting.  These tests read the schema files themselves (never
+sim/config.schema.yaml holds the default and the allowed values of every
+simulator setting, analysis/params.schema.yaml those of every analysis
+setting (each package ships its own; the workflow's schema refers to both).  These tests read the schema files themselves (never
 the copies the packages load) and hold against them:
 
 * the defaults of the dataclasses of sim/config.py and of ``DEFAULTS`` of
@@ -40,15 +40,15 @@ from analysis.params import DEFAULTS, resolve_params
 from sim.config import ConfigError, SimConfig
 
 REPO = Path(__file__).resolve().parents[1]
-SCHEMAS = REPO / "workflow" / "schemas"
 
 
 def _load(path):
     return yaml.safe_load(Path(path).read_text())
 
 
-CONFIG = _load(SCHEMAS / "config.schema.yaml")
-ANALYSIS = _load(SCHEMAS / "analysis.schema.yaml")
+#: The simulator's sections and the analysis section, as the packages ship them.
+SIM = _load(REPO / "sim" / "config.schema.yaml")["$defs"]
+ANALYSIS = _load(REPO / "analysis" / "params.schema.yaml")["$defs"]["analysis"]
 
 #: The simulator's sections: name -> dataclass.
 SECTIONS = {f.name: f.default_factory for f in dataclasses.fields(SimConfig)}
@@ -59,7 +59,7 @@ ANALYSIS_SETTINGS = [(section, key) for section, sub in ANALYSIS["properties"].i
 
 
 def sim_schema(section, name):
-    return CONFIG["properties"][section]["properties"][name]
+    return SIM[section]["properties"][name]
 
 
 def analysis_schema(section, key):
@@ -219,7 +219,7 @@ def _same(a, b):
 @pytest.mark.parametrize("section", sorted(SECTIONS))
 def test_the_dataclass_fields_are_the_schema_settings(section):
     fields = [f.name for f in dataclasses.fields(SECTIONS[section])]
-    assert set(fields) == set(CONFIG["properties"][section]["properties"]), section
+    assert set(fields) == set(SIM[section]["properties"]), section
 
 
 @pytest.mark.parametrize("section, name", SIM_SETTINGS, ids=_ids(SIM_SETTINGS))
@@ -326,7 +326,7 @@ def _keyword_defaults():
     from sim.polygon import random_polygon
     from sim.shapes import make_shapes
 
-    particles = {name: ("particles", name) for name in CONFIG["properties"]["particles"]["properties"]}
+    particles = {name: ("particles", name) for name in SIM["particles"]["properties"]}
     return [
         (make_shapes, {**particles, "density": ("model", "density")}),
         (random_polygon, {"min_edge_fraction": ("particles", "min_edge_fraction"),
@@ -350,7 +350,7 @@ def test_keyword_defaults_are_the_schema_defaults():
     assert not wrong, "\n".join(wrong)
 
 
-MAKE_SHAPES = {**{name: ("particles", name) for name in CONFIG["properties"]["particles"]["properties"]},
+MAKE_SHAPES = {**{name: ("particles", name) for name in SIM["particles"]["properties"]},
                "density": ("model", "density")}
 
 
@@ -385,7 +385,7 @@ def test_make_shapes_accepts_the_ranges_of_the_settings(keyword):
 def test_the_study_config_writes_out_every_setting():
     study = _load(REPO / "config" / "config.yaml")
     for section in SECTIONS:
-        assert set(study[section]) == set(CONFIG["properties"][section]["properties"]), section
+        assert set(study[section]) == set(SIM[section]["properties"]), section
     expected = _analysis_defaults()
     assert set(study["analysis"]) == set(expected)
     for section, values in expected.items():

@@ -7,11 +7,12 @@ allowed:
 1. :func:`number_problems`: every number is finite, and a setting the schema
    declares an integer holds an integer, not 3500.0 (JSON schema counts an
    integer-valued float as an integer; the simulator and the analysis do not).
-2. The JSON schemas (``workflow/schemas``, draft 2020-12), which also fill
-   in the defaults (as ``snakemake.utils.validate`` does): config.schema.yaml,
-   which refers to numerics.schema.yaml for the ``numerics`` section (a
-   ``$ref`` to a file beside it), and analysis.schema.yaml for the
-   ``analysis`` section, validated on its own.
+2. The JSON schema ``workflow/schemas/config.schema.yaml`` (draft 2020-12),
+   which also fills in the defaults (as ``snakemake.utils.validate`` does). It
+   refers, by a ``$ref`` to another file, to the schema each package ships
+   for its own settings (sim/config.schema.yaml for the simulator's
+   sections, analysis/params.schema.yaml for ``analysis``) and to
+   numerics.schema.yaml beside it for ``numerics``: one pass validates all.
 3. The simulator's and the analysis' own checks (:class:`sim.config.SimConfig`,
    :func:`analysis.params.resolve_params`): what a schema cannot express,
    such as ``relax.hold_time <= relax.max_time`` or an ordered grid.
@@ -39,14 +40,17 @@ import yaml
 from jsonschema import Draft202012Validator, validators
 from referencing import Registry, Resource
 
+from analysis.params import SCHEMA_FILE as ANALYSIS_SCHEMA
 from analysis.params import check_memory, resolve_params
+from sim.config import SCHEMA_FILE as SIM_SCHEMA
 from sim.config import SimConfig
 from sim.settings_file import SettingsFileError, read_settings_file
 
 SCHEMAS = Path(__file__).resolve().parent / "schemas"
 CONFIG_SCHEMA = SCHEMAS / "config.schema.yaml"
-ANALYSIS_SCHEMA = SCHEMAS / "analysis.schema.yaml"
-NUMERICS_SCHEMA = SCHEMAS / "numerics.schema.yaml"  # config.schema.yaml refers to it
+NUMERICS_SCHEMA = SCHEMAS / "numerics.schema.yaml"
+# The files that config.schema.yaml refers to, by paths relative to SCHEMAS.
+REFERRED_SCHEMAS = (SIM_SCHEMA.resolve(), ANALYSIS_SCHEMA.resolve(), NUMERICS_SCHEMA)
 # The sections of the configuration that the simulator reads.
 SIM_SECTIONS = ("model", "particles", "pour", "relax", "probe", "physics")
 
@@ -79,21 +83,22 @@ _Validator = _filling_defaults(Draft202012Validator)
 
 
 def _schema_file(ref):
-    """The schema file that the ``$ref`` `ref` (``file.yaml`` or ``file.yaml#/...``)
-    names: a file of workflow/schemas."""
+    """The schema file that the ``$ref`` `ref` (``file.yaml`` or ``file.yaml#/...``,
+    relative to workflow/schemas) names: one of :data:`REFERRED_SCHEMAS`."""
     path = (SCHEMAS / ref.partition("#")[0]).resolve()
-    if path.parent != SCHEMAS:
-        raise ValueError(f"$ref {ref!r}: only schema files in {SCHEMAS} can be referred to")
+    if path not in REFERRED_SCHEMAS:
+        raise ValueError(f"$ref {ref!r}: only {', '.join(map(str, REFERRED_SCHEMAS))} can be referred to")
     return path
 
 
-# The schema files that a $ref to another file (config.schema.yaml's numerics)
-# loads: resolved against workflow/schemas, as snakemake.utils.validate resolves
-# them against the referring file's folder.
+# The schema files that a $ref to another file (config.schema.yaml's
+# simulator sections, analysis and numerics) loads: resolved against
+# workflow/schemas, as snakemake.utils.validate resolves them against the
+# referring file's folder (only config.schema.yaml refers to other files).
 _REGISTRY = Registry(retrieve=lambda uri: Resource.from_contents(load_schema(_schema_file(uri))))
 
 
-def schema_problem(value, path, key=""):
+def schema_problem(value, path):
     """The first violation of the schema in `path` by `value`, as text, or None.
 
     Fills in `value`'s defaults.  The text names the setting (dotted key),
@@ -103,15 +108,15 @@ def schema_problem(value, path, key=""):
                  None)
     if error is None:
         return None
-    where = ".".join([key] * bool(key) + [str(p) for p in error.absolute_path]) or "(top level)"
+    where = ".".join(str(p) for p in error.absolute_path) or "(top level)"
     return f"{where}: {error.message}"
 
 
 def _resolve(schema, root):
     """`schema` with a ``$ref`` replaced by its target, and the schema holding
     the target's ``$defs``: `root` for a local ``$ref`` (``#/$defs/...``), the
-    file for one to another file of workflow/schemas (``numerics.schema.yaml``,
-    optionally ``#/...`` in it)."""
+    file for one to another file (``numerics.schema.yaml``,
+    ``../../sim/config.schema.yaml``, optionally ``#/...`` in it)."""
     while "$ref" in schema:
         file, _, pointer = schema["$ref"].partition("#")
         if file:
@@ -190,15 +195,11 @@ def validate_config(config):
         Naming the setting, its value and what is allowed.
     """
     problems = number_problems(config, load_schema(CONFIG_SCHEMA))
-    if isinstance(config.get("analysis"), dict):
-        problems += number_problems(config["analysis"], load_schema(ANALYSIS_SCHEMA),
-                                    key="analysis")
     if problems:
         raise ConfigurationError("invalid configuration:\n  " + "\n  ".join(problems))
-    for problem in (schema_problem(config, CONFIG_SCHEMA),
-                    schema_problem(config.get("analysis"), ANALYSIS_SCHEMA, "analysis")):
-        if problem:
-            raise ConfigurationError(f"invalid configuration: {problem}")
+    problem = schema_problem(config, CONFIG_SCHEMA)
+    if problem:
+        raise ConfigurationError(f"invalid configuration: {problem}")
     for check in (lambda: SimConfig.from_dict({k: config[k] for k in SIM_SECTIONS}),
                   lambda: check_memory(resolve_params(config["analysis"]))):
         try:

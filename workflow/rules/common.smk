@@ -299,14 +299,10 @@ def pile_figure_targets(stage="relaxed"):
 
 
 def _check_config():
-    """Checks JSON schema cannot express; fail before any job runs."""
+    """The workflow's own checks (its stage names and probes) that neither the
+    schemas nor the packages' checks (workflow/validation.py) express; fail
+    before any job runs."""
     problems = []
-    part = config["particles"]
-    if part["corners_min"] > part["corners_max"]:
-        problems.append(
-            f"particles.corners_min ({part['corners_min']}) is larger than "
-            f"particles.corners_max ({part['corners_max']})"
-        )
     stages = probe_stages()
     if len(set(stages)) != len(stages):
         problems.append(

@@ -1,9 +1,10 @@
 """The settings tables of docs/parameters.md, made from the schemas.
 
 Every setting of the study's configuration (``workflow/schemas/config.schema.yaml``
-without the numerics checks, and ``workflow/schemas/analysis.schema.yaml`` for
-the ``analysis`` section) as one row: its key, default, allowed values and the
-schema's description. The schemas are the one source of the settings; this
+without the numerics checks, with the simulator's sections from
+``sim/config.schema.yaml`` that it refers to, and ``analysis/params.schema.yaml``
+for the ``analysis`` section) as one row: its key, default, allowed values and
+the schema's description. The schemas are the one source of the settings; this
 script writes their tables between the marker lines of the page::
 
     python workflow/scripts/settings_table.py --write docs/parameters.md
@@ -21,6 +22,7 @@ import yaml
 
 REPO = Path(__file__).resolve().parents[2]
 SCHEMAS = REPO / "workflow" / "schemas"
+ANALYSIS_SCHEMA = REPO / "analysis" / "params.schema.yaml"
 BEGIN = "<!-- settings tables: made by workflow/scripts/settings_table.py from the schemas; do not edit -->"
 END = "<!-- end of the settings tables -->"
 # Top-level keys of config.schema.yaml that get no rows here: the analysis has
@@ -63,12 +65,16 @@ def allowed(spec: dict) -> str:
 
 def rows(properties: dict, prefix: str = "", defs: dict | None = None) -> list[str]:
     """Table rows of ``properties``, depth first; objects with properties of their own
-    are opened, local references (``#/$defs/...``) followed."""
+    are opened, references to ``$defs`` followed: local ones (``#/$defs/...``) in
+    ``defs``, those to another file (``../../sim/config.schema.yaml#/$defs/...``)
+    in that file, relative to workflow/schemas."""
     out = []
     for key, spec in properties.items():
         name = f"{prefix}{key}"
-        if "$ref" in spec and spec["$ref"].startswith("#/$defs/"):
-            spec = {**defs[spec["$ref"].split("/")[-1]], **{k: v for k, v in spec.items() if k != "$ref"}}
+        if "$ref" in spec and "#/$defs/" in spec["$ref"]:
+            file, _, target = spec["$ref"].partition("#/$defs/")
+            found = yaml.safe_load((SCHEMAS / file).read_text())["$defs"] if file else defs
+            spec = {**found[target], **{k: v for k, v in spec.items() if k != "$ref"}}
         if spec.get("type") == "object" and "properties" in spec:
             out += rows(spec["properties"], f"{name}.", defs)
             continue
@@ -81,12 +87,13 @@ def rows(properties: dict, prefix: str = "", defs: dict | None = None) -> list[s
 def tables() -> str:
     """The Markdown of both tables, between the marker lines."""
     config = yaml.safe_load((SCHEMAS / "config.schema.yaml").read_text())
-    analysis = yaml.safe_load((SCHEMAS / "analysis.schema.yaml").read_text())
+    analysis = yaml.safe_load(ANALYSIS_SCHEMA.read_text())["$defs"]["analysis"]
     head = ["| setting | default | allowed | meaning |", "|---|---|---|---|"]
     study = {k: v for k, v in config["properties"].items() if k not in OWN_TABLE}
-    return "\n".join([BEGIN, "", "### The simulation and the workflow (`workflow/schemas/config.schema.yaml`)", "",
+    return "\n".join([BEGIN, "", "### The simulation and the workflow (`workflow/schemas/config.schema.yaml`, "
+                      "the simulator's sections from `sim/config.schema.yaml`)", "",
                       *head, *rows(study, "", config.get("$defs", {})), "",
-                      "### The analysis (`analysis`, `workflow/schemas/analysis.schema.yaml`)", "",
+                      "### The analysis (`analysis`, `analysis/params.schema.yaml`)", "",
                       *head, *rows(analysis["properties"], "analysis."), "", END])
 
 
