@@ -6,7 +6,9 @@ parameters as JSON text) and ``software`` (the versions that computed it);
 every variable and coordinate must carry ``units`` and ``long_name``
 (checked before writing). Files are written to a temporary
 name in the destination folder and renamed, so a killed job never leaves a
-complete-looking file.
+complete-looking file. The simulator has its own (sim/io.py), not this one:
+analysis and sim import nothing of each other (they meet only in the state
+files) and the fixed top level has no room for a third package.
 """
 
 from __future__ import annotations

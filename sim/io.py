@@ -11,7 +11,9 @@ complete, so a killed job never leaves a file that looks whole.
 This module also holds what every file that ``sim`` writes shares: the one
 atomic write (:func:`atomic_path`, with :func:`atomic_write` for netCDF,
 :func:`atomic_text` and :func:`atomic_figure`) and the CF global attributes
-(:func:`cf_attributes`).
+(:func:`cf_attributes`).  The analysis has its own (analysis/netcdf.py), not
+this one: sim and analysis import nothing of each other (they meet only in the
+state files) and the fixed top level has no room for a third package.
 """
 
 from __future__ import annotations

@@ -102,7 +102,8 @@ if config["committed"]:
             py_shell("{input.script:q} {input.summaries:q} > {output:q} 2> {log:q}")
 
     rule reproduction_numbers:
-        # The numbers docs/reproduction.md sets against the paper's.
+        # The numbers docs/reproduction.md sets against the paper's, into the
+        # committed folder: docs/reproduction/numbers.md under make reproduction.
         input:
             ensembles=expand(results_path("ensemble/{protocol}/{name}"), protocol=PROTOCOLS,
                              name=["fields.nc", "base_pressure.nc", "moduli.nc", "invariants.nc"]),
