@@ -49,8 +49,13 @@ from sim.settings_file import SettingsFileError, read_settings_file
 SCHEMAS = Path(__file__).resolve().parent / "schemas"
 CONFIG_SCHEMA = SCHEMAS / "config.schema.yaml"
 NUMERICS_SCHEMA = SCHEMAS / "numerics.schema.yaml"
-# The files that config.schema.yaml refers to, by paths relative to SCHEMAS.
-REFERRED_SCHEMAS = (SIM_SCHEMA.resolve(), ANALYSIS_SCHEMA.resolve(), NUMERICS_SCHEMA)
+# The files that config.schema.yaml refers to, by the paths its $ref give
+# (relative to SCHEMAS): the packages' own schemas are those of the packages
+# imported here, whose checks run next (a checkout's, or an installed sim
+# beside a working directory that has no sim/).
+REFERRED_SCHEMAS = {"../../sim/config.schema.yaml": SIM_SCHEMA,
+                    "../../analysis/params.schema.yaml": ANALYSIS_SCHEMA,
+                    "numerics.schema.yaml": NUMERICS_SCHEMA}
 # The sections of the configuration that the simulator reads.
 SIM_SECTIONS = ("model", "particles", "pour", "relax", "probe", "physics")
 
@@ -85,16 +90,17 @@ _Validator = _filling_defaults(Draft202012Validator)
 def _schema_file(ref):
     """The schema file that the ``$ref`` `ref` (``file.yaml`` or ``file.yaml#/...``,
     relative to workflow/schemas) names: one of :data:`REFERRED_SCHEMAS`."""
-    path = (SCHEMAS / ref.partition("#")[0]).resolve()
-    if path not in REFERRED_SCHEMAS:
-        raise ValueError(f"$ref {ref!r}: only {', '.join(map(str, REFERRED_SCHEMAS))} can be referred to")
-    return path
+    try:
+        return REFERRED_SCHEMAS[ref.partition("#")[0]]
+    except KeyError:
+        raise ValueError(f"$ref {ref!r}: only {', '.join(REFERRED_SCHEMAS)} can be referred to") from None
 
 
 # The schema files that a $ref to another file (config.schema.yaml's
-# simulator sections, analysis and numerics) loads: resolved against
-# workflow/schemas, as snakemake.utils.validate resolves them against the
-# referring file's folder (only config.schema.yaml refers to other files).
+# simulator sections, analysis and numerics) loads, by :func:`_schema_file`:
+# in a checkout the files that snakemake.utils.validate finds by the same
+# paths from the referring file's folder (only config.schema.yaml refers to
+# other files).
 _REGISTRY = Registry(retrieve=lambda uri: Resource.from_contents(load_schema(_schema_file(uri))))
 
 
