@@ -183,8 +183,12 @@ class Simulation:
     def place(self, k, x, y, theta=0.0, vx=0.0, vy=0.0, omega=0.0):
         """Set particle ``k``'s position and velocity; ``k == n`` activates one more.
 
-        The acceleration starts at gravity, higher derivatives at zero.  Any change of the particle set
-        forces a pair-list rebuild and restarts the energy check.
+        The acceleration starts at gravity, higher derivatives at zero.  The
+        particle starts afresh: its contact history, the tangential springs and
+        narrow-phase witnesses of its pairs with other particles and with the
+        support and walls, is cleared, as for contacts that were never made.
+        Any change of the particle set forces a pair-list rebuild and restarts
+        the energy check.
         """
         if not 0 <= k <= self.n or k >= self.capacity:
             raise IndexError(f"particle {k}: only 0..{min(self.n, self.capacity - 1)} "
@@ -195,6 +199,10 @@ class Simulation:
         # start from the free-flight acceleration, so free fall is exact from step 1
         self.r[2, :2, k] = 0.5 * self.dt ** 2 * np.asarray(self.gravity)
         self.bspring[:, k] = 0.0
+        its_pairs = (self.pi == k) | (self.pj == k)
+        self.spring[its_pairs] = 0.0
+        self.axis[its_pairs] = -1
+        self.cross[its_pairs] = -1
         if k == self.n:
             self.n += 1
         self._stale = True

@@ -137,6 +137,25 @@ def test_a_rebuild_carries_the_spring_of_a_sticking_contact():
     np.testing.assert_array_equal(sim.spring, twin.spring)
 
 
+def test_placing_a_particle_again_clears_its_pair_springs_as_its_support_spring():
+    """``Simulation.place`` on square 0 of a sticking stack, at its own position
+    and velocity: it starts afresh, so the loaded springs of its contacts with
+    the support and with square 1 both go to zero (place once cleared the
+    support's and kept the pair's), and the pair's spring then follows Hooke's
+    law F* = k_t dx from the placement (tolerance as in the test above)."""
+    sim = _stack()
+    sim.run(steps=1100)
+    assert _pair_spring(sim) > 0.01 and sim.bspring[0, 0] != 0.0   # both loaded
+    sim.place(0, *sim.position[0], 0.0, *sim.velocity[0], 0.0)
+    assert sim.bspring[0, 0] == 0.0
+    assert _pair_spring(sim) == 0.0
+    x0 = sim.position[:2, 0]
+    sim.run(steps=1100)
+    tolerance = K_T * 1e-4 * 2e-7
+    assert abs(_pair_spring(sim)) > 10 * tolerance   # loaded again, from the placement
+    assert abs(_pair_spring(sim) - _hooke(sim, x0)) <= tolerance
+
+
 def test_rebuilding_the_pair_list_at_any_step_changes_no_bit():
     """A packing settling in its box, its pair list rebuilt every 7 steps
     against the same run rebuilt only when the particles have moved: the same
