@@ -104,6 +104,9 @@ def _parser():
                    help="also write frames of the pour for a film, every "
                    "pour.frame_interval simulated seconds, to FILE (.nc; python -m analysis "
                    "film); without FILE, or empty, no frames")
+    p.add_argument("--log", metavar="FILE",
+                   help="also append the log to FILE, the pile's log over all runs of its pour, "
+                   "once this run holds the pour's lock (a run the lock refuses leaves it as it is)")
 
     p = sub.add_parser("relax", help="relax a pile to rest")
     p.add_argument("--params", help=params_help)
@@ -218,7 +221,7 @@ def main(argv=None):
         from . import protocols
         if args.command == "pour":
             protocols.pour(cfg, args.protocol, args.seed, args.out, args.checkpoint,
-                           frames=args.frames)
+                           frames=args.frames, run_log=args.log)
         elif args.command == "relax":
             protocols.relax_file(cfg, args.input, args.out)
         elif args.command == "probe":

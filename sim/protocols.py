@@ -31,6 +31,7 @@ releases the same particles at the same places as the uninterrupted one.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import math
@@ -335,7 +336,7 @@ def fixed_remaining(end_time):
 
 
 def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
-         settle_time=0.1, frames=None):
+         settle_time=0.1, frames=None, run_log=None):
     """Pour a pile from a point (wedge) or line (layered) source and save it.
 
     Parameters
@@ -362,6 +363,11 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
         simulated seconds), written just before the poured state.  With a
         checkpoint, the frames so far are kept beside it
         (:func:`sim.frames.partial_path`) and resumed with it.
+    run_log : path, optional
+        The pile's log, kept over every run of its pour: once this run holds
+        the lock, its log lines are appended to the file (:func:`appended_log`)
+        from a line naming the process.  A run the lock refuses leaves the file
+        as it is, so it never spoils the log of the pour that is running.
 
     Returns
     -------
@@ -382,11 +388,44 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
         raise ConfigError("physics.support = false: a pile is poured onto the support; "
                           "without it the particles fall for ever (allowed: true)")
     checkpoint = Path(checkpoint) if checkpoint else None
-    if checkpoint is None:
-        return _pour(cfg, protocol, seed, out, None, settle_time, None, frames)
-    with PourLock(checkpoint.with_name(checkpoint.name + ".lock"),
-                  stale_after=3 * cfg.pour.checkpoint_interval + 60.0) as lock:
+    with contextlib.ExitStack() as held:
+        lock = None if checkpoint is None else held.enter_context(
+            PourLock(checkpoint.with_name(checkpoint.name + ".lock"),
+                     stale_after=3 * cfg.pour.checkpoint_interval + 60.0))
+        held.enter_context(appended_log(run_log))
+        log.info("pour %s seed %d: started by process %s %d", protocol, seed,
+                 socket.gethostname(), os.getpid())
         return _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock, frames)
+
+
+@contextlib.contextmanager
+def appended_log(path):
+    """Append the simulator's log lines (logger ``sim``, at its level: INFO
+    from the command line) to ``path`` while in the block, besides where they
+    go anyway; an error that ends the block is appended too, as the command
+    line prints it.  Nothing without a path.
+
+    Parameters
+    ----------
+    path : path or None
+        The log file; created with its folder when missing, never emptied.
+    """
+    if not path:
+        yield
+        return
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    handler = logging.FileHandler(path, mode="a")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
+    log.addHandler(handler)
+    try:
+        yield
+    except Exception as exc:
+        # into this file only: the command line prints it to the terminal itself
+        handler.handle(log.makeRecord(log.name, logging.ERROR, __file__, 0, "%s", (exc,), None))
+        raise
+    finally:
+        log.removeHandler(handler)
+        handler.close()
 
 
 class PourLock:

@@ -160,6 +160,33 @@ def test_a_live_lock_refuses_a_second_pour_and_a_dead_one_is_taken_over(tmp_path
     assert not lock.exists()     # released when done
 
 
+def test_the_piles_log_gains_each_run_that_holds_the_lock_and_no_other(tmp_path, caplog):
+    """The pile's log (run_log, the workflow's logs/pour/P/seedS.log) is
+    appended to, never emptied: a run the live lock refuses leaves it byte
+    for byte, and the run that holds the lock adds its lines after what was
+    there, from a line naming its process, down to the pour's summary."""
+    import socket
+
+    run_log = tmp_path / "seed3.log"
+    run_log.write_text("an earlier run's last line\n")
+    ckpt = tmp_path / "pour.checkpoint.nc"
+    lock = tmp_path / "pour.checkpoint.nc.lock"
+    lock.write_text(f"{socket.gethostname()} {os.getppid()}\n")
+    with pytest.raises(protocols.PourLockedError):
+        protocols.pour(tiny(), "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt,
+                       run_log=run_log)
+    assert run_log.read_text() == "an earlier run's last line\n"
+    lock.unlink()
+    with caplog.at_level(logging.INFO, logger="sim"):    # as the command line logs
+        protocols.pour(tiny(), "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt,
+                       run_log=run_log)
+    lines = run_log.read_text().splitlines()
+    assert lines[0] == "an earlier run's last line"
+    assert lines[1].endswith(f" INFO pour wedge seed 3: started by process {socket.gethostname()} "
+                             f"{os.getpid()}"), lines[1]
+    assert " INFO pour wedge seed 3 done: " in lines[-1], lines[-1]
+
+
 def test_another_hosts_lock_counts_until_it_is_stale(tmp_path):
     lock_path = tmp_path / "x.lock"
     lock_path.write_text("some-other-host 1\n")
@@ -178,9 +205,13 @@ def test_another_hosts_lock_counts_until_it_is_stale(tmp_path):
 def test_a_pour_with_particles_in_flight_fails_naming_the_cause(tmp_path):
     """Released at 10 m/s the particles bounce off: no "done" for a cloud."""
     cfg = tiny(pour={"n_particles": 6, "release_speed": 10.0}, model={"damping": 0.0})
+    run_log = tmp_path / "seed3.log"
     with pytest.raises(protocols.LandingError, match="pour.release_speed = 10.0"):
-        protocols.pour(cfg, "wedge", 3, tmp_path / "poured.nc")
+        protocols.pour(cfg, "wedge", 3, tmp_path / "poured.nc", run_log=run_log)
     assert not (tmp_path / "poured.nc").exists()
+    # the pile's log ends with the error, as the terminal shows it
+    assert "ERROR pour wedge seed 3: 6 of 6 particles are still in flight" in \
+        run_log.read_text().splitlines()[-1]
 
 
 def pour_killed_repeatedly(folder, kills, seed):

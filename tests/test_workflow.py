@@ -160,6 +160,37 @@ def test_smoke_dry_run_lists_the_pile_jobs(workdir):
     assert "NUMBA_NUM_THREADS=1 " in proc.output  # smoke.yaml: threads 1
 
 
+def test_a_pour_refused_by_the_lock_leaves_the_running_pours_log_whole(tmp_path):
+    """A second Snakemake (--nolock) pours a pile that a live process is
+    pouring: the simulator's lock refuses, the running pour's log is left as
+    it was, and the refusal, naming the running process, is in the job's log
+    and on the terminal (Snakemake deleted the job's log, then the pile's
+    log, before the simulator could refuse). The running pour is this test's
+    process, named in the lock, with a log of one progress line."""
+    import socket
+
+    root = copy_workflow(tmp_path / "wf")
+    pile = root / "results/smoke/piles/wedge/seed1"
+    pile.mkdir(parents=True)
+    running = f"{socket.gethostname()} {os.getpid()}"
+    (pile / "pour.checkpoint.nc.lock").write_text(running + "\n")
+    log = root / "results/smoke/logs/pour/wedge/seed1.log"
+    log.parent.mkdir(parents=True)
+    first = ("2026-12-04 10:00:00,000 INFO pour wedge seed 1: released 40 of 150 (27 %), "
+             "ETA 0:01:00; t = 0.4000 s simulated\n")
+    log.write_text(first)
+    compiled = root / "results/smoke/.numba/compiled.ok"   # the kernels: not this test's subject
+    compiled.parent.mkdir(parents=True)
+    compiled.touch()
+    proc = snakemake(root, "--nolock", "--show-failed-logs", "--cores", "1", *SMOKE,
+                     str(pile.relative_to(root) / "poured.nc"))
+    assert proc.returncode != 0 and job_counts(proc.output) == {"pour": 1}, proc.output
+    assert log.read_text() == first
+    refused = f"being poured by process {running!r}"
+    assert refused in log.with_suffix(".job.log").read_text() and refused in proc.output
+    assert not (pile / "poured.nc").exists()
+
+
 def test_paper_dry_run_has_19_piles(workdir):
     proc = snakemake(workdir, "-n", "--cores", "2", "piles")
     assert proc.returncode == 0, proc.output
@@ -415,7 +446,7 @@ if cmd == "warmup":
     sys.exit(0)
 parser = argparse.ArgumentParser()
 for option in ("--params", "--bookkeeping", "--protocol", "--seed", "--out", "--checkpoint",
-               "--input", "--level", "--frames"):
+               "--input", "--level", "--frames", "--log"):
     parser.add_argument(option)
 args = parser.parse_args(rest)
 if cmd in ("pour", "relax", "probe"):

@@ -109,6 +109,13 @@ def pile(protocol, seed, stage):
     return results_path(f"piles/{protocol}/seed{seed}/{stage}.nc")
 
 
+def pour_log(protocol, seed):
+    """The pile's pour log: the lines of every run of its pour that held the
+    pour's lock, each run from a line "pour P seed S: started by process HOST
+    PID" (the simulator's --log; study_progress.py reads its progress lines)."""
+    return results_path(f"logs/pour/{protocol}/seed{seed}.log")
+
+
 def pour_checkpoint(protocol, seed):
     """Checkpoint of a running pour. Deliberately not a Snakemake output: it
     must survive a killed job so that the re-run resumes from it; the

@@ -41,8 +41,14 @@ rule pour:
         # a value, which the simulator reads as none); Unrecorded, so that a
         # scene without film re-pours nothing that a scene with film poured
         frames=lambda wildcards, output: Unrecorded(output.frames if wants("film") else ""),
+        # the pile's log over every run of its pour (pour_log())
+        run_log=lambda wildcards: Unrecorded(pour_log(wildcards.protocol, wildcards.seed)),
     log:
-        results_path("logs/pour/{protocol}/seed{seed}.log"),
+        # what this job printed. Not the pile's log: Snakemake deletes a job's
+        # log before the job runs, so a second run of the pour (a --nolock
+        # Snakemake, a rerun beside a pour left running) deleted the running
+        # pour's log before the simulator's lock refused it
+        results_path("logs/pour/{protocol}/seed{seed}.job.log"),
     benchmark:
         results_path("benchmarks/pour/{protocol}/seed{seed}.tsv")
     threads: SIM_THREADS
@@ -56,5 +62,5 @@ rule pour:
             "pour --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
             " --protocol {wildcards.protocol} --seed {wildcards.seed}"
             " --out {output.poured:q} --checkpoint {params.checkpoint:q} --frames {params.frames:q}"
-            " > {log:q} 2>&1"
+            " --log {params.run_log:q} > {log:q} 2>&1"
         )
