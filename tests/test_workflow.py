@@ -677,6 +677,31 @@ def test_editing_an_analysis_file_reruns_the_analysis_jobs_and_nothing_else(ran_
         assert dry_run(root, []) == everything
 
 
+def test_a_report_says_whether_its_results_are_out_of_date(ran_all):
+    """The report's first paragraph, and the terminal, say when results are
+    out of date by Snakemake's judgement: after an edit of analysis/ the jobs
+    that a dry run would run, rule by rule; before it, that none would run.
+    (A report of such a study once showed its old results without a word.)"""
+    root, _ = ran_all
+    report = root / "results" / "smoke" / "report.html"
+    proc = snakemake(root, *SMOKE, "--report", str(report))
+    assert proc.returncode == 0, proc.output[-5000:]
+    assert "Up to date: Snakemake would remake none of these results" in report.read_text()
+    assert "OUT OF DATE" not in report.read_text() + proc.output
+    with edited(root / "analysis" / "fields.py"):
+        counts = dry_run(root, [])
+        proc = snakemake(root, *SMOKE, "--report", str(report))
+    assert proc.returncode == 0, proc.output[-5000:]
+    del counts["all"]
+    jobs = (f"Snakemake would run {sum(counts.values())} jobs again ("
+            + ", ".join(f"{n} {rule}" for rule, n in sorted(counts.items())) + ")")
+    page = report.read_text()
+    for text in (page, proc.output):
+        assert "OUT OF DATE: " in text and "(code or settings changed since they were made)" in text
+        assert jobs in text, text[-3000:]
+        assert "run the workflow with the options of this report but without --report" in text
+
+
 # --- (d) the smoke study, end to end ----------------------------------------
 
 CONTRACT_VARIABLES = [
@@ -826,6 +851,7 @@ def check_report(root):
         # it names what it describes (the smoke's once said "Configuration: config/config.yaml")
         assert ("Configuration: config/smoke.yaml; results: results/smoke/, 4 of 4 piles of 150 "
                 "particles made so far") in body, body[:2000]
+        assert "Up to date: Snakemake would remake none of these results" in body
         shot = root / "results" / "smoke" / "report_first_page.png"
         assert browser.save_screenshot(str(shot))
         browser.set_script_timeout(120)

@@ -152,7 +152,56 @@ def report_description():
         there = sum(all(os.path.exists(pile(p, s, st)) for st in last) for p, s in piles)
         made = (f"{there} of {len(piles)} piles of {config['pour']['n_particles']} particles "
                 "made so far")
-    return {"configfiles": ", ".join(configuration_files()), "results": f"{RESULTS}/", "piles": made}
+    return {"configfiles": ", ".join(configuration_files()), "results": f"{RESULTS}/", "piles": made,
+            "freshness": Freshness() if _report_path() else ""}
+
+
+class Freshness:
+    """The report's sentence on whether its results are up to date, by
+    Snakemake's own judgement: the jobs it would run (what a dry run with the
+    same options lists) among those that made the report's files. It is
+    rendered into the report's first paragraph (workflow/report/workflow.rst)
+    once Snakemake has built the jobs, and a report with stale results is
+    warned about on the terminal too."""
+
+    #: Why a job would run, in words: (attribute of Snakemake's reason, words);
+    #: the code of sim/ and analysis/ travels as a param (workflow/digest.py).
+    REASONS = (("params_changed", "code or settings changed"),
+               ("code_changed", "a rule's command changed"),
+               ("input_changed", "inputs changed"), ("updated_input", "inputs changed"),
+               ("software_stack_changed", "software changed"),
+               ("incomplete_output", "a job was killed while making them"),
+               ("missing_output", "files they need are missing"))
+
+    def __init__(self):
+        self._text = None
+
+    def __str__(self):
+        if self._text is None:
+            self._text = self._judge(workflow.dag)
+        return self._text
+
+    def _judge(self, dag):
+        """The sentence; warns on the terminal when results are out of date."""
+        jobs = [job for job in dag.needrun_jobs() if job.output]
+        stale = [str(f) for job in jobs for f in job.output if os.path.exists(f)]
+        if not stale:
+            return ("Up to date: Snakemake would remake none of these results (their code, "
+                    "settings and inputs have not changed since they were made).")
+        rules = {}
+        for job in jobs:
+            rules[job.rule.name] = rules.get(job.rule.name, 0) + 1
+        why = sorted({words for job in jobs for attribute, words in self.REASONS
+                      if getattr(dag.reason(job), attribute)})
+        text = (f"OUT OF DATE: {len(stale)} files of these results do not show what the "
+                f"workflow makes now ({'; '.join(why)} since they were made): "
+                f"Snakemake would run {len(jobs)} jobs again ("
+                + ", ".join(f"{n} {rule}" for rule, n in sorted(rules.items()))
+                + f"), for example for {stale[0]}. To refresh them, run the workflow with the "
+                "options of this report but without --report (make run for the study; add -n "
+                "to list the jobs and their reasons), then make the report again.")
+        logger.warning(f"Report: {text}")
+        return text
 
 
 def _report_path():
