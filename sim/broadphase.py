@@ -20,6 +20,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from .builds import build
+
 
 @njit(cache=True)
 def _cell_grid(x, y, n, cell):
@@ -73,8 +75,7 @@ def _neighbours(i, x, y, radius, skin, cx, cy, nx, ny, start, order, pj, k0, wri
     return k - k0
 
 
-@njit(cache=True, parallel=True)
-def candidate_pairs(x, y, radius, n, skin):
+def candidate_pairs(x, y, radius, n, skin, parallel=False):
     """All pairs ``i < j`` of the first ``n`` particles closer than ``R_i + R_j + skin``.
 
     Parameters
@@ -87,12 +88,20 @@ def candidate_pairs(x, y, radius, n, skin):
         Number of active particles (the first n entries).
     skin : float
         Verlet skin, m.
+    parallel : bool
+        Use the parallel build (the same pairs; worth it for a few hundred
+        particles and more, as the force kernels, :mod:`sim.builds`).
 
     Returns
     -------
     (numpy.ndarray, numpy.ndarray)
         ``pi``, ``pj`` (int64), sorted by ``(pi, pj)``.
     """
+    return (_PAIRS_PARALLEL if parallel else _PAIRS_SERIAL)(x, y, radius, n, skin)
+
+
+def _candidate_pairs(x, y, radius, n, skin):
+    """:func:`candidate_pairs`, to be built serial and parallel."""
     if n < 2:
         return np.empty(0, np.int64), np.empty(0, np.int64)
     rmax = 0.0
@@ -126,6 +135,10 @@ def candidate_pairs(x, y, radius, n, skin):
         _neighbours(i, x, y, radius, skin, cx, cy, nx, ny, start, order, pj, count[i], True)
         pi[count[i]:count[i + 1]] = i
     return pi, pj
+
+
+_PAIRS_PARALLEL = build(_candidate_pairs, True)
+_PAIRS_SERIAL = build(_candidate_pairs, False)
 
 
 @njit(cache=True)

@@ -313,11 +313,20 @@ class Simulation:
         return (self.full_law or m.damping > 0.0, self.full_law or m.friction > 0.0,
                 self.full_law or m.support_friction > 0.0)
 
+    def parallel_kernels(self):
+        """Whether the kernels run their parallel builds: with at least
+        ``parallel_threshold`` particles and more than one thread.
+
+        Asking Numba for its thread count first also starts its threading
+        layer, which the serial builds need too (their ``numba.get_thread_id``
+        does not link before it: "LLVM ERROR: Symbol not found")."""
+        return numba.get_num_threads() > 1 and self.n >= self.parallel_threshold
+
     def _rebuild(self):
         n = self.n
         x = np.ascontiguousarray(self.r[0, 0, :n])
         y = np.ascontiguousarray(self.r[0, 1, :n])
-        pi, pj = candidate_pairs(x, y, self.shapes.radius, n, self.skin)
+        pi, pj = candidate_pairs(x, y, self.shapes.radius, n, self.skin, self.parallel_kernels())
         if self._law_flags()[1]:
             self.spring = carry_history(self.pi, self.pj, self.spring, pi, pj)
         else:
@@ -408,8 +417,7 @@ class Simulation:
                 # seen before their forces have thrown the particles apart (a start
                 # inside the support or a wall is resolved: it pushes them out)
                 chunk = 1
-            kernels = (KERNELS_PARALLEL if self.n >= self.parallel_threshold and
-                       numba.get_num_threads() > 1 else KERNELS_SERIAL)
+            kernels = KERNELS_PARALLEL if self.parallel_kernels() else KERNELS_SERIAL
             k, stale = advance(kernels, chunk, self.n, *self.kernel_state(), self.x_ref,
                                self.y_ref, rebuild_sq)
             done += k

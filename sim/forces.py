@@ -48,11 +48,8 @@ is θ itself).  Where a flag is off, the full law would compute exactly zero
 for the skipped term.
 
 Every kernel exists in a serial and a parallel build (:data:`KERNELS_SERIAL`,
-:data:`KERNELS_PARALLEL`): below a few hundred particles starting a parallel
-region costs more than the work.  The builds are compiled from copies of the
-kernels under distinct names, because Numba's on-disk cache does not tell a
-``parallel=True`` build from a serial one of the same function (numba issue
-6845): under one name, whichever build was compiled first served both.  The
+:data:`KERNELS_PARALLEL`, :func:`sim.builds.build`): below a few hundred
+particles starting a parallel region costs more than the work.  The
 loops touch arrays only by index (no array views per pair or particle), so no
 reference counts are updated in the hot loops.
 """
@@ -60,7 +57,6 @@ reference counts are updated in the hot loops.
 from __future__ import annotations
 
 import math
-import types
 import warnings
 from collections import namedtuple
 
@@ -68,6 +64,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from .builds import build
 from .contact_law import (characteristic_length, elastic_force, normal_force,
                           reduced_mass, tangential_force, tangential_mass)
 from .geometry import halfplane_overlap_range, polygon_overlap_range
@@ -504,27 +501,16 @@ warnings.filterwarnings("ignore", category=numba.NumbaExperimentalFeatureWarning
 KERNELS = (predict_and_place, pair_forces, gather_and_correct)
 
 
-def _build(kernel, parallel):
-    """A Numba build of ``kernel`` cached under a name of its own per build."""
-    tag = "parallel" if parallel else "serial"
-    clone = types.FunctionType(kernel.__code__, kernel.__globals__,
-                               f"{kernel.__name__}_{tag}", kernel.__defaults__,
-                               kernel.__closure__)
-    clone.__qualname__ = f"{kernel.__qualname__}_{tag}"
-    clone.__doc__ = kernel.__doc__
-    # The serial builds go without Numba's reference counting (NRT): they
-    # allocate nothing, and with it every array handed to an inlined helper
-    # was counted at every pair (atomic operations; the pair pass took about
-    # 30 % longer).  The parallel builds keep it: without it they were
-    # slower than the old code's parallel builds in 3 of 6 paired timings,
-    # with it faster in 2 of 2 (reason not found; left for the next person).
-    return njit(cache=True, parallel=parallel, _nrt=parallel)(clone)
-
-
+# The serial builds go without Numba's reference counting (NRT): they
+# allocate nothing, and with it every array handed to an inlined helper
+# was counted at every pair (atomic operations; the pair pass took about
+# 30 % longer).  The parallel builds keep it: without it they were
+# slower than the old code's parallel builds in 3 of 6 paired timings,
+# with it faster in 2 of 2 (reason not found; left for the next person).
 #: Parallel builds of (predict, pairs, gather), for a few hundred particles and more.
-KERNELS_PARALLEL = tuple(_build(k, True) for k in KERNELS)
+KERNELS_PARALLEL = tuple(build(k, True, nrt=True) for k in KERNELS)
 #: Serial builds of the same kernels.
-KERNELS_SERIAL = tuple(_build(k, False) for k in KERNELS)
+KERNELS_SERIAL = tuple(build(k, False, nrt=False) for k in KERNELS)
 
 
 # Not cached: its signature holds the types of the kernel dispatchers passed in,

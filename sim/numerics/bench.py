@@ -196,8 +196,7 @@ def kernel_shares(sim, steps):
         ``predict``, ``pairs``, ``gather``: fractions of a step.
     """
     sim.run(steps=1)  # current pair list
-    kernels = (KERNELS_PARALLEL if sim.n >= sim.parallel_threshold and
-               numba.get_num_threads() > 1 else KERNELS_SERIAL)
+    kernels = KERNELS_PARALLEL if sim.parallel_kernels() else KERNELS_SERIAL
     predict, pairs, gather = kernels
     pt, pr, bodies, law, motion, work = sim.kernel_state()
     spent = np.zeros(3)
