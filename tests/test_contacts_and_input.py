@@ -286,8 +286,10 @@ def test_a_block_sliding_on_the_support_decelerates_at_mu_g(v0):
     assert abs(sim.velocity[0, 0]) < 1e-4 * abs(v0)  # stuck
 
 
-def test_broad_phase_finds_every_close_pair():
-    """Cell list against brute force, including a particle far from the rest."""
+@pytest.mark.parametrize("parallel", [False, True], ids=["serial", "parallel"])
+def test_broad_phase_finds_every_close_pair(parallel):
+    """Cell list against brute force, including a particle far from the rest,
+    in both builds (the serial one serves fewer than 400 particles)."""
     rng = np.random.default_rng(7)
     n = 600
     x = rng.uniform(0, 0.15, n)
@@ -295,7 +297,7 @@ def test_broad_phase_finds_every_close_pair():
     x[0], y[0] = 40.0, -3.0
     radius = rng.uniform(2e-3, 4e-3, n)
     skin = 1e-3
-    pi, pj = candidate_pairs(x, y, radius, n, skin)
+    pi, pj = candidate_pairs(x, y, radius, n, skin, parallel)
     d = np.hypot(x[:, None] - x[None], y[:, None] - y[None])
     reach = radius[:, None] + radius[None] + skin
     bi, bj = np.nonzero(np.triu(d < reach, 1))
