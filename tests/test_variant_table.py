@@ -120,3 +120,14 @@ def test_a_missing_folder_is_named(tmp_path):
     res = subprocess.run([sys.executable, str(SCRIPT), "--study", str(STUDY), "--variant", str(tmp_path / "nope"),
                           "--overlay", str(overlay)], capture_output=True, text=True)
     assert res.returncode != 0 and "--variant" in res.stderr and "no such folder" in res.stderr
+
+
+def test_the_small_sample_note_gives_students_t_at_the_fewest_variant_piles():
+    # Two-sided 5 % quantiles of Student's t, from tables: 1 degree of freedom 12.706, 2: 4.303.
+    two = {"wedge": {1: {}, 2: {}}, "layered": {1: {}, 2: {}, 3: {}}}
+    assert "With 2 variant piles" in variant_table.small_sample_note(two)
+    assert "1 degree of freedom" in variant_table.small_sample_note(two)
+    assert "beyond 12.7 " in variant_table.small_sample_note(two)
+    three = {"wedge": {1: {}, 2: {}, 3: {}}, "layered": {1: {}}}  # a single pile borrows the study's scatter
+    assert "beyond 4.3 " in variant_table.small_sample_note(three)
+    assert variant_table.small_sample_note({"wedge": {1: {}}, "layered": {}}) == ""

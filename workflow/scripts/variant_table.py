@@ -18,7 +18,11 @@ CPU time:
 * the same difference *paired* by seed over the seeds both sets hold (a
   seed draws the same particle shapes in both, so the pairing removes the
   scatter the shapes cause); n/a below two common seeds;
-* the construction history: wedge − layered in each set.
+* the construction history: wedge − layered in each set;
+* how far a z computed from few piles can be trusted: a standard error from
+  n piles has n − 1 degrees of freedom, so the text gives Student's t
+  quantile that two-sided 5 % needs at the variant's fewest piles
+  (:func:`small_sample_note`).
 
 The CPU times come from different runs on shared machines and are given for
 the cost, not compared.  Prints Markdown (``make reproduction`` writes it to
@@ -38,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from scipy.stats import t as student_t
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
@@ -140,6 +145,35 @@ def history_versus(study: dict, variant: dict, names: dict, a: str = "wedge", b:
     return "\n".join(rows) + "\n"
 
 
+def small_sample_note(variant: dict) -> str:
+    """A sentence on the reference distribution of the z values at the variant's fewest piles.
+
+    A standard error over ``n`` piles is itself estimated, with ``n − 1``
+    degrees of freedom, so ``z = d / se`` follows Student's t, not the
+    normal law: at ``n = 2`` two-sided 5 % needs ``|z| > 12.7``.  The
+    sentence gives that quantile for the smallest set of variant piles with
+    at least two (none with one pile, whose scatter is the study's).
+
+    Parameters
+    ----------
+    variant : dict
+        ``{protocol: {seed: quantities}}`` of the variant's piles.
+
+    Returns
+    -------
+    str
+        The sentence, or ``""`` when every protocol has one pile or none.
+    """
+    counts = [len(v) for v in variant.values() if len(v) > 1]
+    if not counts:
+        return ""
+    n = min(counts)
+    return (f" With {n} variant piles of a protocol a standard error has {n - 1} degree"
+            f"{'s' if n > 2 else ''} of freedom, so a z of these tables is significant at two-sided 5 % "
+            f"beyond {student_t.ppf(0.975, n - 1):.3g} (Student's t), not 1.96; read the z values as a "
+            "guide until each protocol has five piles (2.78).")
+
+
 def seeds_text(piles: dict) -> str:
     """``wedge 1–9, layered 1, 2``: the seeds of each protocol."""
     return "; ".join(f"{p} {', '.join(map(str, sorted(v))) or 'none'}" for p, v in piles.items())
@@ -172,7 +206,8 @@ def main() -> None:
             "piles see at two-sided 5 % with 80 % power (2.8 SE); *paired by seed*: the mean of the per-seed "
             "differences over the seeds both hold (a seed draws the same particle shapes in both), ± its "
             "standard error. †: one variant pile, whose scatter is taken as the study's standard deviation "
-            "over piles (the difference's standard error is sqrt(se² + sd²) of the study).\n\n" + side_by_side(study, variant, names))
+            "over piles (the difference's standard error is sqrt(se² + sd²) of the study)."
+            + small_sample_note(variant) + "\n\n" + side_by_side(study, variant, names))
     versus = history_versus(study, variant, names)
     if versus:
         text += ("\nThe construction history, wedge − layered (docs/reproduction/numbers.md defines the "
