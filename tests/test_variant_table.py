@@ -131,3 +131,12 @@ def test_the_small_sample_note_gives_students_t_at_the_fewest_variant_piles():
     three = {"wedge": {1: {}, 2: {}, 3: {}}, "layered": {1: {}}}  # a single pile borrows the study's scatter
     assert "beyond 4.3 " in variant_table.small_sample_note(three)
     assert variant_table.small_sample_note({"wedge": {1: {}}, "layered": {}}) == ""
+
+
+def test_the_rank_test_is_exact_mann_whitney():
+    # Two piles below all eight others: 2 of the C(10, 2) = 45 equally likely rank sets are as extreme
+    # (both lowest or both highest), so p = 2/45.
+    assert variant_table.rank_p([0.0, 0.1], [1.0 + i for i in range(8)]) == f"{2 / 45:.2g}"
+    # Interleaved sets: the lowest of four ranks each side, p = 1.
+    assert variant_table.rank_p([1.0, 4.0], [2.0, 3.0]) == "1"
+    assert variant_table.rank_p([], [1.0]) == "n/a"

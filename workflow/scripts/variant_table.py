@@ -18,6 +18,8 @@ CPU time:
 * the same difference *paired* by seed over the seeds both sets hold (a
   seed draws the same particle shapes in both, so the pairing removes the
   scatter the shapes cause); n/a below two common seeds;
+* the exact two-sided Mann–Whitney p of variant against study, a rank test
+  that needs no standard error and so holds at two or three variant piles;
 * the construction history: wedge − layered in each set;
 * how far a z computed from few piles can be trusted: a standard error from
   n piles has n − 1 degrees of freedom, so the text gives Student's t
@@ -42,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from scipy.stats import t as student_t
+from scipy.stats import mannwhitneyu, t as student_t
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
@@ -107,15 +109,16 @@ def _difference(d: float, se: float) -> str:
 def side_by_side(study: dict, variant: dict, names: dict) -> str:
     """Markdown: per protocol and quantity, both sets, their difference and the paired difference."""
     k = detection_factor()
-    rows = ["| protocol | quantity | study | variant | variant − study (z) | seen at 80 % | paired by seed (z) |",
-            "|---|---|---|---|---|---|---|"]
+    rows = ["| protocol | quantity | study | variant | variant − study (z) | seen at 80 % | paired by seed (z) "
+            "| rank test p |",
+            "|---|---|---|---|---|---|---|---|"]
     for p in study:
         common = sorted(set(study[p]) & set(variant.get(p, {})))
         for q, text in names.items():
             ms, ss, _, ns = mean_sem([v[q] for v in study[p].values()])
             mv, sv, _, nv = mean_sem([v[q] for v in variant.get(p, {}).values()])
             if q in COST:
-                rows.append(f"| {p} | {text} | {_cell(ms, ss, ns)} | {_cell(mv, sv, nv)} | | | |")
+                rows.append(f"| {p} | {text} | {_cell(ms, ss, ns)} | {_cell(mv, sv, nv)} | | | | |")
                 continue
             single = nv == 1
             if single:  # one variant pile: its scatter taken as the study's SD over piles
@@ -126,8 +129,28 @@ def side_by_side(study: dict, variant: dict, names: dict) -> str:
             seen = f"{k * se:.2g}" if np.isfinite(se) else "n/a"
             diff = _difference(mv - ms, se) + (" †" if single and np.isfinite(se) else "")
             rows.append(f"| {p} | {text} | {_cell(ms, ss, ns)} | {_cell(mv, sv, nv)} | {diff} "
-                        f"| {seen} | {_difference(md, sd) if nd > 1 else 'n/a'} |")
+                        f"| {seen} | {_difference(md, sd) if nd > 1 else 'n/a'} "
+                        f"| {rank_p([v[q] for v in variant.get(p, {}).values()], [v[q] for v in study[p].values()])} |")
     return "\n".join(rows) + "\n"
+
+
+def rank_p(a: list, b: list) -> str:
+    """The exact two-sided Mann–Whitney p of two sets of per-pile numbers, as text.
+
+    Parameters
+    ----------
+    a, b : list of float
+        One number per pile (NaN entries left out).
+
+    Returns
+    -------
+    str
+        ``p`` to two significant digits, or ``n/a`` when either set is empty.
+    """
+    a, b = ([x for x in v if np.isfinite(x)] for v in (a, b))
+    if not a or not b:
+        return "n/a"
+    return f"{mannwhitneyu(a, b, alternative='two-sided', method='exact').pvalue:.2g}"
 
 
 def history_versus(study: dict, variant: dict, names: dict, a: str = "wedge", b: str = "layered") -> str:
@@ -205,7 +228,8 @@ def main() -> None:
             "the means ± its standard error (in standard errors); *seen at 80 %*: the smallest difference these "
             "piles see at two-sided 5 % with 80 % power (2.8 SE); *paired by seed*: the mean of the per-seed "
             "differences over the seeds both hold (a seed draws the same particle shapes in both), ± its "
-            "standard error. †: one variant pile, whose scatter is taken as the study's standard deviation "
+            "standard error; *rank test p*: the exact two-sided Mann–Whitney p of the variant's piles against "
+            "the study's, which needs no standard error. †: one variant pile, whose scatter is taken as the study's standard deviation "
             "over piles (the difference's standard error is sqrt(se² + sd²) of the study)."
             + small_sample_note(variant) + "\n\n" + side_by_side(study, variant, names))
     versus = history_versus(study, variant, names)
