@@ -141,10 +141,11 @@ def _fit(stress: np.ndarray, strain: np.ndarray, m: int, min_samples: int) -> di
     axes = ge.stiffness_axes(fit["stiffness"])
     K, G, _ = fit_isotropic_moduli(sig, u, min_points=min_samples)
     l1, l2, l3, _ = fit_cubic_moduli(sig, u, min_points=min_samples)
-    return {**fit, **axes,
+    iso, cub = ge.isotropic_stiffness(K, G), ge.cubic_stiffness(l1, l2, l3)
+    return {**fit, **axes, "stiffness_isotropic": iso, "stiffness_cubic": cub,
             "explained_general": ge.explained_fraction(fit["stiffness"], sig, u),
-            "explained_isotropic": ge.explained_fraction(ge.isotropic_stiffness(K, G), sig, u),
-            "explained_cubic": ge.explained_fraction(ge.cubic_stiffness(l1, l2, l3), sig, u)}
+            "explained_isotropic": ge.explained_fraction(iso, sig, u),
+            "explained_cubic": ge.explained_fraction(cub, sig, u)}
 
 
 def _add_gravity_only(fit: dict, stress: np.ndarray, strain: np.ndarray, gravity: list[int], m: int,
@@ -215,6 +216,13 @@ META = {
 }
 
 
+#: The paper's laws fitted to the same samples as the general one (Mandel stiffness, unmasked).
+LAW_STIFFNESS = {
+    "stiffness_isotropic": "Mandel stiffness of the isotropic law (K, G minimising S', Eq. 21) fitted to the same "
+                           "samples",
+    "stiffness_cubic": "Mandel stiffness of the cubic law (lambda1-3 minimising S, Eq. 16) fitted to the same samples",
+}
+
 #: Orientations of the ensemble fields copied next to the stiffness axis.
 AXES_FROM_FIELDS = ("fabric_orientation", "stress_orientation")
 
@@ -258,8 +266,8 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
     mean_stress, _, _ = nan_mean_sem(stress)
     mean_strain, _, _ = nan_mean_sem(strain)
     scalars = SCALARS + ("condition_gravity", "soft_axis_deg")
-    out: dict[str, list] = {name: [] for name in ("stiffness", "stiffness_sem", "flag", "n_samples", "six",
-                                                  "six_piles", *scalars, *[f"{s}_sem" for s in scalars],
+    out: dict[str, list] = {name: [] for name in ("stiffness", *LAW_STIFFNESS, "stiffness_sem", "flag", "n_samples",
+                                                  "six", "six_piles", *scalars, *[f"{s}_sem" for s in scalars],
                                                   *[f"{s}_pile" for s in PILE_SCALARS])}
     for m in POINTS:
         need = max(ge.MIN_SAMPLES, 1 if m == 1 else params["moduli"]["min_points"])
@@ -268,7 +276,8 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
         each = [_fit(stress[k][loading], strain[k][loading], m, need) for k in range(len(piles))]
         for k, e in enumerate(each):
             _add_gravity_only(e, stress[k], strain[k], gravity, m, need)
-        out["stiffness"].append(whole["stiffness"])
+        for name in ("stiffness", *LAW_STIFFNESS):
+            out[name].append(whole[name])
         out["stiffness_sem"].append(nan_mean_sem(np.stack([e["stiffness"] for e in each]))[1])
         out["flag"].append(whole["flag"])
         out["n_samples"].append(whole["n_samples"])
@@ -295,6 +304,8 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
     data = {
         "stiffness": var(("points", "y", "x", "mandel_i", "mandel_j"), np.array(out["stiffness"]),
                          *META["stiffness"]),
+        **{name: var(("points", "y", "x", "mandel_i", "mandel_j"), np.array(out[name]), text, "N/m")
+           for name, text in LAW_STIFFNESS.items()},
         "stiffness_sem": var(("points", "y", "x", "mandel_i", "mandel_j"), np.array(out["stiffness_sem"]),
                              "standard error of stiffness over pile-by-pile fits", "N/m"),
         "general_flag": var(("points", "y", "x"), np.array(out["flag"]), "general fit flags", "1",
