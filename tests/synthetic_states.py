@@ -257,3 +257,15 @@ def mapped_hex_lattice(n: int, apothem: float, mapping: np.ndarray, compression:
         ok = (ii + di >= 0) & (ii + di < n) & (jj + dj < n)
         pairs.append(np.column_stack([index[ok], (ii[ok] + di) * n + jj[ok] + dj]))
     return centres[:, 0], centres[:, 1], np.concatenate(pairs), hexagon_nodes(apothem) @ mapping.T, lattice
+
+
+def mandel_stress(c: np.ndarray, strains: np.ndarray) -> np.ndarray:
+    """Stress tensors ``(..., 2, 2)`` of the Mandel stiffness ``c`` (``(3, 3)`` or one per
+    strain, ``(..., 3, 3)``) under the strain tensors ``(..., 2, 2)``: ``σ_M = C u_M``."""
+    u = np.stack((strains[..., 0, 0], strains[..., 1, 1],
+                  np.sqrt(2) * 0.5 * (strains[..., 0, 1] + strains[..., 1, 0])), axis=-1)
+    s = np.einsum("...ij,...j->...i", c, u)
+    out = np.empty(strains.shape)
+    out[..., 0, 0], out[..., 1, 1] = s[..., 0], s[..., 1]
+    out[..., 0, 1] = out[..., 1, 0] = s[..., 2] / np.sqrt(2)
+    return out

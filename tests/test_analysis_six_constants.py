@@ -12,6 +12,7 @@ stress axes are those of C."""
 import numpy as np
 import pytest
 import xarray as xr
+from synthetic_states import mandel_stress
 
 from analysis import general_elastic as ge
 from analysis.params import parse_params
@@ -26,14 +27,6 @@ SHAPE_S = np.array([[1.0e-4, 0.1e-4], [0.1e-4, -0.3e-4]])     # ... and to the s
 GRAVITY = {"reduced": (1.0, 0.0), "tiltp05": (0.0, 1.0), "tiltm05": (0.0, -1.0)}
 
 
-def stress_of(c, strains):
-    s = np.einsum("ij,...j->...i", c, ge.mandel(strains))
-    out = np.empty(strains.shape)
-    out[..., 0, 0], out[..., 1, 1] = s[..., 0], s[..., 1]
-    out[..., 0, 1] = out[..., 1, 0] = s[..., 2] / np.sqrt(2)
-    return out
-
-
 def pile(c, seed, stretch):
     """One pile's probe file: the gravity probes (and the stretch) of a linear
     material, each pile and RVE with its own amplitude, plus restored."""
@@ -44,7 +37,7 @@ def pile(c, seed, stretch):
     strains["restored"] = 0.1 * strains["reduced"]
     probes = list(strains)
     strain = np.array([strains[p] for p in probes])
-    stress = stress_of(c, strain)
+    stress = mandel_stress(c, strain)
     stress[probes.index("restored")] = 0.0
     dims = ("probe", "y", "x", "i", "j")
     return xr.Dataset({"stress_increment": (dims, stress), "strain_increment": (dims, strain)},
