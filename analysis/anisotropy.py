@@ -57,6 +57,8 @@ from .orientation import axis_angle_difference
 from .probes import general_fit_dataset
 from .voigt import isotropic_projection
 
+#: The probe stage of the support stretch (``probe.stretch``; ``STRETCH_STAGE`` of the workflow).
+STRETCH = "stretched"
 #: The paper's moduli, in the order the tables give them.
 MODULI = ("K", "E_p", "E_b", "E_av", "G_p", "G_b", "G_av")
 #: The laws whose moduli are compared: (prefix, stiffness variable of the general fit, probes it is fitted to).
@@ -67,6 +69,12 @@ LAWS = {"general": ("stiffness", "loading"), "isotropic": ("stiffness_isotropic"
 FIT_VARS = ("condition", "condition_gravity", "six_constants", "axis_deg", "soft_axis_deg", "anisotropy",
             "axis_to_fabric_deg", "axis_to_stress_deg", "explained_general", "explained_isotropic",
             "explained_cubic")
+
+
+def has_stretch(path) -> bool:
+    """Whether the probes file ``path`` (:func:`analysis.probes.probe_increments`) has the stage :data:`STRETCH`."""
+    with xr.open_dataset(path) as ds:
+        return STRETCH in [str(p) for p in ds["probe"].values]
 
 
 def engineering_moduli(stiffness: np.ndarray) -> dict[str, np.ndarray]:
@@ -214,10 +222,27 @@ def pile_summary(pile: xr.Dataset, params: dict[str, Any], points: int = 5) -> d
     if "voigt_anisotropy" in fit:
         out["voigt_anisotropy"] = _median(fit["voigt_anisotropy"].values[keep])
         out["voigt_axis_to_fit"] = _median((fit["voigt_axis_to_fit_deg"].values * sign)[keep])
-    row = int(np.argmin(np.abs(y - h["primary_height"])))
     for law in laws:
         for k in MODULI:
-            v = fit[f"{law}_{k}"].values[row]
-            mask = np.ones_like(v, bool) if law.startswith("reduced_") else six[row]
-            out[f"centre:{law}_{k}"] = row_contrast(np.where(mask, v, np.nan), x, h)
+            v = fit[f"{law}_{k}"].values
+            out[f"centre:{law}_{k}"] = primary_contrast(v if law.startswith("reduced_") else np.where(six, v, np.nan),
+                                                        y, x, h)
     return out
+
+
+def primary_contrast(values: np.ndarray, y: np.ndarray, x: np.ndarray, history: dict[str, Any]) -> float:
+    """Centre over shoulders − 1 (:func:`analysis.history.row_contrast`) of a field ``(y, x)``
+    in the grid row nearest ``history["primary_height"]``."""
+    return row_contrast(np.asarray(values)[int(np.argmin(np.abs(y - history["primary_height"])))], x, history)
+
+
+def reduction_shear_contrast(fields: xr.Dataset, params: dict[str, Any], points: int = 5) -> float:
+    """:func:`primary_contrast` of the shear modulus of the isotropic law fitted to a
+    pile's gravity reduction, as :func:`pile_anisotropy` fits it (``reduced_isotropic_G_av``),
+    from the pile's fields alone: the scale of its scatter over the study's piles,
+    which have no stretch."""
+    probe = xr.Dataset({k: fields[k].transpose("y", "x", "i", "j").expand_dims(probe=["reduced"])
+                        for k in ("stress_increment", "strain_increment")})
+    fit = general_fit_dataset([probe], params).sel(points=points)
+    g = engineering_moduli(fit["stiffness_isotropic"].values)["G_av"]
+    return primary_contrast(g, fields["y"].values, fields["x"].values, params["history"])

@@ -10,6 +10,8 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from analysis.general_elastic import stiffness_axes
+
 DENSITY = 1000.0  # kg/m² (2D)
 
 
@@ -269,3 +271,38 @@ def mandel_stress(c: np.ndarray, strains: np.ndarray) -> np.ndarray:
     out[..., 0, 0], out[..., 1, 1] = s[..., 0], s[..., 1]
     out[..., 0, 1] = out[..., 1, 0] = s[..., 2] / np.sqrt(2)
     return out
+
+
+#: A linear pile's strain under a change of g_y, of g_x and under the support stretch.
+PROBE_SHAPES = {"y": np.array([[-0.3e-4, 0.2e-5], [0.2e-5, 1.0e-4]]),
+                "x": np.array([[0.4e-5, 0.6e-4], [0.6e-4, -0.2e-5]]),
+                "stretched": np.array([[1.0e-4, 0.1e-4], [0.1e-4, -0.3e-4]])}
+#: (change of g_y, of g_x) of each gravity probe, in units of the shapes' loads.
+GRAVITY_PROBES = {"reduced": (1.0, 0.0), "tiltp05": (0.0, 1.0), "tiltm05": (0.0, -1.0)}
+
+
+def linear_probe_pile(c_field: np.ndarray, x: np.ndarray, y: np.ndarray, rng) -> tuple[xr.Dataset, xr.Dataset]:
+    """Probe increments (``probes.nc``) and fields of a pile of a linear material of Mandel stiffness
+    ``c_field`` ``(ny, nx, 3, 3)`` on the grid ``y``, ``x``: the gravity reduction and two tilts (their
+    strains in the two shapes a linear pile's gravity changes give, each RVE with its own amplitude
+    drawn from ``rng``) and the support stretch; fields with fabric axes 10° and stress axes −85° off
+    each RVE's stiffest axis, the Voigt stiffness 2 C and the reduction's increments."""
+    ny, nx = c_field.shape[:2]
+    amp = 1.0 + 0.2 * rng.normal(size=(ny, nx, 1, 1))
+    strains = {name: amp * (dy * PROBE_SHAPES["y"] + dx * PROBE_SHAPES["x"])
+               for name, (dy, dx) in GRAVITY_PROBES.items()}
+    strains["stretched"] = amp * PROBE_SHAPES["stretched"]
+    probes = list(strains)
+    strain = np.array([strains[p] for p in probes])
+    stress = mandel_stress(c_field[None], strain)
+    dims = ("probe", "y", "x", "i", "j")
+    coords = {"y": y, "x": x, "i": ["x", "y"], "j": ["x", "y"]}
+    probe_ds = xr.Dataset({"stress_increment": (dims, stress), "strain_increment": (dims, strain)},
+                          coords={"probe": probes, **coords}, attrs={"protocol": "wedge", "seed": "1"})
+    axis = stiffness_axes(c_field)["axis_deg"]
+    fields = xr.Dataset({"fabric_orientation": (("y", "x"), axis - 10.0),
+                         "stress_orientation": (("y", "x"), axis + 85.0),
+                         "voigt_stiffness": (("y", "x", "mandel_i", "mandel_j"), 2.0 * c_field),
+                         "stress_increment": (dims[1:], stress[0]), "strain_increment": (dims[1:], strain[0])},
+                        coords=coords)
+    return probe_ds, fields

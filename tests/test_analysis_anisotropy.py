@@ -19,7 +19,7 @@
 import numpy as np
 import pytest
 import xarray as xr
-from synthetic_states import mandel_stress
+from synthetic_states import linear_probe_pile
 
 from analysis import general_elastic as ge
 from analysis.anisotropy import MODULI, engineering_moduli, pile_anisotropy, pile_summary
@@ -28,10 +28,6 @@ from analysis.params import parse_params
 RNG = np.random.default_rng(2027)
 X = np.round(np.arange(-0.18, 0.1801, 0.015), 6)    # the grid's columns: centre, shoulders and beyond
 Y = np.array([0.015, 0.03, 0.045, 0.06])
-SHAPE_Y = np.array([[-0.3e-4, 0.2e-5], [0.2e-5, 1.0e-4]])     # a linear pile's response to a change of g_y
-SHAPE_X = np.array([[0.4e-5, 0.6e-4], [0.6e-4, -0.2e-5]])     # ... to a change of g_x
-SHAPE_S = np.array([[1.0e-4, 0.1e-4], [0.1e-4, -0.3e-4]])     # ... to the support stretch
-GRAVITY = {"reduced": (1.0, 0.0), "tiltp05": (0.0, 1.0), "tiltm05": (0.0, -1.0)}
 CENTRE_SOFTENING = 0.3
 
 
@@ -77,28 +73,6 @@ def test_turning_a_cubic_law_by_45_degrees_swaps_axes_and_bisectors():
         assert float(b[k]) == pytest.approx(float(a[k]), rel=1e-9)
 
 
-def synthetic_pile(c_field):
-    """Probe increments and fields of a linear material of stiffness ``c_field`` ``(ny, nx, 3, 3)``,
-    with fabric axes 10° and stress axes −85° off the stiffest axis of the reference ``C``."""
-    ny, nx = c_field.shape[:2]
-    amp = 1.0 + 0.2 * RNG.normal(size=(ny, nx, 1, 1))
-    strains = {name: amp * (dy * SHAPE_Y + dx * SHAPE_X) for name, (dy, dx) in GRAVITY.items()}
-    strains["stretched"] = amp * SHAPE_S
-    probes = list(strains)
-    strain = np.array([strains[p] for p in probes])
-    stress = mandel_stress(c_field[None], strain)
-    dims = ("probe", "y", "x", "i", "j")
-    coords = {"y": Y[:ny], "x": X[:nx], "i": ["x", "y"], "j": ["x", "y"]}
-    probe_ds = xr.Dataset({"stress_increment": (dims, stress), "strain_increment": (dims, strain)},
-                          coords={"probe": probes, **coords}, attrs={"protocol": "wedge", "seed": "1"})
-    axis = ge.stiffness_axes(c_field)["axis_deg"]
-    fields = xr.Dataset({"fabric_orientation": (("y", "x"), axis - 10.0),
-                         "stress_orientation": (("y", "x"), axis + 85.0),
-                         "voigt_stiffness": (("y", "x", "mandel_i", "mandel_j"), 2.0 * c_field)},
-                        coords=coords)
-    return probe_ds, fields
-
-
 def test_a_known_anisotropic_pile_is_recovered_with_its_centre_softer_by_30_per_cent():
     q = np.linalg.qr(RNG.normal(size=(3, 3)))[0]
     c = q @ np.diag([3.0e6, 1.2e6, 0.5e6]) @ q.T                   # no symmetry axis along x or y
@@ -106,7 +80,7 @@ def test_a_known_anisotropic_pile_is_recovered_with_its_centre_softer_by_30_per_
     c_field = np.broadcast_to(c, (len(Y), len(X), 3, 3)) * np.where(centre, 1 - CENTRE_SOFTENING, 1.0)[
         None, :, None, None]
     params = parse_params('{"moduli": {"min_points": 3}}')
-    pile = pile_anisotropy(*synthetic_pile(c_field), params)
+    pile = pile_anisotropy(*linear_probe_pile(c_field, X, Y, RNG), params)
     known = engineering_moduli(c)
     axes = ge.stiffness_axes(c)
     fit = pile.sel(points=1)
@@ -136,7 +110,7 @@ def test_on_an_isotropic_material_every_law_is_the_same_law():
     c = ge.isotropic_stiffness(2.0e6, 0.7e6)
     c_field = np.broadcast_to(c, (len(Y), len(X), 3, 3)).copy()
     params = parse_params('{"moduli": {"min_points": 3}}')
-    pile = pile_anisotropy(*synthetic_pile(c_field), params)
+    pile = pile_anisotropy(*linear_probe_pile(c_field, X, Y, RNG), params)
     for m in (1, 5):
         s = pile_summary(pile, params, points=m)
         assert s[f"six_share@{m}"] == 1.0

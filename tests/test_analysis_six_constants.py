@@ -12,7 +12,7 @@ stress axes are those of C."""
 import numpy as np
 import pytest
 import xarray as xr
-from synthetic_states import mandel_stress
+from synthetic_states import GRAVITY_PROBES, PROBE_SHAPES, mandel_stress
 
 from analysis import general_elastic as ge
 from analysis.params import parse_params
@@ -20,20 +20,16 @@ from analysis.probes import SIX_CONSTANTS_MAX_CONDITION, general_fit_dataset
 
 RNG = np.random.default_rng(27)
 NY, NX = 3, 4
-SHAPE_Y = np.array([[-0.3e-4, 0.2e-5], [0.2e-5, 1.0e-4]])     # a linear pile's response to a change of g_y
-SHAPE_X = np.array([[0.4e-5, 0.6e-4], [0.6e-4, -0.2e-5]])     # ... and of g_x
-SHAPE_S = np.array([[1.0e-4, 0.1e-4], [0.1e-4, -0.3e-4]])     # ... and to the support stretch
-#: (reduction, tilt) of each gravity probe, in units of the shapes' loads
-GRAVITY = {"reduced": (1.0, 0.0), "tiltp05": (0.0, 1.0), "tiltm05": (0.0, -1.0)}
 
 
 def pile(c, seed, stretch):
     """One pile's probe file: the gravity probes (and the stretch) of a linear
     material, each pile and RVE with its own amplitude, plus restored."""
     amp = 1.0 + 0.2 * RNG.normal(size=(NY, NX, 1, 1))
-    strains = {name: amp * (dy * SHAPE_Y + dx * SHAPE_X) for name, (dy, dx) in GRAVITY.items()}
+    strains = {name: amp * (dy * PROBE_SHAPES["y"] + dx * PROBE_SHAPES["x"])
+               for name, (dy, dx) in GRAVITY_PROBES.items()}
     if stretch:
-        strains["stretched"] = amp * SHAPE_S * (1.0 + 0.1 * RNG.normal())
+        strains["stretched"] = amp * PROBE_SHAPES["stretched"] * (1.0 + 0.1 * RNG.normal())
     strains["restored"] = 0.1 * strains["reduced"]
     probes = list(strains)
     strain = np.array([strains[p] for p in probes])

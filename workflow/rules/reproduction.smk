@@ -61,6 +61,13 @@ if config["committed"]:
     VARIANTS = sorted(p.stem for p in (REPO / "config" / "variants").glob("*.yaml")
                       if any((COMMITTED / "variants" / p.stem).glob("*/seed*.summary.json")))
 
+    # The variants with a pile probed by the support stretch (config/scenes/six_constants.yaml):
+    # all six elastic constants, in {committed}/variants/NAME/six_constants.md.
+    from analysis.anisotropy import has_stretch  # here: reads netCDF, only `make reproduction` needs it
+
+    SIX_CONSTANT_VARIANTS = [v for v in VARIANTS
+                             if any(has_stretch(f) for f in (COMMITTED / "variants" / v).glob("*/seed*.probes.nc"))]
+
     rule reproduction:
         # make reproduction: the figures and the per-pile table, from the
         # committed per-pile results only.
@@ -72,6 +79,8 @@ if config["committed"]:
             table=str(COMMITTED / "piles.md"),
             numbers=str(COMMITTED / "numbers.md"),
             variants=expand(str(COMMITTED / "variants" / "{variant}.md"), variant=VARIANTS),
+            six_constants=expand(str(COMMITTED / "variants" / "{variant}" / "six_constants.md"),
+                                 variant=SIX_CONSTANT_VARIANTS),
         localrule: True
 
     rule reproduction_figure:
@@ -144,6 +153,8 @@ if config["committed"]:
 
     rule reproduction_variant:
         # A full-size variant against the study, pile by pile and paired by seed.
+        wildcard_constraints:
+            variant="[^/]+",
         input:
             study=lambda wc: sorted(str(f) for f in COMMITTED.glob("*/seed*.*")),
             variant=lambda wc: sorted(str(f) for f in (COMMITTED / "variants" / wc.variant).glob("*/seed*.*")),
@@ -166,4 +177,36 @@ if config["committed"]:
             py_shell(
                 "{input.script:q} --study {params.study:q} --variant {params.variant:q} --overlay {input.overlay:q} "
                 "--protocols {params.protocols:q} --params {params.cfg:q} > {output:q} 2> {log:q}"
+            )
+
+    rule reproduction_six_constants:
+        # A variant's piles with the support stretch: the general law per RVE per pile, its
+        # conditioning, anisotropy and axes, the Voigt reference and the paper's statements on
+        # the choice of law; the study's fields give the scale of the scatter over piles.
+        wildcard_constraints:
+            variant="[^/]+",
+        input:
+            probes=lambda wc: sorted(str(f) for f in (COMMITTED / "variants" / wc.variant).glob("*/seed*.probes.nc")),
+            fields=lambda wc: sorted(str(f) for f in (COMMITTED / "variants" / wc.variant).glob("*/seed*.fields.nc")),
+            study=lambda wc: sorted(str(f) for f in COMMITTED.glob("*/seed*.fields.nc")),
+            script="workflow/scripts/six_constants_table.py",
+        output:
+            table=str(COMMITTED / "variants" / "{variant}" / "six_constants.md"),
+            figure=str(COMMITTED / "variants" / "{variant}" / "six_constants.png"),
+        params:
+            # relative to the repository, as the table names them
+            study=config["committed"],
+            variant=lambda wc: f"{config['committed']}/variants/{wc.variant}",
+            protocols=PROTOCOLS,
+            cfg=ANALYSIS_PARAMS,
+        log:
+            results_path("logs/reproduction/six_constants_{variant}.log"),
+        localrule: True
+        conda:
+            "../envs/polypile.yaml"
+        shell:
+            py_shell(
+                "{input.script:q} --study {params.study:q} --variant {params.variant:q} "
+                "--protocols {params.protocols:q} --params {params.cfg:q} --figure {output.figure:q} "
+                "> {output.table:q} 2> {log:q}"
             )
