@@ -180,11 +180,15 @@ def pile_summary(pile: xr.Dataset, params: dict[str, Any], points: int = 5) -> d
         every law, the ratios ``{a}/{b}:{modulus}`` of the laws' moduli at
         each RVE (isotropic, cubic and the Voigt stiffness against the
         general law; cubic against isotropic, also for the reduction
-        alone), ``voigt_anisotropy`` and ``voigt_axis_to_fit``; and
+        alone), ``voigt_anisotropy`` and ``voigt_axis_to_fit``;
+        ``stable:{law}``, the share of the core RVEs with a fit of the law
+        where its K, G_p and G_b are positive (for the isotropic and cubic
+        laws: where the law is positive definite); and
         ``centre:{law}_{modulus}``, the centre-over-shoulders contrast at
-        the primary layer of the moduli where all six constants are
-        pinned (the reduction's laws wherever they are fitted, as the paper
-        draws them).
+        the primary layer of the positive values of the modulus where all
+        six constants are pinned (the reduction's laws wherever they are
+        fitted, as the paper draws them; a mean over values of both signs
+        would be no modulus).
     """
     h = params["history"]
     x, y = pile["x"].values, pile["y"].values
@@ -223,10 +227,13 @@ def pile_summary(pile: xr.Dataset, params: dict[str, Any], points: int = 5) -> d
         out["voigt_anisotropy"] = _median(fit["voigt_anisotropy"].values[keep])
         out["voigt_axis_to_fit"] = _median((fit["voigt_axis_to_fit_deg"].values * sign)[keep])
     for law in laws:
+        fitted = core & np.isfinite(fit[f"{law}_K"].values)
+        stable = fitted & np.all([fit[f"{law}_{k}"].values > 0 for k in ("K", "G_p", "G_b")], axis=0)
+        out[f"stable:{law}"] = float(stable.sum() / fitted.sum()) if fitted.any() else float("nan")
         for k in MODULI:
             v = fit[f"{law}_{k}"].values
-            out[f"centre:{law}_{k}"] = primary_contrast(v if law.startswith("reduced_") else np.where(six, v, np.nan),
-                                                        y, x, h)
+            v = np.where((v > 0) & (True if law.startswith("reduced_") else six), v, np.nan)
+            out[f"centre:{law}_{k}"] = primary_contrast(v, y, x, h)
     return out
 
 

@@ -114,6 +114,7 @@ def test_on_an_isotropic_material_every_law_is_the_same_law():
     for m in (1, 5):
         s = pile_summary(pile, params, points=m)
         assert s[f"six_share@{m}"] == 1.0
+        assert all(s[f"stable:{law}"] == 1.0 for law in ("isotropic", "cubic", "voigt"))
         pairs = ["isotropic/general", "cubic/general", "cubic/isotropic"]
         if m == 5:          # the reduction alone has one sample per point: fitted at m = 5 only
             pairs += ["reduced_isotropic/general", "reduced_cubic/general", "reduced_cubic/reduced_isotropic"]

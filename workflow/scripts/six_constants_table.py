@@ -139,9 +139,21 @@ def moduli_table(piles: dict, protocols: list[str]) -> str:
     return "\n".join(rows) + "\n"
 
 
+#: Rows of the laws' stability: (law, heading).
+STABLE = (("isotropic", "isotropic law, all probes"), ("cubic", "cubic law, all probes"),
+          ("reduced_isotropic", "isotropic law, reduction (the paper's)"),
+          ("reduced_cubic", "cubic law, reduction (the paper's)"), ("voigt", "Voigt stiffness"))
+
+
 def centre_table(piles: dict, protocols: list[str], sd: dict) -> str:
     k = detection_factor()
-    rows = ["| centre / shoulders − 1 | " + " | ".join(protocols) + " |", "|---|" + "---|" * len(protocols)]
+    rows = ["| core RVEs where the law is stable (K, G_p, G_b > 0) | " + " | ".join(protocols) + " |",
+            "|---|" + "---|" * len(protocols)]
+    for law, text in STABLE:
+        rows.append(f"| {text} | " + " | ".join(
+            _cell([q.get(f"stable:{law}", math.nan) for (p, _), q in piles.items() if p == proto], ".2f")
+            for proto in protocols) + " |")
+    rows += ["", "| centre / shoulders − 1 | " + " | ".join(protocols) + " |", "|---|" + "---|" * len(protocols)]
     for law, mod, text in CENTRE:
         cells = [_cell([q.get(f"centre:{law}_{mod}", math.nan) for (p, _), q in piles.items() if p == proto],
                        "+.2f") for proto in protocols]
@@ -276,7 +288,8 @@ def main() -> None:
             f"(|x| ≤ {100 * h['centre']:g} cm) over that over the shoulders ({100 * h['shoulder_inner']:g}–"
             f"{100 * h['shoulder_outer']:g} cm) − 1, in the grid row nearest `analysis.history.primary_height`; "
             "the general law's and the laws fitted to all probes at the RVEs that pin all six constants, the "
-            "reduction's laws wherever they are fitted, as the paper draws them.\n\n"
+            "reduction's laws wherever they are fitted, as the paper draws them; values ≤ 0 left out (no modulus). "
+            "First, the share of the core RVEs with a fit where each law is stable.\n\n"
             + centre_table(piles, protocols, sd))
     print(text, end="")
 
