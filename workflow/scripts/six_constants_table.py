@@ -24,11 +24,12 @@ prints, in Markdown:
   the laws fitted to all probes and to the gravity reduction alone (the
   paper's data);
 * the centre-over-shoulders contrast of the moduli at the primary layer
-  (``analysis.history``), with the smallest contrast that the piles could
-  tell from zero at two-sided 5 % with 80 % power, 2.8 SD/√n, where the SD
-  over piles is that of the reduction's isotropic shear contrast over the
-  study's piles (``--study``; the study's piles have no stretch, so the
-  general law's own scatter over piles is not known from one pile).
+  (``analysis.history``), the same contrast of the reduction's isotropic
+  shear modulus over the study's piles (``--study``), and the smallest
+  contrast that the variant's piles could tell from zero at two-sided 5 %
+  with 80 % power, 2.8 SD/√n, with the SD of that study row (the study's
+  piles have no stretch, so the general law's own scatter over piles is not
+  known from one pile).
 
 With ``--figure`` it also draws, for the first pile of each protocol, the
 stiffest axes of the RVEs that pin all six constants over the fabric axes,
@@ -145,7 +146,7 @@ STABLE = (("isotropic", "isotropic law, all probes"), ("cubic", "cubic law, all 
           ("reduced_cubic", "cubic law, reduction (the paper's)"), ("voigt", "Voigt stiffness"))
 
 
-def centre_table(piles: dict, protocols: list[str], sd: dict) -> str:
+def centre_table(piles: dict, protocols: list[str], study: dict) -> str:
     k = detection_factor()
     rows = ["| core RVEs where the law is stable (K, G_p, G_b > 0) | " + " | ".join(protocols) + " |",
             "|---|" + "---|" * len(protocols)]
@@ -158,12 +159,15 @@ def centre_table(piles: dict, protocols: list[str], sd: dict) -> str:
         cells = [_cell([q.get(f"centre:{law}_{mod}", math.nan) for (p, _), q in piles.items() if p == proto],
                        "+.2f") for proto in protocols]
         rows.append(f"| {text} | " + " | ".join(cells) + " |")
+    rows.append("| the study's piles: isotropic law G (reduction) | "
+                + " | ".join(_cell(study[proto], "+.2f") for proto in protocols) + " |")
     seen = []
     for proto in protocols:
         n = sum(1 for p, _ in piles if p == proto)
-        seen.append(f"±{k * sd[proto] / math.sqrt(n):.2f} (SD {sd[proto]:.2f}, {n} pile{'s' * (n > 1)})"
-                    if n and np.isfinite(sd[proto]) else "–")
-    rows.append("| *seen at 80 %* (2.8 SD/√n; SD: the reduction's isotropic G contrast over the study's piles) | "
+        sd = mean_sem(study[proto])[2]
+        seen.append(f"±{k * sd / math.sqrt(n):.2f} (SD {sd:.2f}, {n} pile{'s' * (n > 1)})"
+                    if n and np.isfinite(sd) else "–")
+    rows.append("| *seen at 80 %* (2.8 SD/√n; SD: that of the study's piles in the row above) | "
                 + " | ".join(seen) + " |")
     return "\n".join(rows) + "\n"
 
@@ -250,13 +254,11 @@ def main() -> None:
     if not piles:
         raise SystemExit(f"six_constants_table.py: no pile under {args.variant} has probes with the stretch")
     protocols = [p for p in args.protocols if any(q == p for q, _ in piles)]
-    sd = {}
+    study = {p: [] for p in protocols}
     for p in protocols:
-        values = []
         for f in sorted((args.study / p).glob("seed*.fields.nc")):
             with xr.open_dataset(f) as ds:
-                values.append(reduction_shear_contrast(ds.load(), params))
-        sd[p] = mean_sem(values)[2]
+                study[p].append(reduction_shear_contrast(ds.load(), params))
     if args.figure:
         figure(per_pile, params, args.figure, args.points)
     h = params["history"]
@@ -290,7 +292,7 @@ def main() -> None:
             "the general law's and the laws fitted to all probes at the RVEs that pin all six constants, the "
             "reduction's laws wherever they are fitted, as the paper draws them; values ≤ 0 left out (no modulus). "
             "First, the share of the core RVEs with a fit where each law is stable.\n\n"
-            + centre_table(piles, protocols, sd))
+            + centre_table(piles, protocols, study))
     print(text, end="")
 
 
