@@ -109,6 +109,8 @@ def _cell(values, spec: str = ".3g") -> str:
 
 
 def identification(piles: dict) -> str:
+    """Markdown: per pile, the core RVEs fitted, the share pinning all six constants and the median
+    condition numbers (:func:`analysis.anisotropy.pile_summary`'s ``@1`` and ``@5`` keys)."""
     rows = ["| pile | core RVEs fitted (m = 1 / 5) | all six pinned, m = 1 | m = 5 "
             "| median condition, all probes / gravity alone, m = 1 | m = 5 |", "|---|---|---|---|---|---|"]
     for (p, s), q in piles.items():
@@ -120,6 +122,7 @@ def identification(piles: dict) -> str:
 
 
 def by_protocol(piles: dict, protocols: list[str], names: dict, spec: str = ".3g") -> str:
+    """Markdown: each quantity ``names`` (key: heading) per protocol, mean ± SE over its piles."""
     rows = ["| quantity | " + " | ".join(protocols) + " |", "|---|" + "---|" * len(protocols)]
     for key, text in names.items():
         cells = [_cell([q.get(key, math.nan) for (p, _), q in piles.items() if p == proto], spec)
@@ -129,6 +132,7 @@ def by_protocol(piles: dict, protocols: list[str], names: dict, spec: str = ".3g
 
 
 def moduli_table(piles: dict, protocols: list[str]) -> str:
+    """Markdown: per protocol and modulus, the general law's value and the ratios :data:`RATIOS`."""
     rows = ["| protocol | modulus | general law (N/m) | " + " | ".join(h for _, h in RATIOS) + " |",
             "|---|---|---|" + "---|" * len(RATIOS)]
     for proto in protocols:
@@ -147,6 +151,8 @@ STABLE = (("isotropic", "isotropic law, all probes"), ("cubic", "cubic law, all 
 
 
 def centre_table(piles: dict, protocols: list[str], study: dict) -> str:
+    """Markdown: the laws' stable shares, the centre contrasts :data:`CENTRE`, the study's contrast
+    ``study`` (protocol: per-pile values) and the smallest contrast the variant's piles could see."""
     k = detection_factor()
     rows = ["| core RVEs where the law is stable (K, G_p, G_b > 0) | " + " | ".join(protocols) + " |",
             "|---|" + "---|" * len(protocols)]
@@ -194,7 +200,7 @@ def figure(per_pile: dict, params: dict, path: Path, points: int = POINTS) -> No
         if "surface_height" in fields:
             ax.plot(100 * fields["x"].values, 100 * fields["surface_height"].values, color="0.6", lw=1)
         half = 0.45 * 100 * float(np.min(np.diff(x)))
-        for name, colour, scale in (("fabric_orientation", "0.7", None), ("axis_deg", "C3", "anisotropy")):
+        for name, colour, scale in (("fabric_orientation", "0.5", None), ("axis_deg", "C3", "anisotropy")):
             ang = np.radians(fields[name].transpose("y", "x").values if name in fields else fit[name].values)
             size = np.clip(np.log(fit[scale].values) / np.log(4.0), 0.15, 1.0) if scale else 0.6
             dx, dy = -np.sin(ang) * half * size, np.cos(ang) * half * size
