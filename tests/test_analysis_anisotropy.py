@@ -118,6 +118,8 @@ def test_on_an_isotropic_material_every_law_is_the_same_law():
         pairs = ["isotropic/general", "cubic/general", "cubic/isotropic"]
         if m == 5:          # the reduction alone has one sample per point: fitted at m = 5 only
             pairs += ["reduced_isotropic/general", "reduced_cubic/general", "reduced_cubic/reduced_isotropic"]
+            for k in MODULI:                            # the Voigt stiffness was given as 2 C
+                assert s[f"voigt/reduced_isotropic:{k}"] == pytest.approx(2.0, rel=1e-8)
         for pair in pairs:
             for k in MODULI:
                 assert s[f"{pair}:{k}"] == pytest.approx(1.0, rel=1e-8), (m, pair, k)

@@ -81,7 +81,7 @@ RATIOS = (("isotropic/general", "isotropic / general"), ("cubic/general", "cubic
           ("reduced_isotropic/general", "reduction's isotropic / general"),
           ("reduced_cubic/general", "reduction's cubic / general"),
           ("reduced_cubic/reduced_isotropic", "reduction's cubic / isotropic"),
-          ("voigt/general", "Voigt / general"))
+          ("voigt/general", "Voigt / general"), ("voigt/reduced_isotropic", "Voigt / reduction's isotropic"))
 #: Rows of the centre table: (law, modulus, heading).
 CENTRE = (("general", "K", "general law K"), ("general", "E_av", "general law E_av"),
           ("general", "G_p", "general law G_p (shear along x, y)"),
