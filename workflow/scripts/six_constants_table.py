@@ -200,13 +200,13 @@ def figure(per_pile: dict, params: dict, path: Path, points: int = POINTS) -> No
         if "surface_height" in fields:
             ax.plot(100 * fields["x"].values, 100 * fields["surface_height"].values, color="0.6", lw=1)
         half = 0.45 * 100 * float(np.min(np.diff(x)))
-        for name, colour, scale in (("fabric_orientation", "0.5", None), ("axis_deg", "C3", "anisotropy")):
+        for name, colour, scale in (("fabric_orientation", "0.75", None), ("axis_deg", "C3", "anisotropy")):
             ang = np.radians(fields[name].transpose("y", "x").values if name in fields else fit[name].values)
             size = np.clip(np.log(fit[scale].values) / np.log(4.0), 0.15, 1.0) if scale else 0.6
             dx, dy = -np.sin(ang) * half * size, np.cos(ang) * half * size
             ok = six & np.isfinite(dx)
             ax.plot(np.stack([100 * xx - dx, 100 * xx + dx])[:, ok], np.stack([100 * yy - dy, 100 * yy + dy])[:, ok],
-                    color=colour, lw=1.2 if scale else 0.8)
+                    color=colour, lw=1.0 if scale else 2.6)
         ax.set_aspect("equal")
         ax.set_xlim(100 * x.min(), 100 * x.max())
         ax.set_ylim(0, 100 * y.max())
