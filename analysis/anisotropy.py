@@ -175,7 +175,7 @@ def pile_summary(pile: xr.Dataset, params: dict[str, Any], points: int = 5) -> d
         pin all six: ``anisotropy``, ``axis_mirrored`` (the stiffest axis
         times the sign of x, so that mirror-image flanks agree),
         ``soft_axis_mirrored``, ``axis_to_fabric``, ``axis_to_stress``
-        (mirrored likewise), ``abs_axis_to_fabric``, ``abs_axis_to_stress``,
+        (mirrored likewise; the column x = 0 left out), ``abs_axis_to_fabric``, ``abs_axis_to_stress``,
         ``explained_{general,isotropic,cubic}``, ``{law}_{modulus}`` of
         every law, the ratios ``{a}/{b}:{modulus}`` of the laws' moduli at
         each RVE (isotropic, cubic and the Voigt stiffness against the
@@ -206,7 +206,7 @@ def pile_summary(pile: xr.Dataset, params: dict[str, Any], points: int = 5) -> d
     fit = pile.sel(points=points)
     six = fit["six_constants"].values == 1
     keep = core & six
-    sign = np.sign(x)[None, :]
+    sign = np.where(x == 0, np.nan, np.sign(x))[None, :]        # the axis column has no mirror image
     for name in ("anisotropy", "explained_general", "explained_isotropic", "explained_cubic"):
         out[name] = _median(fit[name].values[keep])
     for name, var in (("axis_mirrored", "axis_deg"), ("soft_axis_mirrored", "soft_axis_deg"),

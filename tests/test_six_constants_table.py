@@ -55,7 +55,8 @@ def test_the_table_of_a_known_linear_pile(records):
     root, c = records
     out = subprocess.run([sys.executable, str(SCRIPT), "--variant", str(root / "variant"), "--study",
                           str(root / "study"), "--protocols", "wedge", "--params", '{"moduli": {"min_points": 3}}',
-                          "--figure", str(root / "six.png"), "--points", "1"], capture_output=True, text=True, check=True).stdout
+                          "--figure", str(root / "six.png"), "--points", "1"],
+                         capture_output=True, text=True, check=True).stdout
     assert "wedge seed 2" in out and "wedge seed 3" not in out          # seed 3 has no stretch
     ident = _row(out, "| wedge seed 2 |")
     assert ident[2] == "100 %" and ident[3] == "100 %"
