@@ -68,3 +68,17 @@ def test_the_table_of_a_known_linear_pile(records):
     # the study's two piles differ by a factor of stiffness only, so their contrasts do not scatter
     assert _row(out, "| *seen at 80 %*")[1].startswith("±0.00 (SD 0.00, 1 pile)")
     assert (root / "six.png").stat().st_size > 10_000
+
+
+def test_few_piles_name_students_t_from_the_tables():
+    """Two-sided 5 % points of Student's t from printed tables: 12.706 (1 degree of freedom), 4.303 (2)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("six_constants_table", SCRIPT)
+    table = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(table)
+    assert table.few_piles({("wedge", 2): {}, ("layered", 2): {}}) == ""
+    two = {(p, s): {} for p in ("wedge", "layered") for s in (2, 3)}
+    assert "1 degree of freedom" in table.few_piles(two) and "beyond 12.7 standard errors" in table.few_piles(two)
+    three = {**two, ("wedge", 4): {}, ("layered", 4): {}}
+    assert "2 degrees of freedom" in table.few_piles(three) and "beyond 4.3 standard errors" in table.few_piles(three)
+    assert table.few_piles({**three, **{(p, s): {} for p in ("wedge", "layered") for s in (5, 6)}}) == ""

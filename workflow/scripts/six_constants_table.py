@@ -49,6 +49,7 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
+from scipy.stats import t as student_t
 
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
@@ -106,6 +107,16 @@ def _cell(values, spec: str = ".3g") -> str:
     if n == 0:
         return "–"
     return f"{m:{spec}} ± {se:.2g} ({n})" if n > 1 else f"{m:{spec}} (1)"
+
+
+def few_piles(piles: dict) -> str:
+    """A sentence on the degrees of freedom of the standard errors where a protocol has 2–4 piles, else ''."""
+    n = min(sum(1 for p, _ in piles if p == proto) for proto in {p for p, _ in piles})
+    if not 2 <= n < 5:
+        return ""
+    return (f" With {n} piles a standard error has {n - 1} degree{'s' * (n > 2)} of freedom: a mean differs from "
+            f"a value at two-sided 5 % beyond {student_t.ppf(0.975, n - 1):.3g} standard errors (Student's t), "
+            "not 1.96.")
 
 
 def identification(piles: dict) -> str:
@@ -283,7 +294,7 @@ def main() -> None:
             f"The core: |x| ≤ {100 * h['shoulder_outer']:g} cm, y ≤ {100 * h['core_height']:g} cm "
             f"(`analysis.history`). Per pile, medians over the core RVEs that pin all six (m = {args.points} below the "
             "first table); then mean ± standard error over piles (number of piles); one pile has no standard "
-            "error.\n\n## Identification\n\n" + identification(piles)
+            f"error.{few_piles(piles)}\n\n## Identification\n\n" + identification(piles)
             + "\n## Anisotropy and axes\n\n" + by_protocol(piles, protocols, AXES)
             + "\n## The paper's moduli of each law\n\nK, E_p (uniaxial along x and y), E_b (along the bisectors), "
             "E_av, G_p (shear along x, y), G_b (along the bisectors), G_av of each law's Mandel stiffness "
