@@ -33,7 +33,8 @@ import xarray as xr
 
 from . import __version__
 from .config import ModelParams
-from .engine import BODY_SUPPORT, Simulation
+from .engine import Simulation
+from .scene import BODY_SUPPORT
 from .shapes import shapes_from_nodes
 
 PARTICLE_VARS = {

@@ -44,7 +44,9 @@ import numpy as np
 
 from .config import ConfigError, SimConfig, result_settings
 from .durations import hms
-from .engine import BODY_SUPPORT, BlowUpError, Simulation
+from .blowup import BlowUpError
+from .engine import Simulation
+from .scene import BODY_SUPPORT
 from .frames import FrameRecorder, partial_path
 from .io import StateFileError, code_version, load_simulation, save_state
 from .measure import angle_of_repose, mean_coordination

@@ -7,10 +7,11 @@ import pytest
 import yaml
 
 from scenes import rectangle, regular_polygon, scene, shapes_of
+from sim.blowup import BlowUpError
 from sim.broadphase import candidate_pairs
 from sim.config import ConfigError, ModelParams, SimConfig
 from sim.contact_law import characteristic_length, normal_force, tangential_force
-from sim.engine import BlowUpError, Simulation
+from sim.engine import Simulation
 from sim.integrators import stability_limit
 from sim.io import StateFileError, load_simulation, save_state
 from sim.shapes import make_shapes

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from sim.blowup import BlowUpError
 from sim.config import ConfigError
-from sim.engine import BlowUpError
 from sim.numerics.stability import StabilitySettings, largest_stable_dt, main, run_case
 from sim.numerics.stability_cases import CASE_NAMES, linear_spring, linear_spring_limit, packing
 

@@ -28,9 +28,10 @@ from scenes import rectangle, scene
 from sim import protocols
 from sim.config import SimConfig
 from sim.contact_law import tangential_stiffness
-from sim.engine import BODY_SUPPORT, Simulation
+from sim.engine import Simulation
 from sim.forces import ROW
 from sim.io import save_state
+from sim.scene import BODY_SUPPORT
 
 K_T = tangential_stiffness(1e7)
 EPS = 1e-5

@@ -8,12 +8,12 @@ and over-critical damping (a packing, and a single contact at ζ = 10).  The jam
 a lattice narrower than their diameters between fixed walls (the engine has
 no moving walls), so they start compressed.  Each case either runs with the
 automatic time step, closed and undriven, for ``steps`` steps and must stay
-*stable*: finite, no :class:`sim.engine.BlowUpError`, overlaps below
+*stable*: finite, no :class:`sim.blowup.BlowUpError`, overlaps below
 ``model.max_overlap_fraction`` and a total energy (kinetic + gravitational +
 elastic) that never rises above its start by more than ``energy_tolerance``
 of the energy scale (start kinetic + elastic + ``Σ m |g| R``); the start's
 elastic energy counts with its uncertainty
-(:data:`sim.engine.ELASTIC_UNDERESTIMATE`); or it is
+(:data:`sim.blowup.ELASTIC_UNDERESTIMATE`); or it is
 *refused* before it runs by the simulator, with the message it gives.
 Anything else is *unstable*, a bug in the time-step rule or the detector.
 
@@ -43,8 +43,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 import xarray as xr
 
+from ..blowup import ELASTIC_UNDERESTIMATE, BlowUpError
 from ..config import ConfigError, check_number
-from ..engine import ELASTIC_UNDERESTIMATE, BlowUpError
 from ..integrators import INTEGRATORS
 from .command import run_numerics_check, settings_from_dict
 from .stability_cases import CASE_NAMES, case_builders, linear_spring, linear_spring_limit, packing

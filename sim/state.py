@@ -1,0 +1,164 @@
+"""The state of a simulation: a plain structure of the arrays a run changes.
+
+Arrays are sized for a fixed *capacity* of particles, of which the first ``n``
+are active (pouring activates them one by one, so nothing is reallocated
+while a pile grows):
+
+* ``r``: scaled derivatives of (x, y, θ), shape ``(n_values, 3, capacity)``
+  (see :mod:`sim.integrators`);
+* the candidate pair list ``pi, pj`` with one tangential spring and one set
+  of narrow-phase witnesses per pair (:mod:`sim.broadphase`,
+  :mod:`sim.warmstart`), and one spring per particle and fixed body;
+* the contact rows of the last force evaluation (``pout``, ``bout``) and the
+  kernels' buffers (predictions, world corners, per-thread scratch).
+
+What a run does not change is in :class:`sim.scene.Scene`.  A
+:class:`Snapshot` copies the part of a state that a run continues from.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from .forces import BLOCK, PRED_SIZE, ROW_SIZE, Workspace
+from .geometry import make_scratch
+
+#: Length of each thread's narrow-phase output row (it needs GEOMETRY_SIZE):
+#: 512 bytes, so that no two threads write into one cache line (with rows of
+#: 10 values they did, at every contact).
+THREAD_ROW = 64
+
+
+@dataclass
+class State:
+    """Everything a run changes (see the module docstring).
+
+    Attributes
+    ----------
+    n : int
+        Active particles.
+    r : numpy.ndarray, shape (n_values, 3, capacity)
+        Scaled derivatives ``dt^k/k! d^k q/dt^k``.
+    time : float
+        Simulated time, s.
+    step : int
+        Steps done.
+    gravity : tuple of float
+        Gravity vector, m/s².
+    pi, pj : numpy.ndarray
+        Candidate pairs (``pi < pj``), sorted.
+    spring, axis, cross : numpy.ndarray
+        Each pair's tangential spring and narrow-phase witnesses.
+    pout, pforce : numpy.ndarray
+        Each pair's contact row and forces of the last evaluation.
+    pair_offset, pair_index : numpy.ndarray
+        The pairs of each particle (CSR).
+    x_ref, y_ref : numpy.ndarray
+        Centres at the last pair-list build.
+    stale : bool
+        The pair list must be rebuilt before the next step.
+    bspring, bout : numpy.ndarray
+        Tangential spring and contact row of each body and particle.
+    wx, wy, box, pred, work
+        The kernels' buffers: world corners, bounding boxes, predictions,
+        per-thread scratch (:class:`sim.forces.Workspace`).
+    """
+
+    n: int
+    r: np.ndarray
+    time: float
+    step: int
+    gravity: tuple
+    pi: np.ndarray
+    pj: np.ndarray
+    spring: np.ndarray
+    axis: np.ndarray
+    cross: np.ndarray
+    pout: np.ndarray
+    pforce: np.ndarray
+    pair_offset: np.ndarray
+    pair_index: np.ndarray
+    x_ref: np.ndarray
+    y_ref: np.ndarray
+    stale: bool
+    bspring: np.ndarray
+    bout: np.ndarray
+    wx: np.ndarray
+    wy: np.ndarray
+    box: np.ndarray
+    pred: np.ndarray
+    work: Workspace
+
+
+def new_state(scene, gravity) -> State:
+    """An empty :class:`State` of `scene` (no active particle) under `gravity` (m/s²)."""
+    shapes, capacity = scene.shapes, scene.capacity
+    n_bodies = len(scene.body_ids)
+    max_corners = int(np.max(shapes.node_count)) if capacity else 3
+    n_threads = numba.config.NUMBA_NUM_THREADS
+    return State(
+        n=0, r=np.zeros((len(scene.coeffs), 3, capacity)), time=0.0, step=0,
+        gravity=(float(gravity[0]), float(gravity[1])),
+        pi=np.empty(0, np.int64), pj=np.empty(0, np.int64), spring=np.empty(0),
+        axis=np.empty(0, np.int64), cross=np.empty((0, 4), np.int64),
+        pout=np.zeros((0, ROW_SIZE)), pforce=np.zeros((0, 4)),
+        pair_offset=np.zeros(1, np.int64), pair_index=np.empty(0, np.int64),
+        x_ref=np.empty(0), y_ref=np.empty(0), stale=True,
+        bspring=np.zeros((n_bodies, capacity)), bout=np.zeros((n_bodies, capacity, ROW_SIZE)),
+        wx=np.zeros_like(shapes.node_x), wy=np.zeros_like(shapes.node_y),
+        box=np.zeros((capacity, 4)), pred=np.zeros((capacity, PRED_SIZE)),
+        work=Workspace(np.stack([make_scratch(max_corners) for _ in range(n_threads)]),
+                       np.zeros((n_threads, THREAD_ROW)), np.zeros(capacity // BLOCK + 1)))
+
+
+def forget_particle(state: State, k):
+    """Clear particle ``k``'s contact history: the springs and witnesses of its
+    pairs and its springs with the bodies, as for contacts never made."""
+    state.bspring[:, k] = 0.0
+    its_pairs = (state.pi == k) | (state.pj == k)
+    state.spring[its_pairs] = 0.0
+    state.axis[its_pairs] = -1
+    state.cross[its_pairs] = -1
+
+
+@dataclass
+class Snapshot:
+    """A copy of everything needed to continue a run (:func:`snapshot`),
+    and of the contact rows of its last force evaluation (``pout``, ``bout``),
+    so that a restored state reports its own contacts."""
+
+    n: int
+    r: np.ndarray
+    time: float
+    step: int
+    gravity: tuple
+    pi: np.ndarray
+    pj: np.ndarray
+    spring: np.ndarray
+    bspring: np.ndarray
+    pout: np.ndarray
+    bout: np.ndarray
+    axis: np.ndarray
+    cross: np.ndarray
+
+
+def snapshot(state: State) -> Snapshot:
+    """A copy of the part of `state` that a run continues from exactly."""
+    return Snapshot(state.n, state.r.copy(), state.time, state.step, state.gravity,
+                    state.pi.copy(), state.pj.copy(), state.spring.copy(),
+                    state.bspring.copy(), state.pout.copy(), state.bout.copy(),
+                    state.axis.copy(), state.cross.copy())
+
+
+def restore(state: State, snap: Snapshot):
+    """Return `state` to `snap`; the pair list is rebuilt before the next step."""
+    state.n, state.r, state.time, state.step = snap.n, snap.r.copy(), snap.time, snap.step
+    state.gravity = snap.gravity
+    state.pi, state.pj, state.spring = snap.pi.copy(), snap.pj.copy(), snap.spring.copy()
+    state.bspring = snap.bspring.copy()
+    state.pout, state.bout = snap.pout.copy(), snap.bout.copy()
+    state.axis, state.cross = snap.axis.copy(), snap.cross.copy()
+    state.stale = True
