@@ -218,22 +218,22 @@ def main(argv=None):
                       flush=True)
             return 0
         cfg = _params(args.params, args.bookkeeping)
-        from . import protocols
+        from . import pour, probe, relax
         if args.command == "pour":
-            protocols.pour(cfg, args.protocol, args.seed, args.out, args.checkpoint,
-                           frames=args.frames, run_log=args.log)
+            pour.pour(cfg, args.protocol, args.seed, args.out, args.checkpoint,
+                      frames=args.frames, run_log=args.log)
         elif args.command == "relax":
-            protocols.relax_file(cfg, args.input, args.out)
+            relax.relax_file(cfg, args.input, args.out)
         elif args.command == "probe":
             stage = args.stage or Path(args.out).stem
             if args.stretch is not None:
-                protocols.stretch_file(cfg, args.input, args.stretch, args.out, stage)
+                probe.stretch_file(cfg, args.input, args.stretch, args.out, stage)
             elif args.tilt is not None:
-                protocols.tilt_file(cfg, args.input, args.tilt, args.out, stage)
+                probe.tilt_file(cfg, args.input, args.tilt, args.out, stage)
             elif args.restore:
-                protocols.restore_file(cfg, args.input, args.out, stage)
+                probe.restore_file(cfg, args.input, args.out, stage)
             else:
-                protocols.probe_file(cfg, args.input, args.level, args.out, stage)
+                probe.probe_file(cfg, args.input, args.level, args.out, stage)
         return 0
     except (ConfigError, ValueError, FileNotFoundError) as exc:
         log.error("%s", exc)

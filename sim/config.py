@@ -295,7 +295,7 @@ class RelaxParams:
         support reaction against the weight, Love's sum rule), which kinetic
         energy alone does not: a pile can pass the energy criterion while
         still ringing.  After a gravity probe all three criteria apply to the
-        change of load (:func:`sim.protocols.relax`).
+        change of load (:func:`sim.relax.relax`).
     hold_time : float
         The criteria must hold for this long, s.
     max_time : float
@@ -362,7 +362,7 @@ class ProbeParams:
         Duration of the ramp, s.
     stretch : float
         Strain of the support-stretch probe (stage ``stretched``,
-        :func:`sim.protocols.stretch_file`), in (−0.01, 0.01); 0: none.
+        :func:`sim.probe.stretch_file`), in (−0.01, 0.01); 0: none.
     stretch_time : float
         Duration of the stretch, s.
     """

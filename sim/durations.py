@@ -1,6 +1,6 @@
 """Durations as a person reads them: ``h:mm:ss``.
 
-The progress lines of the simulator (:class:`sim.protocols.Progress`) and of
+The progress lines of the simulator (:class:`sim.progress.Progress`) and of
 the study (``workflow/scripts/study_progress.py``) both write their times
 left with :func:`hms`, and the study reads the simulator's back with
 :func:`parse_hms`.  This module imports nothing heavy, so that the workflow's

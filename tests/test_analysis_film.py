@@ -14,8 +14,8 @@ import xarray as xr
 from analysis import film
 from analysis.errors import InputError
 from analysis.states import load_state
-from sim import protocols
 from sim.config import SimConfig
+from sim.pour import pour
 
 INTERVAL = 0.01
 CFG = SimConfig.from_dict({"pour": {"n_particles": 15, "rate": 300.0, "frame_interval": INTERVAL,
@@ -28,7 +28,7 @@ def poured(tmp_path_factory):
     """A tiny pour with its frames: (poured state path, frames path)."""
     folder = tmp_path_factory.mktemp("film")
     out, frames = folder / "poured.nc", folder / "frames.nc"
-    protocols.pour(CFG, "wedge", 5, out, frames=frames)
+    pour(CFG, "wedge", 5, out, frames=frames)
     return out, frames
 
 

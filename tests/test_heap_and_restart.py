@@ -7,7 +7,7 @@ from sim.config import ModelParams
 from sim.engine import Simulation
 from sim.io import load_simulation, save_state
 from sim.config import RelaxParams, SimConfig
-from sim.protocols import relax
+from sim.relax import relax
 from sim.shapes import make_shapes
 
 

@@ -76,7 +76,7 @@ def test_no_import_cycle():
 def test_the_walk_sees_the_imports():
     """The import walk itself: it finds known edges, relative and absolute."""
     edges, modules = graph()
-    assert "sim.engine" in edges["sim.protocols"]
+    assert "sim.engine" in edges["sim.pour"]
     assert "analysis.stress" in edges["analysis.draw"]
     assert "analysis.states" in edges["analysis.draw"]
     assert len(modules) > 40

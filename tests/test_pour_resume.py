@@ -16,10 +16,12 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from sim import protocols
+from sim import checkpoint
 from sim.config import SimConfig
 from sim.engine import Simulation
 from sim.io import StateFileError, read_state, save_state
+from sim.lock import PourLock, PourLockedError
+from sim.pour import LandingError, pile_shapes, pour
 
 TINY = {"pour": {"n_particles": 12, "rate": 400.0, "checkpoint_interval": 0.02,
                  "progress_interval": 1e9, "frame_interval": 0.01},
@@ -41,7 +43,7 @@ def whole(tmp_path_factory):
     """The tiny pile poured without interruption (with the frames of its film
     beside it, frames.nc)."""
     out = tmp_path_factory.mktemp("whole") / "poured.nc"
-    protocols.pour(tiny(), "wedge", 3, out, frames=out.with_name("frames.nc"))
+    pour(tiny(), "wedge", 3, out, frames=out.with_name("frames.nc"))
     return out
 
 
@@ -56,7 +58,7 @@ def assert_same_pile(a_path, b_path):
 
 def started_checkpoint(path, cfg, seed=3):
     """A checkpoint of a pour of `cfg` that has released one particle."""
-    sim = Simulation(protocols.pile_shapes(cfg, seed), cfg.model)
+    sim = Simulation(pile_shapes(cfg, seed), cfg.model)
     sim.place(0, 0.0, 0.05, 0.0, 0.0, -1.0)
     sim.run(duration=0.002)
     save_state(sim, path, cfg.to_dict(), stage="checkpoint", next_release=0.0025,
@@ -75,13 +77,13 @@ def test_a_checkpoint_of_other_physics_or_code_is_set_aside(tmp_path, caplog, mo
     ckpt = tmp_path / "pour.checkpoint.nc"
     started_checkpoint(ckpt, tiny())
     if what == "code version":
-        monkeypatch.setattr(protocols, "code_version", lambda: "edited-code")
+        monkeypatch.setattr(checkpoint, "code_version", lambda: "edited-code")
     cfg = tiny(**changes)
     fresh = tmp_path / "fresh.nc"
-    protocols.pour(cfg, "wedge", 3, fresh)
+    pour(cfg, "wedge", 3, fresh)
     out = tmp_path / "poured.nc"
     with caplog.at_level(logging.INFO, logger="sim"):
-        protocols.pour(cfg, "wedge", 3, out, checkpoint=ckpt)
+        pour(cfg, "wedge", 3, out, checkpoint=ckpt)
     assert f"was made with another {what}" in caplog.text
     assert "resuming" not in caplog.text
     assert len(list(tmp_path.glob("pour.checkpoint.nc.*.unused"))) == 1
@@ -93,7 +95,7 @@ def test_a_checkpoint_is_resumed_when_only_bookkeeping_changed(tmp_path, caplog)
     started_checkpoint(ckpt, tiny())
     cfg = tiny(pour={"checkpoint_interval": 7.0, "progress_interval": 3.0})
     with caplog.at_level(logging.INFO, logger="sim"):
-        protocols.pour(cfg, "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt)
+        pour(cfg, "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt)
     assert "resuming wedge seed 3 from checkpoint" in caplog.text
     assert not list(tmp_path.glob("*.unused"))
 
@@ -116,7 +118,7 @@ def test_a_truncated_checkpoint_is_set_aside_and_the_pour_restarts(tmp_path, cap
     ckpt.write_bytes(ckpt.read_bytes()[:5000])
     out = tmp_path / "poured.nc"
     with caplog.at_level(logging.INFO, logger="sim"):
-        protocols.pour(tiny(), "wedge", 3, out, checkpoint=ckpt)
+        pour(tiny(), "wedge", 3, out, checkpoint=ckpt)
     assert "is unusable" in caplog.text and str(ckpt) in caplog.text
     assert len(list(tmp_path.glob("pour.checkpoint.nc.*.unused"))) == 1
     assert not ckpt.exists()
@@ -150,12 +152,12 @@ def test_a_live_lock_refuses_a_second_pour_and_a_dead_one_is_taken_over(tmp_path
     ckpt = tmp_path / "pour.checkpoint.nc"
     lock = tmp_path / "pour.checkpoint.nc.lock"
     lock.write_text(f"{socket.gethostname()} {os.getppid()}\n")
-    with pytest.raises(protocols.PourLockedError, match=str(os.getppid())):
-        protocols.pour(tiny(), "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt)
+    with pytest.raises(PourLockedError, match=str(os.getppid())):
+        pour(tiny(), "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt)
     assert not (tmp_path / "poured.nc").exists()
     lock.write_text(f"{socket.gethostname()} {dead_pid()}\n")
     with caplog.at_level(logging.INFO, logger="sim"):
-        protocols.pour(tiny(), "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt)
+        pour(tiny(), "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt)
     assert "taking over the lock" in caplog.text
     assert not lock.exists()     # released when done
 
@@ -172,14 +174,14 @@ def test_the_piles_log_gains_each_run_that_holds_the_lock_and_no_other(tmp_path,
     ckpt = tmp_path / "pour.checkpoint.nc"
     lock = tmp_path / "pour.checkpoint.nc.lock"
     lock.write_text(f"{socket.gethostname()} {os.getppid()}\n")
-    with pytest.raises(protocols.PourLockedError):
-        protocols.pour(tiny(), "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt,
-                       run_log=run_log)
+    with pytest.raises(PourLockedError):
+        pour(tiny(), "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt,
+             run_log=run_log)
     assert run_log.read_text() == "an earlier run's last line\n"
     lock.unlink()
     with caplog.at_level(logging.INFO, logger="sim"):    # as the command line logs
-        protocols.pour(tiny(), "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt,
-                       run_log=run_log)
+        pour(tiny(), "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt,
+             run_log=run_log)
     lines = run_log.read_text().splitlines()
     assert lines[0] == "an earlier run's last line"
     assert lines[1].endswith(f" INFO pour wedge seed 3: started by process {socket.gethostname()} "
@@ -190,15 +192,15 @@ def test_the_piles_log_gains_each_run_that_holds_the_lock_and_no_other(tmp_path,
 def test_another_hosts_lock_counts_until_it_is_stale(tmp_path):
     lock_path = tmp_path / "x.lock"
     lock_path.write_text("some-other-host 1\n")
-    with pytest.raises(protocols.PourLockedError, match="some-other-host"):
-        with protocols.PourLock(lock_path, stale_after=60.0):
+    with pytest.raises(PourLockedError, match="some-other-host"):
+        with PourLock(lock_path, stale_after=60.0):
             pass
     old = lock_path.stat().st_mtime - 120.0
     os.utime(lock_path, (old, old))
-    with protocols.PourLock(lock_path, stale_after=60.0):
+    with PourLock(lock_path, stale_after=60.0):
         assert lock_path.read_text().split()[1] == str(os.getpid())
     lock_path.write_text("")     # its writer was killed before writing
-    with protocols.PourLock(lock_path, stale_after=60.0):
+    with PourLock(lock_path, stale_after=60.0):
         pass
 
 
@@ -206,8 +208,8 @@ def test_a_pour_with_particles_in_flight_fails_naming_the_cause(tmp_path):
     """Released at 10 m/s the particles bounce off: no "done" for a cloud."""
     cfg = tiny(pour={"n_particles": 6, "release_speed": 10.0}, model={"damping": 0.0})
     run_log = tmp_path / "seed3.log"
-    with pytest.raises(protocols.LandingError, match="pour.release_speed = 10.0"):
-        protocols.pour(cfg, "wedge", 3, tmp_path / "poured.nc", run_log=run_log)
+    with pytest.raises(LandingError, match="pour.release_speed = 10.0"):
+        pour(cfg, "wedge", 3, tmp_path / "poured.nc", run_log=run_log)
     assert not (tmp_path / "poured.nc").exists()
     # the pile's log ends with the error, as the terminal shows it
     assert "ERROR pour wedge seed 3: 6 of 6 particles are still in flight" in \
@@ -223,14 +225,14 @@ def pour_killed_repeatedly(folder, kills, seed):
     out, ckpt = Path(folder) / "poured.nc", Path(folder) / "pour.checkpoint.nc"
     frames = out.with_name("frames.nc")
     rng = random.Random(seed)
-    protocols.pour(tiny(), "wedge", 3, out)      # compiles the kernels before the forks
+    pour(tiny(), "wedge", 3, out)      # compiles the kernels before the forks
     out.unlink()
     done = 0
     while done < kills:
         pid = os.fork()
         if pid == 0:
             try:
-                protocols.pour(tiny(), "wedge", 3, out, checkpoint=ckpt, frames=frames)
+                pour(tiny(), "wedge", 3, out, checkpoint=ckpt, frames=frames)
             finally:
                 os._exit(0)
         time.sleep(rng.uniform(0.0, 0.4))
@@ -242,7 +244,7 @@ def pour_killed_repeatedly(folder, kills, seed):
             out.unlink()
             frames.unlink()
     assert ckpt.exists(), "no kill came after the first checkpoint"
-    protocols.pour(tiny(), "wedge", 3, out, checkpoint=ckpt, frames=frames)
+    pour(tiny(), "wedge", 3, out, checkpoint=ckpt, frames=frames)
 
 
 def test_killed_at_random_moments_the_pour_ends_bit_for_bit_as_uninterrupted(tmp_path,

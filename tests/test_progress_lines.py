@@ -9,8 +9,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from sim import protocols
 from sim.durations import UNKNOWN, hms, parse_hms
+from sim.progress import Progress, fixed_remaining, pour_remaining
 
 HMS = r"\d+:[0-5]\d:[0-5]\d"
 
@@ -54,8 +54,8 @@ def test_pour_eta_is_the_work_left_at_the_pouring_rate(caplog, per_step, per_par
     n_total, interval, settle, dt = 50, 0.01, 0.1, 1e-5
     steps_per_release = round(interval / dt)
     clock = FakeClock()
-    progress = protocols.Progress(10.0, protocols.pour_remaining(n_total, interval, settle),
-                                  total=n_total, clock=clock)
+    progress = Progress(10.0, pour_remaining(n_total, interval, settle),
+                        total=n_total, clock=clock)
     sim = SimpleNamespace(n=1, step=steps_per_release, time=interval, dt=dt)
     clock.now = 1000.0  # the first chunk has run after a long start-up
     lines = []
@@ -89,8 +89,8 @@ def test_pour_eta_is_the_work_left_at_the_pouring_rate(caplog, per_step, per_par
 
 def test_pour_line_at_a_glance():
     clock = FakeClock()
-    progress = protocols.Progress(10.0, protocols.pour_remaining(3500, 0.01, 0.1),
-                                  total=3500, clock=clock)
+    progress = Progress(10.0, pour_remaining(3500, 0.01, 0.1),
+                        total=3500, clock=clock)
     sim = SimpleNamespace(n=2743, step=4_000_000, time=27.43, dt=1e-5)
     progress(sim, "pour wedge seed 3")  # the start
     assert progress.line(sim, "pour wedge seed 3") == (
@@ -107,7 +107,7 @@ def test_relax_line_says_at_most_in_hms(caplog):
     """A relaxation's ETA is an upper bound and says so, in h:mm:ss, with the
     particle count and the detail."""
     clock = FakeClock()
-    progress = protocols.Progress(10.0, protocols.fixed_remaining(10.0), at_most=True, clock=clock)
+    progress = Progress(10.0, fixed_remaining(10.0), at_most=True, clock=clock)
     sim = SimpleNamespace(n=3500, step=100, time=0.1, dt=1e-5)
     clock.now = 50.0  # start-up
     with caplog.at_level(logging.INFO, logger="sim"):

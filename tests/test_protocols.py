@@ -6,9 +6,12 @@ import xarray as xr
 
 from analysis.balance import increment_report
 from analysis.states import load_state
-from sim import protocols
 from sim.config import SimConfig
 from sim.engine import Simulation
+from sim.pour import GRAVITY, pile_shapes, pour
+from sim.probe import probe_file, restore_file, tilt_file
+from sim.relax import RelaxationError, relax, relax_file
+from sim.release import pile_top, release_point, target_pile, top_width
 
 from scenes import scene
 
@@ -20,7 +23,7 @@ SMALL = {"pour": {"n_particles": 24, "rate": 200.0, "checkpoint_interval": 1e-9,
 def test_killed_pour_resumes_from_checkpoint_and_retraces_the_run(tmp_path, monkeypatch):
     cfg = SimConfig.from_dict(SMALL)
     whole = tmp_path / "whole.nc"
-    protocols.pour(cfg, "wedge", 3, whole)
+    pour(cfg, "wedge", 3, whole)
 
     ckpt = tmp_path / "ck.nc"
     calls = {"n": 0}
@@ -35,14 +38,14 @@ def test_killed_pour_resumes_from_checkpoint_and_retraces_the_run(tmp_path, monk
     monkeypatch.setattr(Simulation, "run", dying_run)
     out = tmp_path / "poured.nc"
     with pytest.raises(KeyboardInterrupt):
-        protocols.pour(cfg, "wedge", 3, out, checkpoint=ckpt)
+        pour(cfg, "wedge", 3, out, checkpoint=ckpt)
     assert ckpt.exists() and not out.exists()   # nothing that looks finished
     partial = xr.open_dataset(ckpt)
     assert 0 < partial.sizes["particle"] < 24
     partial.close()
     monkeypatch.setattr(Simulation, "run", original)
 
-    protocols.pour(cfg, "wedge", 3, out, checkpoint=ckpt)
+    pour(cfg, "wedge", 3, out, checkpoint=ckpt)
     assert not ckpt.exists()
     a = xr.open_dataset(whole)
     b = xr.open_dataset(out)
@@ -54,19 +57,19 @@ def test_killed_pour_resumes_from_checkpoint_and_retraces_the_run(tmp_path, monk
 def test_layered_line_stays_within_the_target_flanks():
     """The release line never reaches beyond a pile of layered_slope_deg."""
     cfg = SimConfig.from_dict({"pour": {"n_particles": 400}})
-    shapes = protocols.pile_shapes(cfg, 1)
-    half, height = protocols.target_pile(shapes, cfg.pour.layered_slope_deg)
+    shapes = pile_shapes(cfg, 1)
+    half, height = target_pile(shapes, cfg.pour.layered_slope_deg)
     # the triangle holds the particles' area at solid fraction 0.8
     assert half * height == pytest.approx(np.sum(shapes.area) / 0.8)
     assert height / half == pytest.approx(np.tan(np.radians(20.0)))
     sim = Simulation(shapes, cfg.model)
-    xs = [protocols.release_point(sim, cfg, "layered", 1, k)[0] for k in range(200)]
+    xs = [release_point(sim, cfg, "layered", 1, k)[0] for k in range(200)]
     assert max(np.abs(xs)) <= half
     assert max(np.abs(xs)) > 0.8 * half      # the first layer covers the base
     # a settled particle high up: the line shrinks to the flanks at that height
     sim.place(0, 0.0, 0.6 * height, 0.0)
-    xs = [protocols.release_point(sim, cfg, "layered", 1, k)[0] for k in range(1, 200)]
-    top = protocols.pile_top(sim)
+    xs = [release_point(sim, cfg, "layered", 1, k)[0] for k in range(1, 200)]
+    top = pile_top(sim)
     assert max(np.abs(xs)) <= half * (1 - top / height) + 1e-12
 
 
@@ -74,24 +77,24 @@ def test_layered_line_follows_the_measured_top_width():
     """Over a settled pile the line spans the width of its top (plus
     line_margin), not the whole base of the target pile."""
     cfg = SimConfig.from_dict({"pour": {"n_particles": 400, "line_margin": 0.002}})
-    sim = Simulation(protocols.pile_shapes(cfg, 1), cfg.model)
+    sim = Simulation(pile_shapes(cfg, 1), cfg.model)
     for k, x in enumerate(np.linspace(0.01, 0.03, 4)):      # a settled row at rest
         sim.place(k, x, 0.004, 0.0)
     r = sim.shapes.radius[:4]
     lo, hi = 0.01 - r[0] - 0.002, 0.03 + r[3] + 0.002
-    assert protocols.top_width(sim, cfg.pour.top_band) == pytest.approx((lo + 0.002, hi - 0.002))
-    xs = np.array([protocols.release_point(sim, cfg, "layered", 1, k)[0] for k in range(4, 300)])
+    assert top_width(sim, cfg.pour.top_band) == pytest.approx((lo + 0.002, hi - 0.002))
+    xs = np.array([release_point(sim, cfg, "layered", 1, k)[0] for k in range(4, 300)])
     assert xs.min() >= lo and xs.max() <= hi
     assert xs.max() - xs.min() > 0.8 * (hi - lo)
 
 
 def test_relaxation_fails_loudly_when_time_runs_out():
     cfg = SimConfig.from_dict({"relax": {"max_time": 0.002, "hold_time": 0.001, "drag": 0.0}})
-    shapes = protocols.pile_shapes(SimConfig.from_dict({"pour": {"n_particles": 2}}), 0)
+    shapes = pile_shapes(SimConfig.from_dict({"pour": {"n_particles": 2}}), 0)
     sim = Simulation(shapes, cfg.model)
     sim.place(0, 0.0, 0.05, 0.0)         # still falling: not at rest
-    with pytest.raises(protocols.RelaxationError, match="relax.max_time = 0.002"):
-        protocols.relax(sim, cfg)
+    with pytest.raises(RelaxationError, match="relax.max_time = 0.002"):
+        relax(sim, cfg)
 
 
 # Two polygons that rolled off the full-size wedge pile (seed 1) onto the bare
@@ -126,8 +129,8 @@ def test_weak_drag_leaves_a_polygon_rocking_on_the_support():
     of the contact line) makes it non-conservative: under 20/s of drag alone
     the hexagon still moves at over 1 mm/s after 1 s."""
     sim, cfg = _rocker({"drag": 20.0, "rocking_drag": 20.0, "max_time": 1.0})
-    with pytest.raises(protocols.RelaxationError, match="not at rest"):
-        protocols.relax(sim, cfg)
+    with pytest.raises(RelaxationError, match="not at rest"):
+        relax(sim, cfg)
     assert np.hypot(*sim.velocity[0]) > 1e-3
 
 
@@ -136,7 +139,7 @@ def test_rocking_drag_brings_the_rocking_polygon_to_rest():
     to rest, where the support carries its weight to within the unbalanced
     force the rest criterion allows (|R - W| <= |F + m g|)."""
     sim, cfg = _rocker({"max_time": 1.0})
-    protocols.relax(sim, cfg)
+    relax(sim, cfg)
     assert np.hypot(*sim.velocity[0]) < cfg.relax.max_speed
     c = sim.contacts()
     weight = sim.shapes.mass[0] * 9.81
@@ -149,10 +152,10 @@ def test_drag_time_stops_a_rocker_that_never_looks_calm():
     criterion under 20/s, so only relax.drag_time brings in the 100/s that
     stops it; with the switch put off beyond max_time it never rests."""
     sim, cfg = _rocker({"max_time": 1.0, "drag_time": 2.0}, HEPTAGON_CORNERS, HEPTAGON_STATE)
-    with pytest.raises(protocols.RelaxationError, match="not at rest"):
-        protocols.relax(sim, cfg)
+    with pytest.raises(RelaxationError, match="not at rest"):
+        relax(sim, cfg)
     sim, cfg = _rocker({"max_time": 1.0}, HEPTAGON_CORNERS, HEPTAGON_STATE)
-    protocols.relax(sim, cfg)
+    relax(sim, cfg)
     assert sim.time < cfg.relax.drag_time + 0.3
 
 
@@ -167,9 +170,9 @@ def test_probe_increment_balances_as_well_as_the_relaxed_pile(tmp_path):
                                         "progress_interval": 1e9},
                                "model": {"integrator": "verlet"}})
     level = 0.1
-    protocols.pour(cfg, "wedge", 2, tmp_path / "poured.nc")
-    protocols.relax_file(cfg, tmp_path / "poured.nc", tmp_path / "relaxed.nc")
-    protocols.probe_file(cfg, tmp_path / "relaxed.nc", level, tmp_path / "reduced.nc")
+    pour(cfg, "wedge", 2, tmp_path / "poured.nc")
+    relax_file(cfg, tmp_path / "poured.nc", tmp_path / "relaxed.nc")
+    probe_file(cfg, tmp_path / "relaxed.nc", level, tmp_path / "reduced.nc")
     a, b = load_state(str(tmp_path / "relaxed.nc")), load_state(str(tmp_path / "reduced.nc"))
     weight = float(a.mass.sum()) * a.gravity
     assert b.gravity == pytest.approx((1.0 - level) * a.gravity, rel=1e-12)
@@ -191,13 +194,13 @@ def test_tilted_and_restored_gravity_probes_balance_their_load(tmp_path):
     cfg = SimConfig.from_dict({"pour": {"n_particles": 40, "rate": 200.0,
                                         "progress_interval": 1e9},
                                "model": {"integrator": "verlet"}})
-    protocols.pour(cfg, "wedge", 2, tmp_path / "poured.nc")
-    protocols.relax_file(cfg, tmp_path / "poured.nc", tmp_path / "relaxed.nc")
+    pour(cfg, "wedge", 2, tmp_path / "poured.nc")
+    relax_file(cfg, tmp_path / "poured.nc", tmp_path / "relaxed.nc")
     a = load_state(str(tmp_path / "relaxed.nc"))
     weight = float(a.mass.sum()) * a.gravity
     u = cfg.relax.unbalanced_force
     for delta, stage in ((0.05, "tiltp05"), (-0.05, "tiltm05")):
-        protocols.tilt_file(cfg, tmp_path / "relaxed.nc", delta, tmp_path / f"{stage}.nc", stage)
+        tilt_file(cfg, tmp_path / "relaxed.nc", delta, tmp_path / f"{stage}.nc", stage)
         with xr.open_dataset(tmp_path / f"{stage}.nc") as ds:
             assert ds.attrs["stage"] == stage and ds.attrs["gravity_tilt"] == delta
             assert ds.attrs["gravity_x"] == pytest.approx(delta * a.gravity, rel=1e-12)
@@ -207,15 +210,15 @@ def test_tilted_and_restored_gravity_probes_balance_their_load(tmp_path):
         assert abs(rx + delta * weight) <= u * abs(delta) * weight
         assert abs(ry - weight) <= u * abs(delta) * weight + u * weight
     level = 0.1
-    protocols.probe_file(cfg, tmp_path / "relaxed.nc", level, tmp_path / "reduced.nc")
-    protocols.restore_file(cfg, tmp_path / "reduced.nc", tmp_path / "restored.nc")
+    probe_file(cfg, tmp_path / "relaxed.nc", level, tmp_path / "reduced.nc")
+    restore_file(cfg, tmp_path / "reduced.nc", tmp_path / "restored.nc")
     with xr.open_dataset(tmp_path / "restored.nc") as ds:
         assert ds.attrs["stage"] == "restored"
-        assert (ds.attrs["gravity_x"], ds.attrs["gravity_y"]) == (0.0, -protocols.GRAVITY)
+        assert (ds.attrs["gravity_x"], ds.attrs["gravity_y"]) == (0.0, -GRAVITY)
         support = ds["contact_j"].values == -1
         assert abs(ds["force_y"].values[support].sum() - weight) <= u * level * weight + u * weight
     with pytest.raises(ValueError, match="tilt = 0.0"):
-        protocols.tilt_file(cfg, tmp_path / "relaxed.nc", 0.0, tmp_path / "x.nc", "tiltp00")
+        tilt_file(cfg, tmp_path / "relaxed.nc", 0.0, tmp_path / "x.nc", "tiltp00")
 
 
 @pytest.mark.parametrize("protocol", ["wedge", "layered"])
@@ -224,9 +227,9 @@ def test_release_points_stay_inside_side_walls(protocol):
     released wholly inside the walls (else they start inside a wall)."""
     walls = (-0.02, 0.01)
     cfg = SimConfig.from_dict({"pour": {"n_particles": 400, "jitter": 0.05}})
-    sim = Simulation(protocols.pile_shapes(cfg, 1), cfg.model, walls=walls)
+    sim = Simulation(pile_shapes(cfg, 1), cfg.model, walls=walls)
     for k in range(1, 400):
-        x, _ = protocols.release_point(sim, cfg, protocol, 1, k)
+        x, _ = release_point(sim, cfg, protocol, 1, k)
         r = sim.shapes.radius[k]
         assert walls[0] + r <= x <= walls[1] - r
 
@@ -246,6 +249,6 @@ def test_a_probe_refuses_a_state_not_at_rest_before_it_runs(tmp_path, stage):
     save_state(sim, state, {"model": {}}, stage=stage, protocol="wedge", seed=1)
     out = tmp_path / "reduced.nc"
     with pytest.raises(ValueError, match=f"its stage is '{stage}', a state not at rest"):
-        protocols.probe_file(SimConfig(), state, 0.1, out)
+        probe_file(SimConfig(), state, 0.1, out)
     assert main(["probe", "--input", str(state), "--level", "0.1", "--out", str(out)]) == 2
     assert not out.exists()

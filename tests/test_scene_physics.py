@@ -7,7 +7,7 @@ import pytest
 
 from sim.config import ConfigError, ModelParams, PhysicsParams, ProbeParams, SimConfig
 from sim.engine import Simulation
-from sim.protocols import pour
+from sim.pour import pour
 from sim.shapes import make_shapes
 
 from scenes import regular_polygon, scene

@@ -173,19 +173,19 @@ def test_killed_pour_keeps_its_eta(tmp_path, line):
 
 
 def test_reads_the_line_the_simulator_writes():
-    """The ETA of a line written by sim.protocols.Progress, as it reads it."""
+    """The ETA of a line written by sim.progress.Progress, as it reads it."""
     from types import SimpleNamespace
 
-    from sim import protocols
+    from sim.progress import Progress, pour_remaining
 
-    progress = protocols.Progress(10.0, protocols.pour_remaining(3500, 0.01, 0.1), total=3500,
-                                  clock=iter([0.0, 20.0]).__next__)
+    progress = Progress(10.0, pour_remaining(3500, 0.01, 0.1), total=3500,
+                        clock=iter([0.0, 20.0]).__next__)
     sim = SimpleNamespace(n=2000, step=1000, time=20.0, dt=1e-5)
     progress(sim, "pour wedge seed 3")
     sim.step += 20_000  # 20 s for 2000 x 20 000 particle-steps: 500 ns each
     progress(sim, "pour wedge seed 3")
     line = progress.line(sim, "pour wedge seed 3")
-    particle_seconds = protocols.pour_remaining(3500, 0.01, 0.1)(sim)[1]
+    particle_seconds = pour_remaining(3500, 0.01, 0.1)(sim)[1]
     assert sp.parse_progress("INFO " + line) == (
         pytest.approx(500e-9 * particle_seconds / sim.dt, abs=0.5), 2000, False)
 

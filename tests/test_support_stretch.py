@@ -1,4 +1,4 @@
-"""The support-stretch probe (stage ``stretched``, sim.protocols.stretch_file):
+"""The support-stretch probe (stage ``stretched``, sim.probe.stretch_file):
 its load is what it claims and it is one that gravity cannot make.
 
 * One square at rest on the support: stretching the support by eps moves its
@@ -25,12 +25,14 @@ import pytest
 import xarray as xr
 from scenes import rectangle, scene
 
-from sim import protocols
 from sim.config import SimConfig
 from sim.contact_law import tangential_stiffness
 from sim.engine import Simulation
 from sim.forces import ROW
 from sim.io import save_state
+from sim.pour import GRAVITY, pile_shapes
+from sim.probe import probe_file, stretch_file, tilt_file
+from sim.relax import relax
 from sim.scene import BODY_SUPPORT
 
 K_T = tangential_stiffness(1e7)
@@ -79,8 +81,8 @@ def heap(tmp_path_factory):
     n = ROWS * (ROWS + 1) // 2
     settings = {"pour": {"n_particles": n, "progress_interval": 1e9}, "model": {"integrator": "verlet"}}
     cfg = SimConfig.from_dict(settings)
-    shapes = protocols.pile_shapes(cfg, 3)
-    sim = Simulation(shapes, cfg.model, gravity=(0.0, -protocols.GRAVITY))
+    shapes = pile_shapes(cfg, 3)
+    sim = Simulation(shapes, cfg.model, gravity=(0.0, -GRAVITY))
     step = 2.05 * float(shapes.radius.max())
     rng = np.random.default_rng(3)
     k = 0
@@ -89,11 +91,11 @@ def heap(tmp_path_factory):
             sim.place(k, (c - 0.5 * (ROWS - row - 1)) * step, 1.02 * float(shapes.radius.max()) + 0.9 * row * step,
                       rng.uniform(0.0, 2 * np.pi))
             k += 1
-    protocols.relax(sim, cfg, "heap")
+    relax(sim, cfg, "heap")
     save_state(sim, d / "relaxed.nc", cfg.to_dict(), stage="relaxed", protocol="wedge", seed=3)
-    protocols.probe_file(cfg, d / "relaxed.nc", 0.1, d / "reduced.nc")
-    protocols.tilt_file(cfg, d / "relaxed.nc", 0.05, d / "tiltp05.nc", "tiltp05")
-    protocols.stretch_file(cfg, d / "relaxed.nc", EPS, d / "stretched.nc")
+    probe_file(cfg, d / "relaxed.nc", 0.1, d / "reduced.nc")
+    tilt_file(cfg, d / "relaxed.nc", 0.05, d / "tiltp05.nc", "tiltp05")
+    stretch_file(cfg, d / "relaxed.nc", EPS, d / "stretched.nc")
     assert main(["probe", "--params", json.dumps(settings), "--input", str(d / "relaxed.nc"),
                  "--stretch", repr(2 * EPS), "--out", str(d / "stretched2.nc"), "--stage", "stretched"]) == 0
     return d, cfg
@@ -110,7 +112,7 @@ def _support(ds):
 def test_the_stretch_moves_the_support_surface_by_eps_x_and_its_reaction_grows_linearly(heap):
     d, cfg = heap
     a = xr.open_dataset(d / "relaxed.nc")
-    weight = float(a["mass"].values.sum()) * protocols.GRAVITY
+    weight = float(a["mass"].values.sum()) * GRAVITY
     before = _support(a)
     moments = []
     for name, eps in (("stretched", EPS), ("stretched2", 2 * EPS)):
@@ -176,8 +178,8 @@ def test_the_stretch_refuses_what_it_cannot_do_before_it_runs(heap):
     d, cfg = heap
     out = d / "refused.nc"
     with pytest.raises(ValueError, match="in \\(-0.01, 0.01\\), not 0"):
-        protocols.stretch_file(cfg, d / "relaxed.nc", 0.0, out)
+        stretch_file(cfg, d / "relaxed.nc", 0.0, out)
     frictionless = SimConfig.from_dict({**cfg.to_dict(), "model": {**cfg.to_dict()["model"], "support_friction": 0.0}})
     with pytest.raises(ValueError, match="support_friction = 0.0"):
-        protocols.stretch_file(frictionless, d / "relaxed.nc", EPS, out)
+        stretch_file(frictionless, d / "relaxed.nc", EPS, out)
     assert not out.exists()

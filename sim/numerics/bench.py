@@ -40,7 +40,7 @@ from ..engine import Simulation
 from ..forces import KERNELS_PARALLEL, KERNELS_SERIAL
 from ..integrators import INTEGRATORS
 from ..io import load_simulation, read_state, save_state
-from ..protocols import RelaxationError, relax
+from ..relax import RelaxationError, relax
 from ..shapes import make_shapes
 from . import lammps_peer
 
@@ -133,7 +133,7 @@ def loaded_pile(n, seed=0, cache=Path(".bench")):
     """A settled, loaded pile of ``n`` particles, built once and kept in ``cache``.
 
     The lattice heap of :func:`lattice_heap` collapses under gravity and is
-    relaxed with the study's relaxation (:func:`sim.protocols.relax`, at most
+    relaxed with the study's relaxation (:func:`sim.relax.relax`, at most
     ``HEAP_RELAX.max_time``; a pile still creeping then is kept as it is).
 
     Returns

@@ -1,0 +1,228 @@
+"""The pour: particles released one by one from a point (wedge) or line
+(layered) source (:mod:`sim.release`) onto the support, until all have landed.
+
+The shapes of a pile come from a generator seeded with ``(seed, 0)``, and the
+release orientation of particle k from one seeded with ``(seed, 2, k)``
+(its position: :func:`sim.release.release_point`), so a pour resumed from a
+checkpoint (:mod:`sim.checkpoint`) releases the same particles at the same
+places as the uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import os
+import socket
+import time as _time
+from pathlib import Path
+
+import numpy as np
+
+from .blowup import BlowUpError
+from .checkpoint import (keep_last_good, remove_checkpoint, remove_temporaries, resume,
+                         save_checkpoint)
+from .config import ConfigError, SimConfig
+from .engine import Simulation
+from .frames import FrameRecorder, partial_path
+from .io import save_state
+from .lock import PourLock, appended_log
+from .progress import Progress, pour_remaining, summary
+from .release import pile_top, release_point, spot_clear
+from .shapes import make_shapes
+
+log = logging.getLogger("sim")
+
+#: g0, m/s²: the gravity a pile is poured and relaxed under (the probes change it).
+GRAVITY = 9.81
+
+#: Simulated time (s) after the last release within which every particle must
+#: have landed (see :func:`_in_flight`), else the pour fails.
+LANDING_TIME = 1.0
+
+
+class LandingError(RuntimeError):
+    """Poured particles were still in flight :data:`LANDING_TIME` after the last release."""
+
+
+def pile_shapes(cfg: SimConfig, seed: int):
+    """The shapes of a pile's particles, drawn reproducibly from its seed."""
+    p = cfg.particles
+    return make_shapes(np.random.default_rng([seed, 0]), cfg.pour.n_particles,
+                       p.corners_min, p.corners_max, p.semi_axis_mean, p.semi_axis_spread,
+                       cfg.model.density, p.min_edge_fraction, p.min_angle_deg)
+
+
+def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
+         settle_time=0.1, frames=None, run_log=None):
+    """Pour a pile from a point (wedge) or line (layered) source and save it.
+
+    Parameters
+    ----------
+    cfg : SimConfig
+    protocol : {"wedge", "layered"}
+    seed : int
+    out : path
+        The ``poured`` state file (written atomically).
+    checkpoint : path, optional
+        Checkpoint file: resumed from if present, rewritten every
+        ``pour.checkpoint_interval`` wall seconds, deleted on success.  It is
+        resumed only if made for this pile by the same code (:func:`sim.io.code_version`)
+        under the same settings (bookkeeping aside); otherwise, or when it
+        cannot be read, it is renamed aside (``*.unused``) and the pour starts
+        afresh, with a log line.  While pouring, the lock file
+        ``<checkpoint>.lock`` (:class:`sim.lock.PourLock`) keeps a second process off.
+    settle_time : float
+        Simulated time after the last release before the state is saved, s;
+        longer while particles are still in flight (see :func:`_land`).
+    frames : path, optional
+        Where to write the frames of a film of the pour
+        (:class:`sim.frames.FrameRecorder`, one every ``pour.frame_interval``
+        simulated seconds), written just before the poured state.  With a
+        checkpoint, the frames so far are kept beside it
+        (:func:`sim.frames.partial_path`) and resumed with it.
+    run_log : path, optional
+        The pile's log, kept over every run of its pour: once this run holds
+        the lock, its log lines are appended to the file (:func:`sim.lock.appended_log`)
+        from a line naming the process.  A run the lock refuses leaves the file
+        as it is, so it never spoils the log of the pour that is running.
+
+    Returns
+    -------
+    Simulation
+
+    Raises
+    ------
+    PourLockedError
+        If a live process holds the lock.
+    LandingError
+        If particles are still in flight :data:`LANDING_TIME` after the last release.
+    """
+    if protocol not in ("wedge", "layered"):
+        raise ValueError(f"protocol = {protocol!r}: must be 'wedge' or 'layered'")
+    if not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"seed = {seed!r}: must be a non-negative integer")
+    if not cfg.physics.support:
+        raise ConfigError("physics.support = false: a pile is poured onto the support; "
+                          "without it the particles fall for ever (allowed: true)")
+    checkpoint = Path(checkpoint) if checkpoint else None
+    with contextlib.ExitStack() as held:
+        lock = None if checkpoint is None else held.enter_context(
+            PourLock(checkpoint.with_name(checkpoint.name + ".lock"),
+                     stale_after=3 * cfg.pour.checkpoint_interval + 60.0))
+        held.enter_context(appended_log(run_log))
+        log.info("pour %s seed %d: started by process %s %d", protocol, seed,
+                 socket.gethostname(), os.getpid())
+        return _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock, frames)
+
+
+
+def _start(cfg, protocol, seed, checkpoint, shapes):
+    """The simulation to pour with, its next release time and whether it was
+    resumed from a usable checkpoint (:func:`sim.checkpoint.resume`)."""
+    if checkpoint is not None:
+        remove_temporaries(checkpoint)
+        resumed = resume(cfg, protocol, seed, checkpoint, shapes) if checkpoint.exists() else None
+        if resumed is not None:
+            return (*resumed, True)
+        remove_checkpoint(checkpoint)
+    phys = cfg.physics
+    sim = Simulation(shapes, cfg.model, gravity=(0.0, -GRAVITY), support=phys.support,
+                     walls=phys.walls, rotate=phys.rotation)
+    return sim, 0.0, False
+
+
+def _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock, frames):
+    """The pour itself (see :func:`pour`); ``lock`` is refreshed at each checkpoint."""
+    p = cfg.pour
+    shapes = pile_shapes(cfg, seed)
+    interval = 1.0 / p.rate
+    sim, next_release, resumed = _start(cfg, protocol, seed, checkpoint, shapes)
+    recorder = FrameRecorder(shapes, p.n_particles, p.frame_interval) if frames else None
+    if recorder is not None and resumed:
+        recorder.resume(partial_path(checkpoint), sim.time)
+    sim.spin_drag = p.spin_drag
+    log.info("pouring %d particles (%s, seed %d), dt = %.3g s (%s; limit %.3g s)",
+             p.n_particles, protocol, seed, sim.dt, cfg.model.integrator,
+             sim.bound.dt_limit)
+    progress = Progress(p.progress_interval, pour_remaining(p.n_particles, interval, settle_time),
+                        total=p.n_particles)
+    t_wall = _time.monotonic()
+    last_ckpt = t_wall
+    attrs = {"protocol": protocol, "seed": seed}
+    try:
+        while sim.n < p.n_particles:
+            if sim.time >= next_release:
+                next_release = _release(sim, cfg, protocol, seed, next_release, interval)
+            sim.run(duration=max(next_release - sim.time, sim.dt))
+            progress(sim, f"pour {protocol} seed {seed}")
+            if recorder is not None:
+                recorder(sim)
+            if checkpoint is not None and _time.monotonic() - last_ckpt > p.checkpoint_interval:
+                save_checkpoint(sim, checkpoint, cfg, next_release, recorder, lock, **attrs)
+                last_ckpt = _time.monotonic()
+        sim.run(duration=settle_time)
+        _land(sim, cfg, f"pour {protocol} seed {seed}")
+    except BlowUpError as exc:
+        keep_last_good(sim, out, cfg, exc, **attrs)
+        raise
+    if recorder is not None:
+        recorder.finish(sim)
+        recorder.save(frames, cfg.to_dict(), **attrs)
+    save_state(sim, out, cfg.to_dict(), stage="poured", **attrs)
+    if checkpoint is not None:
+        remove_checkpoint(checkpoint)
+    summary(sim, f"pour {protocol} seed {seed}", _time.monotonic() - t_wall)
+    return sim
+
+
+def _release(sim, cfg, protocol, seed, next_release, interval):
+    """Release the next particle if its spot is clear; returns the time of the
+    release after it (sooner when this one waits for a clear spot)."""
+    k = sim.n
+    x, y = release_point(sim, cfg, protocol, seed, k)
+    if not spot_clear(sim, x, y, float(sim.shapes.radius[k])):
+        return sim.time + 0.1 * interval
+    theta = np.random.default_rng([seed, 2, k]).uniform(0, 2 * math.pi)
+    sim.place(k, x, y, theta, 0.0, -cfg.pour.release_speed)
+    return next_release + interval
+
+
+def _in_flight(sim, cfg):
+    """Mask of the particles in flight: touching nothing (no contact with a
+    particle or body), with the energy to rise above their release height
+    (``y + |v|²/2g`` above the pile's top plus ``release_height`` plus their
+    circumradius).  A polygon hopping on the support or rolling down the
+    flank is not in flight; one bounced off the pile is."""
+    c = sim.contacts()
+    touching = np.zeros(sim.n, bool)
+    touching[c["i"]] = True
+    touching[c["j"][c["j"] >= 0]] = True
+    g = max(float(np.hypot(*sim.gravity)), 1e-12)
+    reach = sim.position[:, 1] + np.sum(sim.velocity ** 2, axis=1) / (2.0 * g)
+    release = pile_top(sim) + cfg.pour.release_height + sim.shapes.radius[:sim.n]
+    return ~touching & (reach > release)
+
+
+def _land(sim, cfg, what):
+    """Run on until no particle is in flight (:func:`_in_flight`), at most
+    :data:`LANDING_TIME` s of simulated time.
+
+    Raises
+    ------
+    LandingError
+        Naming how many particles are still in flight and how fast they move.
+    """
+    t0 = sim.time
+    while np.any(flying := _in_flight(sim, cfg)):
+        if sim.time - t0 >= LANDING_TIME:
+            speed = np.hypot(*sim.velocity.T)
+            raise LandingError(
+                f"{what}: {int(np.sum(flying))} of {sim.n} particles are still in flight "
+                f"{LANDING_TIME} s after the last release (fastest {float(speed.max()):.3g} "
+                f"m/s, highest at y = {float(sim.position[:, 1].max()):.3g} m): they bounce "
+                f"off the pile; lower pour.release_speed = {cfg.pour.release_speed} m/s or "
+                f"pour.release_height = {cfg.pour.release_height} m, or raise "
+                f"model.damping = {cfg.model.damping}")
+        sim.run(duration=0.01)
