@@ -20,7 +20,7 @@ of gravity, a vector of two components, so the strains of all reductions and
 tilts at one point span two shapes, and ``C + t w wᵀ`` (``w`` normal to both
 in Mandel space) fits them as well as ``C``; only the m = 5 neighbouring
 points, assumed to be one material, or a load of another kind (the support
-stretch of :func:`sim.protocols.stretch_file`, stage ``stretched``) break that
+stretch of :func:`sim.probe.stretch_file`, stage ``stretched``) break that
 tie. The **condition number** of the design matrix
 (the ratio of its largest to its smallest singular value) says how well the
 data pin ``C``: it depends on the strains alone; above

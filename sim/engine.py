@@ -50,7 +50,8 @@ def _with_fields(cls):
     """Give `cls` every field of :class:`State` and :class:`Scene` as an attribute."""
     for where, structure in (("state", State), ("scene", Scene)):
         for field in dataclasses.fields(structure):
-            assert not hasattr(cls, field.name), field.name
+            if hasattr(cls, field.name):
+                raise TypeError(f"{cls.__name__}.{field.name} would hide the field of {structure.__name__}")
             setattr(cls, field.name, _Field(where, field.name))
     return cls
 
@@ -220,7 +221,7 @@ class Simulation:
 
     def snapshot(self) -> Snapshot:
         """A copy of the dynamic state, enough to continue the run exactly."""
-        return states.snapshot(self.state)
+        return states.Snapshot(self.state)
 
     def restore(self, snap: Snapshot):
         """Return to a :class:`sim.state.Snapshot`; restarts the energy check."""
@@ -244,7 +245,7 @@ class Simulation:
             if duration is None:
                 raise ValueError("give a duration or a number of steps")
             steps = int(round(duration / self.dt))
-        return run(self, steps, self._step)
+        return run(self, steps, self._step, self._rebuild)
 
     def check(self, start=False):
         """Blow-up detector (:func:`sim.blowup.check`): a description of the

@@ -6,7 +6,7 @@ from .blowup import BlowUpError
 from .rebuild import rebuild_distance_sq
 
 
-def run(sim, steps, step):
+def run(sim, steps, step, rebuild):
     """Advance `sim` by ``steps`` steps of ``step``, checking it every ``sim.check_every``.
 
     A chunk of steps ends at the next check or when the pair list needs a
@@ -20,6 +20,8 @@ def run(sim, steps, step):
     steps : int
     step : callable
         The integrator's step (:func:`sim.integrate.integrator`).
+    rebuild : callable
+        ``rebuild()`` rebuilds the pair list of ``sim.state``.
 
     Returns
     -------
@@ -43,7 +45,7 @@ def run(sim, steps, step):
     rebuild_sq = rebuild_distance_sq(sim.skin)
     while done < steps:
         if sim.state.stale:
-            sim._rebuild()
+            rebuild()
         chunk = min(steps - done, sim.check_every - sim.step % sim.check_every)
         if sim.step == 0:
             # a scene's first step is checked at once: the particle overlaps it

@@ -124,41 +124,32 @@ def forget_particle(state: State, k):
     state.cross[its_pairs] = -1
 
 
-@dataclass
+#: The fields of a :class:`State` that a run continues from (the others are
+#: rebuilt or rewritten before they are read), with the contact rows of its
+#: last force evaluation (``pout``, ``bout``), so that a restored state reports
+#: its own contacts.
+SNAPSHOT_FIELDS = ("n", "r", "time", "step", "gravity", "pi", "pj", "spring", "axis", "cross",
+                   "pout", "bspring", "bout")
+
+
 class Snapshot:
-    """A copy of everything needed to continue a run (:func:`snapshot`),
-    and of the contact rows of its last force evaluation (``pout``, ``bout``),
-    so that a restored state reports its own contacts."""
+    """A copy of the :data:`SNAPSHOT_FIELDS` of a :class:`State`, as attributes
+    of the same names: enough to continue the run exactly (:func:`restore`)."""
 
-    n: int
-    r: np.ndarray
-    time: float
-    step: int
-    gravity: tuple
-    pi: np.ndarray
-    pj: np.ndarray
-    spring: np.ndarray
-    bspring: np.ndarray
-    pout: np.ndarray
-    bout: np.ndarray
-    axis: np.ndarray
-    cross: np.ndarray
+    __slots__ = SNAPSHOT_FIELDS
 
-
-def snapshot(state: State) -> Snapshot:
-    """A copy of the part of `state` that a run continues from exactly."""
-    return Snapshot(state.n, state.r.copy(), state.time, state.step, state.gravity,
-                    state.pi.copy(), state.pj.copy(), state.spring.copy(),
-                    state.bspring.copy(), state.pout.copy(), state.bout.copy(),
-                    state.axis.copy(), state.cross.copy())
+    def __init__(self, state: State):
+        _copy_fields(state, self)
 
 
 def restore(state: State, snap: Snapshot):
     """Return `state` to `snap`; the pair list is rebuilt before the next step."""
-    state.n, state.r, state.time, state.step = snap.n, snap.r.copy(), snap.time, snap.step
-    state.gravity = snap.gravity
-    state.pi, state.pj, state.spring = snap.pi.copy(), snap.pj.copy(), snap.spring.copy()
-    state.bspring = snap.bspring.copy()
-    state.pout, state.bout = snap.pout.copy(), snap.bout.copy()
-    state.axis, state.cross = snap.axis.copy(), snap.cross.copy()
+    _copy_fields(snap, state)
     state.stale = True
+
+
+def _copy_fields(source, target):
+    """Copy the :data:`SNAPSHOT_FIELDS` of `source` to `target`, arrays as copies."""
+    for name in SNAPSHOT_FIELDS:
+        value = getattr(source, name)
+        setattr(target, name, value.copy() if isinstance(value, np.ndarray) else value)
