@@ -198,6 +198,8 @@ PILE_SCALARS = ("condition", "condition_gravity", "axis_deg", "soft_axis_deg", "
 #: Angles whose standard error over piles is taken on the deviations of each
 #: pile's angle from the ensemble fit's, folded into (-90, 90] (axes have no sign).
 AXIS_SCALARS = ("axis_deg", "soft_axis_deg")
+#: The scalars of the general fit with a standard error over piles.
+FIT_SCALARS = SCALARS + ("condition_gravity", "soft_axis_deg")
 META = {
     "stiffness": ("general symmetric stiffness in Mandel notation (xx, yy, sqrt2 xy), dsigma_M = C du_M", "N/m"),
     "condition": ("condition number of the fit's design matrix (strains only); above max_condition: not "
@@ -244,15 +246,12 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
         The protocol's ensemble fields: their fabric and stress orientations
         (:data:`AXES_FROM_FIELDS`) are copied in, to compare with the
         stiffness axis.
+
+    Returns
+    -------
+    xarray.Dataset
     """
-    probes = [str(p) for p in piles[0]["probe"].values]
-    for ds in piles[1:]:
-        if [str(p) for p in ds["probe"].values] != probes or ds.sizes != piles[0].sizes:
-            raise InputError("general-fit: the piles' probe files differ in probes or grid "
-                             f"({probes} against {[str(p) for p in ds['probe'].values]})")
-    loading = [k for k, p in enumerate(probes) if p != RESTORED]
-    gravity = [k for k in loading if GRAVITY_PROBE.fullmatch(probes[k])]
-    other = [k for k in loading if k not in gravity]
+    probes, loading, gravity, other = _probe_groups(piles)
     stress = np.stack([ds["stress_increment"].values for ds in piles])        # (pile, probe, y, x, 2, 2)
     strain = np.stack([ds["strain_increment"].values for ds in piles])
     rev_each = np.stack([reversibility(strain[k], probes) for k in range(len(piles))])
@@ -263,17 +262,97 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
             left_out[k, p] = slipped(strain[k, p], ratio)
     stress = np.where(left_out[..., None, None], np.nan, stress)
     strain = np.where(left_out[..., None, None], np.nan, strain)
+    out = _fits_by_points(stress, strain, loading, gravity, bool(other), params)
+    rev_mean, rev_sem, rev_count = nan_mean_sem(rev_each)
+    data = {
+        **_stiffness_variables(out),
+        "reversibility": var(("y", "x"), rev_mean, *META["reversibility"]),
+        "reversibility_sem": var(("y", "x"), rev_sem, "standard error of reversibility over piles", "1"),
+        "reversibility_count": var(("y", "x"), rev_count, "piles with a reversibility at this RVE", "1"),
+        "slip_left_out": var(("probe", "y", "x"), left_out.sum(axis=0).astype(np.int32),
+                             "piles left out of the fits at this RVE for this probe: they slipped", "1"),
+        **_scalar_variables(out),
+    }
+    ds = xr.Dataset(data, coords=_general_fit_coords(piles, probes))
+    if ensemble is not None:
+        _add_field_axes(ds, ensemble)
+    ref = piles[0]
+    ds.attrs.update({"probes": " ".join(probes), "loading_probes": " ".join(probes[k] for k in loading),
+                     "gravity_probes": " ".join(probes[k] for k in gravity),
+                     "other_probes": " ".join(probes[k] for k in other),
+                     "six_constants_max_condition": SIX_CONSTANTS_MAX_CONDITION,
+                     "n_seeds": len(piles), "max_condition": ge.MAX_CONDITION,
+                     "slip_strain_ratio": "none" if ratio is None else float(ratio),
+                     "slip_left_out_total": int(left_out.sum()),
+                     "protocol": ref.attrs.get("protocol", ""), "rve_size": ref.attrs.get("rve_size", "")})
+    return ds
+
+
+def _probe_groups(piles):
+    """The probes of the piles' files and their indices by kind.
+
+    Parameters
+    ----------
+    piles : list of xarray.Dataset
+        Per-pile files of :func:`probe_increments`.
+
+    Returns
+    -------
+    probes : list of str
+        The probe stages, in the files' order.
+    loading, gravity, other : list of int
+        Indices into `probes` of the loading probes (all but ``restored``),
+        of those among them that change gravity, and of the others.
+
+    Raises
+    ------
+    InputError
+        When two piles' files differ in probes or grid.
+    """
+    probes = [str(p) for p in piles[0]["probe"].values]
+    for ds in piles[1:]:
+        if [str(p) for p in ds["probe"].values] != probes or ds.sizes != piles[0].sizes:
+            raise InputError("general-fit: the piles' probe files differ in probes or grid "
+                             f"({probes} against {[str(p) for p in ds['probe'].values]})")
+    loading = [k for k, p in enumerate(probes) if p != RESTORED]
+    gravity = [k for k in loading if GRAVITY_PROBE.fullmatch(probes[k])]
+    other = [k for k in loading if k not in gravity]
+    return probes, loading, gravity, other
+
+
+def _fits_by_points(stress, strain, loading, gravity, has_other, params):
+    """The general fit of the mean increments and of each pile's, for every m in :data:`POINTS`.
+
+    Parameters
+    ----------
+    stress, strain : ndarray, shape (pile, probe, y, x, 2, 2)
+        The increments of every pile, NaN where a pile slipped.
+    loading, gravity : list of int
+        Indices of the loading probes and of the gravity probes among them.
+    has_other : bool
+        Whether a loading probe is not a gravity change.
+    params : dict
+        The analysis parameters (``moduli.min_points``).
+
+    Returns
+    -------
+    dict of str to list
+        Per name (stiffness and the laws' stiffnesses, their standard error,
+        flags, sample counts, the six-constants masks, :data:`FIT_SCALARS`
+        and their standard errors, the per-pile :data:`PILE_SCALARS`), one
+        array per m.
+    """
     mean_stress, _, _ = nan_mean_sem(stress)
     mean_strain, _, _ = nan_mean_sem(strain)
-    scalars = SCALARS + ("condition_gravity", "soft_axis_deg")
     out: dict[str, list] = {name: [] for name in ("stiffness", *LAW_STIFFNESS, "stiffness_sem", "flag", "n_samples",
-                                                  "six", "six_piles", *scalars, *[f"{s}_sem" for s in scalars],
+                                                  "six", "six_piles", *FIT_SCALARS,
+                                                  *[f"{s}_sem" for s in FIT_SCALARS],
                                                   *[f"{s}_pile" for s in PILE_SCALARS])}
     for m in POINTS:
         need = max(ge.MIN_SAMPLES, 1 if m == 1 else params["moduli"]["min_points"])
         whole = _fit(mean_stress[loading], mean_strain[loading], m, need)
         _add_gravity_only(whole, mean_stress, mean_strain, gravity, m, need)
-        each = [_fit(stress[k][loading], strain[k][loading], m, need) for k in range(len(piles))]
+        each = [_fit(stress[k][loading], strain[k][loading], m, need) for k in range(stress.shape[0])]
         for k, e in enumerate(each):
             _add_gravity_only(e, stress[k], strain[k], gravity, m, need)
         for name in ("stiffness", *LAW_STIFFNESS):
@@ -281,9 +360,9 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
         out["stiffness_sem"].append(nan_mean_sem(np.stack([e["stiffness"] for e in each]))[1])
         out["flag"].append(whole["flag"])
         out["n_samples"].append(whole["n_samples"])
-        out["six"].append(six_constants(whole, bool(other)))
-        out["six_piles"].append(np.sum([six_constants(e, bool(other)) for e in each], axis=0))
-        for s in scalars:
+        out["six"].append(six_constants(whole, has_other))
+        out["six_piles"].append(np.sum([six_constants(e, has_other) for e in each], axis=0))
+        for s in FIT_SCALARS:
             out[s].append(whole[s])
             per_pile = np.stack([e[s] for e in each])
             if s in AXIS_SCALARS:
@@ -291,17 +370,22 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
             out[f"{s}_sem"].append(nan_mean_sem(per_pile)[1])
         for s in PILE_SCALARS:
             out[f"{s}_pile"].append(np.stack([e[s] for e in each]))
-    rev_mean, rev_sem, rev_count = nan_mean_sem(rev_each)
-    ref = piles[0]
-    labels = [f"{ds.attrs.get('protocol', '')} seed {ds.attrs.get('seed', k)}".strip() for k, ds in enumerate(piles)]
-    coords = {"points": var("points", np.array(POINTS), "RVE points per fit (1: the RVE, 5: and its 4 "
-                                                       "grid neighbours)", "1"),
-              "pile": var("pile", np.array(labels, dtype=object), "the pile of a per-pile fit", "1"),
-              "y": ref["y"].variable, "x": ref["x"].variable,
-              "probe": var("probe", np.array(probes, dtype=object), "probe stage", "1"),
-              "mandel_i": var("mandel_i", np.array(["xx", "yy", "xy"], dtype=object), "Mandel component", "1"),
-              "mandel_j": var("mandel_j", np.array(["xx", "yy", "xy"], dtype=object), "Mandel component", "1")}
-    data = {
+    return out
+
+
+def _stiffness_variables(out):
+    """The general fit's stiffness matrices, flags and sample counts, as variables of the output file.
+
+    Parameters
+    ----------
+    out : dict of str to list
+        The fits by points (:func:`_fits_by_points`).
+
+    Returns
+    -------
+    dict of str to xarray.Variable
+    """
+    return {
         "stiffness": var(("points", "y", "x", "mandel_i", "mandel_j"), np.array(out["stiffness"]),
                          *META["stiffness"]),
         **{name: var(("points", "y", "x", "mandel_i", "mandel_j"), np.array(out[name]), text, "N/m")
@@ -312,13 +396,24 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
                             **ge.GENERAL_FLAGS),
         "n_samples": var(("points", "y", "x"), np.array(out["n_samples"]), "valid samples (probes x points)",
                          "1"),
-        "reversibility": var(("y", "x"), rev_mean, *META["reversibility"]),
-        "reversibility_sem": var(("y", "x"), rev_sem, "standard error of reversibility over piles", "1"),
-        "reversibility_count": var(("y", "x"), rev_count, "piles with a reversibility at this RVE", "1"),
-        "slip_left_out": var(("probe", "y", "x"), left_out.sum(axis=0).astype(np.int32),
-                             "piles left out of the fits at this RVE for this probe: they slipped", "1"),
     }
-    for s in scalars:
+
+
+def _scalar_variables(out):
+    """The general fit's scalars with their standard errors, the per-pile
+    scalars and the six-constants masks, as variables of the output file.
+
+    Parameters
+    ----------
+    out : dict of str to list
+        The fits by points (:func:`_fits_by_points`).
+
+    Returns
+    -------
+    dict of str to xarray.Variable
+    """
+    data = {}
+    for s in FIT_SCALARS:
         ln, units = META[s]
         data[s] = var(("points", "y", "x"), np.array(out[s]), ln, units)
         how = ("of the piles' angles from this one, folded into (-90, 90]" if s in AXIS_SCALARS
@@ -335,24 +430,58 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
                                 "1")
     data["six_constants_piles"] = var(("points", "y", "x"), np.array(out["six_piles"], dtype=np.int32),
                                       "piles whose own fit pins all six constants here (as six_constants)", "1")
-    ds = xr.Dataset(data, coords=coords)
-    if ensemble is not None:
-        for name in AXES_FROM_FIELDS:
-            if name in ensemble:
-                if ensemble[name].shape != rev_mean.shape:
-                    raise InputError(f"general-fit: the ensemble's {name} is on another grid")
-                ds[name] = ensemble[name].variable
-                gap = axis_angle_difference(ds["axis_deg"].values, ensemble[name].values[None])
-                what = name.split("_")[0]
-                ds[f"axis_to_{what}_deg"] = var(("points", "y", "x"), gap,
-                                                f"stiffest axis minus the ensemble's {what} axis, folded into "
-                                                "(-90, 90]", "degree")
-    ds.attrs.update({"probes": " ".join(probes), "loading_probes": " ".join(probes[k] for k in loading),
-                     "gravity_probes": " ".join(probes[k] for k in gravity),
-                     "other_probes": " ".join(probes[k] for k in other),
-                     "six_constants_max_condition": SIX_CONSTANTS_MAX_CONDITION,
-                     "n_seeds": len(piles), "max_condition": ge.MAX_CONDITION,
-                     "slip_strain_ratio": "none" if ratio is None else float(ratio),
-                     "slip_left_out_total": int(left_out.sum()),
-                     "protocol": ref.attrs.get("protocol", ""), "rve_size": ref.attrs.get("rve_size", "")})
-    return ds
+    return data
+
+
+def _general_fit_coords(piles, probes):
+    """The coordinates of the general fit's file: points, pile labels, the
+    piles' grid, probes and Mandel components.
+
+    Parameters
+    ----------
+    piles : list of xarray.Dataset
+        Per-pile files of :func:`probe_increments`.
+    probes : list of str
+        Their probe stages.
+
+    Returns
+    -------
+    dict of str to xarray.Variable
+    """
+    ref = piles[0]
+    labels = [f"{ds.attrs.get('protocol', '')} seed {ds.attrs.get('seed', k)}".strip() for k, ds in enumerate(piles)]
+    return {"points": var("points", np.array(POINTS), "RVE points per fit (1: the RVE, 5: and its 4 "
+                                                      "grid neighbours)", "1"),
+            "pile": var("pile", np.array(labels, dtype=object), "the pile of a per-pile fit", "1"),
+            "y": ref["y"].variable, "x": ref["x"].variable,
+            "probe": var("probe", np.array(probes, dtype=object), "probe stage", "1"),
+            "mandel_i": var("mandel_i", np.array(["xx", "yy", "xy"], dtype=object), "Mandel component", "1"),
+            "mandel_j": var("mandel_j", np.array(["xx", "yy", "xy"], dtype=object), "Mandel component", "1")}
+
+
+def _add_field_axes(ds, ensemble):
+    """Copy the ensemble's fabric and stress orientations (:data:`AXES_FROM_FIELDS`)
+    into `ds`, each with the stiffest axis's angle from it.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The general fit (modified in place).
+    ensemble : xarray.Dataset
+        The protocol's ensemble fields.
+
+    Raises
+    ------
+    InputError
+        When an orientation lies on another grid than the fit.
+    """
+    for name in AXES_FROM_FIELDS:
+        if name in ensemble:
+            if ensemble[name].shape != ds["reversibility"].shape:
+                raise InputError(f"general-fit: the ensemble's {name} is on another grid")
+            ds[name] = ensemble[name].variable
+            gap = axis_angle_difference(ds["axis_deg"].values, ensemble[name].values[None])
+            what = name.split("_")[0]
+            ds[f"axis_to_{what}_deg"] = var(("points", "y", "x"), gap,
+                                            f"stiffest axis minus the ensemble's {what} axis, folded into "
+                                            "(-90, 90]", "degree")

@@ -204,8 +204,42 @@ def validate_polygon(x, y, min_edge, min_angle_deg, name="polygon"):
         raise ValueError(f"{name}: a polygon needs at least 3 corners, got {n}")
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
         raise ValueError(f"{name}: corner coordinates must be finite (found NaN or inf)")
+    ex, ey = _checked_edges(x, y, min_edge, name)
+    _check_simple(x, y, ex, ey, name)
+    area2 = float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+    if area2 <= 0.0:
+        raise ValueError(
+            f"{name}: corners are not counter-clockwise (signed area "
+            f"{0.5 * area2:.6g} <= 0); list them counter-clockwise"
+        )
+    _check_corner_angles(ex, ey, min_angle_deg, name)
 
-    ex = np.roll(x, -1) - x  # edge k runs from corner k to corner k+1
+
+def _checked_edges(x, y, min_edge, name):
+    """The edge vectors of a polygon, none shorter than `min_edge` or of zero length.
+
+    Parameters
+    ----------
+    x, y : ndarray of float, shape (n,)
+        Finite corner coordinates in order.
+    min_edge : float
+        Shortest allowed edge length.
+    name : str
+        How the polygon is called in error messages.
+
+    Returns
+    -------
+    ex, ey : ndarray of float, shape (n,)
+        Edge k runs from corner k to corner k + 1 (the last back to corner 0).
+
+    Raises
+    ------
+    ValueError
+        Naming the shortest edge: two corners coincide, or it is shorter than
+        `min_edge`.
+    """
+    n = x.shape[0]
+    ex = np.roll(x, -1) - x
     ey = np.roll(y, -1) - y
     length = np.hypot(ex, ey)
     k = int(np.argmin(length))
@@ -218,9 +252,28 @@ def validate_polygon(x, y, min_edge, min_angle_deg, name="polygon"):
             f"{name}: edge {k} is too short: length {length[k]:.6g} < minimum "
             f"allowed {min_edge:.6g}"
         )
+    return ex, ey
 
-    pts = np.column_stack([x, y])
-    # adjacent edges folding back onto each other (a 360-degree turn)
+
+def _check_simple(x, y, ex, ey, name):
+    """Raise unless the polygon is simple: no two adjacent edges fold back onto
+    each other (a 360-degree turn) and no two non-adjacent edges share a point.
+
+    Parameters
+    ----------
+    x, y : ndarray of float, shape (n,)
+        Corner coordinates in order.
+    ex, ey : ndarray of float, shape (n,)
+        Edge vectors (:func:`_checked_edges`).
+    name : str
+        How the polygon is called in error messages.
+
+    Raises
+    ------
+    ValueError
+        Naming the two edges.
+    """
+    n = x.shape[0]
     for i in range(n):
         j = (i + 1) % n
         cross = ex[i] * ey[j] - ey[i] * ex[j]
@@ -230,7 +283,7 @@ def validate_polygon(x, y, min_edge, min_angle_deg, name="polygon"):
                 f"{name}: self-intersecting: edges {i} and {j} fold back onto each "
                 f"other at corner {j}"
             )
-    # non-adjacent edges
+    pts = np.column_stack([x, y])
     for i in range(n):
         for j in range(i + 2, n):
             if i == 0 and j == n - 1:
@@ -241,13 +294,26 @@ def validate_polygon(x, y, min_edge, min_angle_deg, name="polygon"):
                     f"(a simple polygon is required)"
                 )
 
-    area2 = float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-    if area2 <= 0.0:
-        raise ValueError(
-            f"{name}: corners are not counter-clockwise (signed area "
-            f"{0.5 * area2:.6g} <= 0); list them counter-clockwise"
-        )
 
+def _check_corner_angles(ex, ey, min_angle_deg, name):
+    """Raise unless every corner turns left (convex) and its interior angle lies
+    within ``[min_angle_deg, 180 - min_angle_deg]`` degrees.
+
+    Parameters
+    ----------
+    ex, ey : ndarray of float, shape (n,)
+        Edge vectors of a counter-clockwise polygon (:func:`_checked_edges`).
+    min_angle_deg : float
+        Smallest allowed interior angle in degrees.
+    name : str
+        How the polygon is called in error messages.
+
+    Raises
+    ------
+    ValueError
+        Naming the corner and its interior angle: non-convex, too sharp or
+        too flat.
+    """
     # interior angle at corner j between incoming edge i=j-1 and outgoing edge j
     exp = np.roll(ex, 1)
     eyp = np.roll(ey, 1)
