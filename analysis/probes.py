@@ -264,14 +264,15 @@ def general_fit_dataset(piles: list[xr.Dataset], params: dict[str, Any],
     strain = np.where(left_out[..., None, None], np.nan, strain)
     out = _fits_by_points(stress, strain, loading, gravity, bool(other), params)
     rev_mean, rev_sem, rev_count = nan_mean_sem(rev_each)
+    stiffness, scalars = _fit_variables(out)
     data = {
-        **_stiffness_variables(out),
+        **stiffness,
         "reversibility": var(("y", "x"), rev_mean, *META["reversibility"]),
         "reversibility_sem": var(("y", "x"), rev_sem, "standard error of reversibility over piles", "1"),
         "reversibility_count": var(("y", "x"), rev_count, "piles with a reversibility at this RVE", "1"),
         "slip_left_out": var(("probe", "y", "x"), left_out.sum(axis=0).astype(np.int32),
                              "piles left out of the fits at this RVE for this probe: they slipped", "1"),
-        **_scalar_variables(out),
+        **scalars,
     }
     ds = xr.Dataset(data, coords=_general_fit_coords(piles, probes))
     if ensemble is not None:
@@ -373,8 +374,8 @@ def _fits_by_points(stress, strain, loading, gravity, has_other, params):
     return out
 
 
-def _stiffness_variables(out):
-    """The general fit's stiffness matrices, flags and sample counts, as variables of the output file.
+def _fit_variables(out):
+    """The general fit's variables of the output file, in two groups.
 
     Parameters
     ----------
@@ -383,9 +384,13 @@ def _stiffness_variables(out):
 
     Returns
     -------
-    dict of str to xarray.Variable
+    stiffness : dict of str to xarray.Variable
+        The stiffness matrices, their standard error, flags and sample counts.
+    scalars : dict of str to xarray.Variable
+        The scalars with their standard errors, the per-pile scalars and the
+        six-constants masks.
     """
-    return {
+    stiffness = {
         "stiffness": var(("points", "y", "x", "mandel_i", "mandel_j"), np.array(out["stiffness"]),
                          *META["stiffness"]),
         **{name: var(("points", "y", "x", "mandel_i", "mandel_j"), np.array(out[name]), text, "N/m")
@@ -397,21 +402,6 @@ def _stiffness_variables(out):
         "n_samples": var(("points", "y", "x"), np.array(out["n_samples"]), "valid samples (probes x points)",
                          "1"),
     }
-
-
-def _scalar_variables(out):
-    """The general fit's scalars with their standard errors, the per-pile
-    scalars and the six-constants masks, as variables of the output file.
-
-    Parameters
-    ----------
-    out : dict of str to list
-        The fits by points (:func:`_fits_by_points`).
-
-    Returns
-    -------
-    dict of str to xarray.Variable
-    """
     data = {}
     for s in FIT_SCALARS:
         ln, units = META[s]
@@ -430,7 +420,7 @@ def _scalar_variables(out):
                                 "1")
     data["six_constants_piles"] = var(("points", "y", "x"), np.array(out["six_piles"], dtype=np.int32),
                                       "piles whose own fit pins all six constants here (as six_constants)", "1")
-    return data
+    return stiffness, data
 
 
 def _general_fit_coords(piles, probes):
