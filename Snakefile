@@ -1,13 +1,13 @@
 # Sand piles of soft convex polygons: Roul, Schinner & Kassner,
-# Granular Matter (2010). Thin entry point: configuration, its validation and
-# the rule files; see README.md for the stages and docs/formats.md for the files.
+# Granular Matter (2010). Thin entry point: configuration, the rule files (common.smk
+# validates it) and the report; see README.md for the stages and docs/formats.md for the files.
 
 import sys
 
 from snakemake.utils import min_version
 
-sys.path.insert(0, workflow.basedir)  # for workflow/validation.py
-from workflow.validation import check_config_files, validate_config
+sys.path.insert(0, workflow.basedir)  # for the modules of workflow/
+from workflow.reporting import Freshness, check_report_path, configuration_files, piles_made, report_path
 
 min_version("9.0")
 
@@ -21,28 +21,14 @@ if not workflow.overwrite_configfiles:
     configfile: "config/config.yaml"
 
 
-# The --configfile files read again strictly: a repeated key, which YAML
-# reads as its last value, and an empty section laid over another file, which
-# the merge ignores, are refused naming the file and line.
-check_config_files(workflow.overwrite_configfiles)
-
-
-# The one validator (schemas, finite numbers, integers, the simulator's and the
-# analysis' own checks); it fills in every default of the schemas, so the
-# rules see a complete config.
-validate_config(config)
-
-
 report: "workflow/report/workflow.rst"
 
 
 include: "workflow/rules/common.smk"
-include: "workflow/rules/scene.smk"
 include: "workflow/rules/pour.smk"
 include: "workflow/rules/relax.smk"
 include: "workflow/rules/probe.smk"
 include: "workflow/rules/figures_piles.smk"
-include: "workflow/rules/analysis_common.smk"
 include: "workflow/rules/analysis.smk"
 include: "workflow/rules/numerics.smk"
 include: "workflow/rules/numerics_piles.smk"
@@ -52,15 +38,21 @@ include: "workflow/rules/reproduction.smk"
 # The first paragraph of the report (workflow/report/workflow.rst) names the
 # configuration files, the results folder and the piles there; a --report
 # under results/ but outside that folder is refused.
-_check_report_path()
-config["_report"] = report_description()
+CONFIGURATION = configuration_files(workflow.overwrite_configfiles, workflow.config_settings.config, REPO)
+check_report_path(report_path(sys.argv), RESULTS, CONFIGURATION)
+config["_report"] = {"configfiles": ", ".join(CONFIGURATION), "results": f"{RESULTS}/",
+                     "piles": piles_made(piles, analysis_seeds),
+                     "freshness": Freshness(lambda: workflow.dag, logger.warning) if report_path(sys.argv) else ""}
+
+# What the scene asks for (config `outputs`; by default everything: every pile
+# stage, the picture of every relaxed pile, and the analysis), with the
+# numerical checks' files when it asks for numerics.
+SCENE_TARGETS = scene.targets(analysis_targets(), list(rules.numerics.input) + pile_numerics.targets())
 
 
 rule all:
-    # What the scene asks for (config `outputs`; by default everything: every
-    # pile stage, the picture of every relaxed pile, and the analysis).
     input:
-        scene_targets(),
+        SCENE_TARGETS,
     default_target: True
     localrule: True
 
@@ -73,8 +65,9 @@ rule piles:
 
 
 rule made:
-    # What of `all` exists now (made_targets()): `make report` reports it, so
-    # that the report of a study in progress shows its finished piles.
+    # What of `all` exists now: `make report` reports it, so that the report of
+    # a study in progress shows its finished piles (or none, instead of failing
+    # on a figure not yet drawn).
     input:
-        made_targets(),
+        [path for path in SCENE_TARGETS if os.path.exists(path)],
     localrule: True

@@ -1,7 +1,9 @@
 """workflow/rules/analysis.smk and its schema, driven by a stand-in Snakefile.
 
-The stand-in defines what common.smk provides (PROTOCOLS, seeds, probe_stages,
-extra_probe_stages, results_path, ANALYSIS_DIGEST, PY) and scene.smk for the full study (every output, a gravity probe), validates the analysis section against the schema, includes the rules
+The stand-in binds what common.smk provides to the analysis rules (the piles,
+scene and analysis inputs of workflow/piles.py, scene.py and
+analysis_inputs.py, for two piles per protocol, every output and a gravity
+probe), validates the analysis section against the schema, includes the rules
 and asks for analysis_targets(). The dry run is fast; the full run is marked slow.
 """
 
@@ -31,34 +33,26 @@ def _project(tmp_path, analysis_cfg=None):
         from snakemake.utils import validate
         configfile: "config.yaml"
         validate(config["analysis"], "{REPO}/analysis/params.schema.yaml")
-        config.setdefault("committed", None)
-        REPO = Path(workflow.basedir)
-        PROTOCOLS = ["wedge", "layered"]
-        def results_path(path):
-            return "results/" + path
-        def pile(protocol, seed, stage):
-            return results_path(f"piles/{{protocol}}/seed{{seed}}/{{stage}}.nc")
-        def seeds(protocol):
-            return [1, 2]
+        config.update(committed=None, results="results", outputs=["states", "fields", "strain", "fabric",
+                      "fits", "figures"], protocols={{"wedge": {{"seeds": [1, 2]}}, "layered": {{"seeds": [1, 2]}}}},
+                      probe={{"levels": [0.1], "tilts": [], "stretch": 0.0, "restore": False}})
+        from workflow.analysis_inputs import ANALYSIS_MEM_MB, AnalysisInputs, labelled
+        from workflow.commands import Commands
         from workflow.digest import code_digest
+        from workflow.piles import Piles
+        from workflow.scene import Scene
+        piles = Piles(config)
+        scene = Scene(piles)
+        analysis_inputs = AnalysisInputs(scene, Path(workflow.basedir))
+        PROTOCOLS, results_path, pile, seeds = piles.protocols, piles.results_path, piles.pile, piles.seeds
+        probe_stages, extra_probe_stages = piles.probe_stages, piles.extra_probe_stages
+        field_quantities, general_fit_protocols = scene.field_quantities, analysis_inputs.general_fit_protocols
+        ANALYSIS_PARAMS, analysis_targets = analysis_inputs.params, analysis_inputs.targets
         ANALYSIS_DIGEST = code_digest("{REPO}/analysis")
-        PY = "{sys.executable}"
-        def py_shell(command):
-            return PY + " " + command
-        def wants(output):
-            return True
-        def has_probes():
-            return True
-        def probe_stages():
-            return ["reduced"]
-        def extra_probe_stages():
-            return []
-        def field_quantities():
-            return ["fabric", "strain"]
+        py_shell = Commands("{sys.executable}", "unused").py_shell
         wildcard_constraints:
             protocol="wedge|layered",
             seed=r"\\d+",
-        include: "{REPO}/workflow/rules/analysis_common.smk"
         include: "{REPO}/workflow/rules/analysis.smk"
         rule all:
             input: analysis_targets()

@@ -1,6 +1,5 @@
 # Analysis rules: particle states -> per-pile RVE fields -> ensembles -> fits -> figures.
 #
-# Helpers live in workflow/rules/analysis_common.smk (included first).
 # Expects from workflow/rules/common.smk:
 #   PROTOCOLS      list of protocol names of the study
 #   seeds(p)       list of int seeds of protocol p
@@ -8,8 +7,10 @@
 #   ANALYSIS_DIGEST  digest of the analysis/*.py files (param `code`: code edits rerun the analysis)
 #   results_path(p)  p in the configuration's results folder (config `results`)
 #   PY, py_shell   the python executable and the helper that prefixes it to a shell command
+#   field_quantities()  the scene's optional quantities of the fields
+#   analysis_inputs  the analysis' inputs and settings (workflow/analysis_inputs.py), with
+#                  ANALYSIS_PARAMS, ANALYSIS_MEM_MB, labelled() and the general fit's protocols
 #   and the global wildcard_constraints of protocol and seed
-# and from workflow/rules/scene.smk has_probes() and field_quantities() (the scene's outputs),
 # and the state files {results}/piles/{protocol}/seed{seed}/{stage}.nc (docs/formats.md#state-files).
 #
 # Every rule passes config["analysis"] as sorted JSON in params, so a change of
@@ -23,14 +24,14 @@
 rule analysis_fields:
     input:
         relaxed=results_path("piles/{protocol}/seed{seed}/relaxed.nc"),
-        reduced=_analysis_fields_reduced,
+        reduced=analysis_inputs.fields_reduced,
     output:
         fields=results_path("fields/{protocol}/seed{seed}.nc"),
         checks=results_path("fields/{protocol}/seed{seed}.checks.json"),
     params:
         code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
-        reduced=_analysis_reduced_option,
+        reduced=analysis_inputs.reduced_option,
         quantities=field_quantities(),
     log:
         results_path("logs/analysis/fields/{protocol}/seed{seed}.log"),
@@ -52,7 +53,7 @@ rule analysis_fields:
 
 rule analysis_ensemble:
     input:
-        fields=_analysis_fields,
+        fields=analysis_inputs.fields,
     output:
         results_path("ensemble/{protocol}/fields.nc"),
     params:
@@ -76,7 +77,7 @@ rule analysis_ensemble:
 rule analysis_moduli:
     input:
         ensemble=results_path("ensemble/{protocol}/fields.nc"),
-        fields=_analysis_fields,
+        fields=analysis_inputs.fields,
     output:
         results_path("ensemble/{protocol}/moduli.nc"),
     params:
@@ -100,7 +101,7 @@ rule analysis_moduli:
 
 rule analysis_base_pressure_pile:
     input:
-        state=lambda wc: pile(wc.protocol, wc.seed, _analysis_setting("base_pressure", "stage", "relaxed")),
+        state=lambda wc: pile(wc.protocol, wc.seed, analysis_inputs.setting("base_pressure", "stage", "relaxed")),
     output:
         results_path("fields/{protocol}/seed{seed}.base_pressure.nc"),
     params:
@@ -123,7 +124,7 @@ rule analysis_base_pressure_pile:
 
 rule analysis_base_pressure:
     input:
-        piles=_analysis_base_pressure_piles,
+        piles=analysis_inputs.base_pressure_piles,
     output:
         results_path("ensemble/{protocol}/base_pressure.nc"),
     params:
@@ -196,7 +197,7 @@ rule analysis_convergence:
 
 rule analysis_figure_convergence:
     input:
-        data=_analysis_convergence_files,
+        data=analysis_inputs.convergence_files,
     output:
         png=report(results_path("figures/fig1_convergence.png"), caption="../report/analysis/fig1_convergence.rst",
                    category="Analysis", subcategory="Fig. 1"),
@@ -204,8 +205,8 @@ rule analysis_figure_convergence:
     params:
         code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: _labelled(input.data, [f"seed{s}" for s in
-                                                        _analysis_convergence_seeds(_analysis_protocol("convergence_protocol"))]),
+        inputs=lambda wc, input: labelled(input.data, [f"seed{s}" for s in
+                                                        analysis_inputs.convergence_seeds(analysis_inputs.figure_protocol("convergence_protocol"))]),
     log:
         results_path("logs/analysis/figures/fig1_convergence.log"),
     localrule: True
@@ -232,7 +233,7 @@ rule analysis_figure_vertical_strain:
     params:
         code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: _labelled(input.data, PROTOCOLS),
+        inputs=lambda wc, input: labelled(input.data, PROTOCOLS),
     log:
         results_path("logs/analysis/figures/fig2_vertical_strain.log"),
     localrule: True
@@ -251,7 +252,7 @@ rule analysis_figure_vertical_strain:
 
 rule analysis_figure_fabric:
     input:
-        data=lambda wc: results_path(f"ensemble/{_analysis_protocol('fabric_protocol')}/fields.nc"),
+        data=lambda wc: results_path(f"ensemble/{analysis_inputs.figure_protocol('fabric_protocol')}/fields.nc"),
     output:
         png=report(results_path("figures/fig3_fabric.png"), caption="../report/analysis/fig3_fabric.rst",
                    category="Analysis", subcategory="Fig. 3"),
@@ -259,7 +260,7 @@ rule analysis_figure_fabric:
     params:
         code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("fabric_protocol")]),
+        inputs=lambda wc, input: labelled([input.data], [analysis_inputs.figure_protocol("fabric_protocol")]),
     log:
         results_path("logs/analysis/figures/fig3_fabric.log"),
     localrule: True
@@ -278,7 +279,7 @@ rule analysis_figure_fabric:
 
 rule analysis_figure_moduli:
     input:
-        data=lambda wc: results_path(f"ensemble/{_analysis_protocol('moduli_protocol')}/moduli.nc"),
+        data=lambda wc: results_path(f"ensemble/{analysis_inputs.figure_protocol('moduli_protocol')}/moduli.nc"),
     output:
         png=report(results_path("figures/fig4_moduli.png"), caption="../report/analysis/fig4_moduli.rst",
                    category="Analysis", subcategory="Fig. 4"),
@@ -286,7 +287,7 @@ rule analysis_figure_moduli:
     params:
         code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("moduli_protocol")]),
+        inputs=lambda wc, input: labelled([input.data], [analysis_inputs.figure_protocol("moduli_protocol")]),
     log:
         results_path("logs/analysis/figures/fig4_moduli.log"),
     localrule: True
@@ -305,7 +306,7 @@ rule analysis_figure_moduli:
 
 rule analysis_figure_invariants:
     input:
-        data=lambda wc: results_path(f"ensemble/{_analysis_protocol('invariants_protocol')}/invariants.nc"),
+        data=lambda wc: results_path(f"ensemble/{analysis_inputs.figure_protocol('invariants_protocol')}/invariants.nc"),
     output:
         png=report(results_path("figures/fig5_invariants.png"), caption="../report/analysis/fig5_invariants.rst",
                    category="Analysis", subcategory="Fig. 5"),
@@ -313,7 +314,7 @@ rule analysis_figure_invariants:
     params:
         code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: _labelled([input.data], [_analysis_protocol("invariants_protocol")]),
+        inputs=lambda wc, input: labelled([input.data], [analysis_inputs.figure_protocol("invariants_protocol")]),
     log:
         results_path("logs/analysis/figures/fig5_invariants.log"),
     localrule: True
@@ -340,7 +341,7 @@ rule analysis_figure_base_pressure:
     params:
         code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: _labelled(input.data, PROTOCOLS),
+        inputs=lambda wc, input: labelled(input.data, PROTOCOLS),
     log:
         results_path("logs/analysis/figures/base_pressure.log"),
     localrule: True
@@ -423,7 +424,7 @@ rule analysis_figure_general:
     params:
         code=ANALYSIS_DIGEST,
         cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: _labelled(input.data, general_fit_protocols()),
+        inputs=lambda wc, input: labelled(input.data, general_fit_protocols()),
     log:
         results_path("logs/analysis/figures/general_fit.log"),
     localrule: True

@@ -10,12 +10,10 @@
 # Ensemble: reads the configured study's piles (protocols section), their
 # fields and base pressure, and the benchmark files of their simulations.
 #
-# Expects from common.smk: config (validated, defaults filled), PROTOCOLS,
-# seeds(), pile(), probe_stages(), sim_shell(), py_shell(), results_path(), SIM_DIGEST,
-# ANALYSIS_NUMERICS_DIGEST, COMPILED_FLAG, SIM_THREADS, SIM_MEM_MB; from analysis_common.smk:
-# ANALYSIS_PARAMS. Helpers: numerics_piles_common.smk.
-
-include: "numerics_piles_common.smk"
+# Expects from common.smk: config (validated, defaults filled), sim_shell(),
+# py_shell(), results_path(), SIM_DIGEST, ANALYSIS_NUMERICS_DIGEST, COMPILED_FLAG,
+# SIM_THREADS, sim_mem_mb, sim_bookkeeping(), ANALYSIS_PARAMS, and pile_numerics,
+# NUMERICS_PILES, NUMERICS_ENSEMBLE, NUMERICS_DIR (workflow/numerics_piles.py).
 
 
 wildcard_constraints:
@@ -27,19 +25,19 @@ rule numerics_pile_pour:
     input:
         compiled=COMPILED_FLAG,
     output:
-        state=numerics_pile("{integrator}", "{factor}", "{seed}", "poured"),
-        cpu=numerics_pile_cpu("{integrator}", "{factor}", "{seed}", "pour"),
+        state=pile_numerics.pile("{integrator}", "{factor}", "{seed}", "poured"),
+        cpu=pile_numerics.cpu("{integrator}", "{factor}", "{seed}", "pour"),
     params:
         code=SIM_DIGEST,
-        sim=lambda wildcards: numerics_pile_params(wildcards, ("particles",)),
+        sim=lambda wildcards: pile_numerics.sim_params(wildcards, ("particles",)),
         bookkeeping=sim_bookkeeping(),
         protocol=NUMERICS_PILES["protocol"],
-        checkpoint=lambda wildcards: numerics_pile(wildcards.integrator, wildcards.factor, wildcards.seed,
+        checkpoint=lambda wildcards: pile_numerics.pile(wildcards.integrator, wildcards.factor, wildcards.seed,
                                                    "pour.checkpoint"),
     log:
         results_path("logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_pour.log"),
     benchmark:
-        numerics_pile_benchmark("{integrator}", "{factor}", "{seed}", "pour")
+        pile_numerics.benchmark("{integrator}", "{factor}", "{seed}", "pour")
     threads: SIM_THREADS
     resources:
         mem_mb=sim_mem_mb,
@@ -57,19 +55,19 @@ rule numerics_pile_pour:
 
 rule numerics_pile_relax:
     input:
-        state=numerics_pile("{integrator}", "{factor}", "{seed}", "poured"),
+        state=pile_numerics.pile("{integrator}", "{factor}", "{seed}", "poured"),
         compiled=COMPILED_FLAG,
     output:
-        state=numerics_pile("{integrator}", "{factor}", "{seed}", "relaxed"),
-        cpu=numerics_pile_cpu("{integrator}", "{factor}", "{seed}", "relax"),
+        state=pile_numerics.pile("{integrator}", "{factor}", "{seed}", "relaxed"),
+        cpu=pile_numerics.cpu("{integrator}", "{factor}", "{seed}", "relax"),
     params:
         code=SIM_DIGEST,
-        sim=lambda wildcards: numerics_pile_params(wildcards, ("relax",)),
+        sim=lambda wildcards: pile_numerics.sim_params(wildcards, ("relax",)),
         bookkeeping=sim_bookkeeping(),
     log:
         results_path("logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_relax.log"),
     benchmark:
-        numerics_pile_benchmark("{integrator}", "{factor}", "{seed}", "relax")
+        pile_numerics.benchmark("{integrator}", "{factor}", "{seed}", "relax")
     threads: SIM_THREADS
     resources:
         mem_mb=sim_mem_mb,
@@ -88,9 +86,9 @@ rule numerics_pile_summary:
     # Shape of a relaxed small pile (flank angles, coordination) as the
     # simulator measures it: one JSON line.
     input:
-        state=numerics_pile("{integrator}", "{factor}", "{seed}", "relaxed"),
+        state=pile_numerics.pile("{integrator}", "{factor}", "{seed}", "relaxed"),
     output:
-        numerics_pile_summary("{integrator}", "{factor}", "{seed}", "relaxed"),
+        pile_numerics.summary("{integrator}", "{factor}", "{seed}", "relaxed"),
     log:
         results_path("logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_summary.log"),
     localrule: True
@@ -104,12 +102,12 @@ rule numerics_pile_summary:
 rule numerics_piles_data:
     # Observables of every small pile and their errors against the reference.
     input:
-        states=_numerics_pile_inputs("states"),
-        summaries=_numerics_pile_inputs("summaries"),
-        pour=_numerics_pile_inputs("pour"),
-        relax=_numerics_pile_inputs("relax"),
-        pour_cpu=_numerics_pile_inputs("pour_cpu"),
-        relax_cpu=_numerics_pile_inputs("relax_cpu"),
+        states=pile_numerics.pile_inputs("states"),
+        summaries=pile_numerics.pile_inputs("summaries"),
+        pour=pile_numerics.pile_inputs("pour"),
+        relax=pile_numerics.pile_inputs("relax"),
+        pour_cpu=pile_numerics.pile_inputs("pour_cpu"),
+        relax_cpu=pile_numerics.pile_inputs("relax_cpu"),
     output:
         f"{NUMERICS_DIR}/piles.nc",
     params:
@@ -135,18 +133,18 @@ rule numerics_piles_data:
 rule numerics_ensemble:
     # Headline results per pile of the study, their standard error against n and compute time.
     input:
-        fields=_numerics_ensemble_inputs("fields"),
-        base_pressure=_numerics_ensemble_inputs("base_pressure"),
-        pour=_numerics_ensemble_inputs("pour"),
-        relax=_numerics_ensemble_inputs("relax"),
-        probe=_numerics_ensemble_inputs("probe"),
+        fields=pile_numerics.ensemble_inputs("fields"),
+        base_pressure=pile_numerics.ensemble_inputs("base_pressure"),
+        pour=pile_numerics.ensemble_inputs("pour"),
+        relax=pile_numerics.ensemble_inputs("relax"),
+        probe=pile_numerics.ensemble_inputs("probe"),
     output:
         f"{NUMERICS_DIR}/ensemble.nc",
     params:
         code=ANALYSIS_NUMERICS_DIGEST,
         cfg=json.dumps(NUMERICS_ENSEMBLE, sort_keys=True),
         analysis=ANALYSIS_PARAMS,
-        protocols=_numerics_ensemble_args,
+        protocols=pile_numerics.ensemble_args,
     log:
         results_path("logs/numerics/ensemble.log"),
     threads: 1
@@ -222,5 +220,5 @@ rule numerics_piles_table:
 rule numerics_piles:
     # Error of pile observables against run time and of the ensemble against compute time.
     input:
-        numerics_piles_targets(),
+        pile_numerics.targets(),
     localrule: True

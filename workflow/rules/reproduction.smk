@@ -2,10 +2,10 @@
 # docs/reproduction/ (rule record_pile), and the ensembles, fits, figures and
 # per-pile table rebuilt from those files alone (`make reproduction`: config
 # `committed`, rule reproduction), without a state file or a simulation.
-# Expects pile(), probe_stages(), PY_SIM, py_shell, REPO (common.smk),
-# pile_result(), PILE_RESULTS, COMMITTED, ANALYSIS_FIGURES, analysis_targets(),
-# reported_general_protocols() and reported_probes() (analysis_common.smk),
-# wants() (scene.smk).
+# Expects from common.smk pile(), probe_stages(), PY_SIM, py_shell, REPO, wants(),
+# and of the analysis (workflow/analysis_inputs.py) pile_result(), PILE_RESULTS,
+# COMMITTED, ANALYSIS_FIGURES, analysis_targets(), reported_general_protocols(),
+# reported_probes() and labelled().
 
 RECORD = "docs/reproduction"
 # The files of a recorded pile, under RECORD/{protocol}/: PILE_RESULTS' kinds,
@@ -132,7 +132,7 @@ if config["committed"]:
             ensemble=lambda wc, input: os.path.dirname(os.path.dirname(input.ensembles[0])),
             protocols=PROTOCOLS,
             heights=config["analysis"]["figures"]["heights"],
-            general=lambda wc, input: _labelled(input.general, reported_general_protocols()),
+            general=lambda wc, input: labelled(input.general, reported_general_protocols()),
             probes=[f"{p}={path}" for p, path in reported_probes()],
             fields=[f"{p}={pile_result(p, s, 'fields')}" for p in PROTOCOLS for s in analysis_seeds(p, "fields")],
             base_pressure=[f"{p}={pile_result(p, s, 'base_pressure')}" for p in PROTOCOLS

@@ -158,8 +158,8 @@ def pile_stages(levels):
     ----------
     levels : sequence of float
         ``probe.levels``: the first gives the stage ``reduced``, any other
-        ``reducedNN`` with NN = round(100 * level) (``stage_for_level`` in
-        workflow/rules/common.smk).
+        ``reducedNN`` with NN = round(100 * level) (``Piles.stage_for_level`` in
+        workflow/piles.py).
 
     Returns
     -------
@@ -176,13 +176,13 @@ def rule_of(stage):
 
 
 def stage_file(folder, protocol, seed, stage):
-    """Path of a pile's state file in the results `folder` (``pile`` in
-    workflow/rules/common.smk)."""
+    """Path of a pile's state file in the results `folder` (``Piles.pile`` in
+    workflow/piles.py)."""
     return Path(folder) / "piles" / protocol / f"seed{seed}" / f"{stage}.nc"
 
 
 def checkpoint_file(folder, protocol, seed):
-    """Path of a running pour's checkpoint (``pour_checkpoint`` in common.smk)."""
+    """Path of a running pour's checkpoint (``Piles.pour_checkpoint`` in workflow/piles.py)."""
     return Path(folder) / "piles" / protocol / f"seed{seed}" / "pour.checkpoint.nc"
 
 

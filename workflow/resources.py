@@ -1,0 +1,160 @@
+"""What a cluster executor requests per simulation job, estimated from the
+configuration (SLURM: --cpus-per-task = threads, --mem = mem_mb, --time =
+runtime in minutes; docs/cluster.md); locally they only matter with
+--resources limits. The runtimes are
+
+    minutes = START_MIN + RUNTIME_MARGIN * steps * particles * PARTICLE_STEP_S
+              / speedup(threads) / 60,   steps = simulated time / dt,
+
+multiplied by the attempt number, so a job that SLURM killed at its time
+limit asks for twice the time when --retries resubmits it (a pour resumes
+from its checkpoint, so it needs less; relaxations start again).
+"""
+
+import math
+import os
+
+from workflow.piles import STRETCH_STAGE
+
+# Measured on this project's 2-core machine: the full-size layered pour of the
+# study (3500 particles, velocity Verlet, 100 particles/s, one thread) took
+# 4585 s of CPU for 5.14 M steps and 9.04e9 particle-steps, 0.51 us per
+# particle-step (docs/performance.md, "How long").
+PARTICLE_STEP_S = 0.5e-6
+# Safety factor on the step cost (a slower or busier node).
+RUNTIME_MARGIN = 1.5
+# Python start, loading the compiled kernels, reading and writing state files.
+START_MIN = 2
+# Automatic time step of the default particles (semi-axis 3.4 mm, density
+# 2500 kg/m2, Y = 1e7 N/m, dt_safety 0.5; docs/model.md, time-step rule). It scales
+# like sqrt(mass / stiffness), i.e. like semi-axis * sqrt(density / Y).
+DT_REFERENCE_S = {"gear": 1.9e-6, "verlet": 6.9e-6}
+# A release waits while its spot is not clear, so pouring takes longer than
+# n_particles / rate: 35.6 s (layered) and 41 s (wedge) instead of 35 s for the
+# study's pours (docs/performance.md, "How long").
+POUR_TIME_FACTOR = 1.5
+# Simulated time a relaxation or gravity probe typically needs: a 3500-particle
+# pile relaxed in 0.42-0.83 s (at most relax.max_time, after which the simulator
+# gives up by itself).
+RELAX_TYPICAL_S = 2.0
+# Peak memory measured for 150 and for 3500 particles: 230-250 MB (Python,
+# Numba and netCDF dominate; the particle arrays take about 1.3 kB each).
+SIM_MEM_BASE_MB = 1000
+SIM_MEM_PER_PARTICLE_MB = 0.1
+# Largest memory (MB) a cluster node is assumed to have when no --resources
+# mem_mb says otherwise: 4 TB.
+CLUSTER_NODE_MEM_MB = 4_000_000
+# Run-time estimate (min) of one pour beyond which the plan is called absurd: a week.
+ABSURD_RUNTIME_MIN = 7 * 24 * 60
+
+
+def per_attempt(value):
+    """Resource callable: `value` times the attempt number."""
+    return lambda wildcards, attempt: value * attempt
+
+
+class SimResources:
+    """Runtime and memory of the simulation jobs of a configuration.
+
+    The ``*_min`` and ``sim_mem_mb`` methods are Snakemake resource callables
+    (``wildcards, attempt``).
+
+    Parameters
+    ----------
+    config : dict
+        The validated workflow configuration.
+    """
+
+    def __init__(self, config):
+        self.config = config
+        #: Threads of every simulation job (config ``threads``).
+        self.threads = int(config["threads"])
+
+    def estimated_dt(self):
+        """Time step (s) of the simulations: model.dt if set, else the automatic
+        step of the reference particles scaled to the configured ones."""
+        model, particles = self.config["model"], self.config["particles"]
+        if model["dt"] is not None:
+            return float(model["dt"])
+        scale = (particles["semi_axis_mean"] / 3.4e-3) * math.sqrt(
+            (model["density"] / 2500.0) / (model["youngs_modulus"] / 1e7)
+        )
+        return DT_REFERENCE_S[model["integrator"]] * scale * model["dt_safety"] / 0.5
+
+    def sim_runtime_min(self, simulated_s, particles, attempt):
+        """Wall-clock minutes to request for `simulated_s` seconds of simulated
+        time with `particles` particles on average, on the configured threads
+        (the parallel kernels are assumed to scale with 80 % efficiency)."""
+        speedup = 1.0 + 0.8 * (self.threads - 1)
+        seconds = simulated_s / self.estimated_dt() * particles * PARTICLE_STEP_S / speedup
+        return attempt * math.ceil(START_MIN + RUNTIME_MARGIN * seconds / 60.0)
+
+    def pour_runtime_min(self, wildcards, attempt):
+        """Runtime (min) of a pour: the release time, stretched by POUR_TIME_FACTOR,
+        plus the settling time, with half the particles on average."""
+        pour = self.config["pour"]
+        simulated = POUR_TIME_FACTOR * pour["n_particles"] / pour["rate"] + 0.1
+        return self.sim_runtime_min(simulated, pour["n_particles"] / 2, attempt)
+
+    def _relax_s(self):
+        """Simulated time of a relaxation: RELAX_TYPICAL_S, at most relax.max_time."""
+        return min(RELAX_TYPICAL_S, self.config["relax"]["max_time"])
+
+    def relax_runtime_min(self, wildcards, attempt):
+        """Runtime (min) of relaxing the full pile."""
+        return self.sim_runtime_min(self._relax_s(), self.config["pour"]["n_particles"], attempt)
+
+    def probe_runtime_min(self, wildcards, attempt):
+        """Runtime (min) of a probe: the gravity ramp, if any, or the support
+        stretch, and a relaxation."""
+        probe = self.config["probe"]
+        simulated = self._relax_s()
+        if wildcards.stage == STRETCH_STAGE:
+            simulated += probe["stretch_time"]
+        elif probe["mode"] == "ramp":
+            simulated += probe["ramp_time"]
+        return self.sim_runtime_min(simulated, self.config["pour"]["n_particles"], attempt)
+
+    def sim_mem_mb(self, wildcards, attempt):
+        """Memory (MB) of a simulation job, growing with the attempt (a job killed
+        for memory asks for more when resubmitted)."""
+        n = self.config["pour"]["n_particles"]
+        return attempt * math.ceil(SIM_MEM_BASE_MB + SIM_MEM_PER_PARTICLE_MB * n)
+
+    def check_size(self, mem_mb, local, warn):
+        """Refuse a pile whose job cannot fit in memory; warn about an absurdly long pour.
+
+        Parameters
+        ----------
+        mem_mb : float, Snakemake resource or None
+            Snakemake's ``--resources mem_mb`` (its number, or the resource
+            holding it as ``value``), if given: the limit.
+        local : bool
+            Whether the jobs run on this machine (its memory is the limit
+            without `mem_mb`) or on a cluster (CLUSTER_NODE_MEM_MB).
+        warn : callable
+            Called with the warning's text when a pour is estimated to take
+            longer than ABSURD_RUNTIME_MIN.
+
+        Raises
+        ------
+        ValueError
+            Naming pour.n_particles, the memory a job needs and the limit.
+        """
+        need, where = self.sim_mem_mb(None, 1), "--resources mem_mb"
+        mem_mb = getattr(mem_mb, "value", mem_mb)
+        if mem_mb is None and local:
+            mem_mb = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**20
+            where = "the memory of this machine"
+        elif mem_mb is None:
+            mem_mb, where = CLUSTER_NODE_MEM_MB, "the largest cluster node assumed"
+        n = self.config["pour"]["n_particles"]
+        if need > mem_mb:
+            raise ValueError(
+                f"pour.n_particles = {n}: a simulation job would need about {need:.0f} MB "
+                f"({SIM_MEM_BASE_MB} MB + {SIM_MEM_PER_PARTICLE_MB} MB per particle), more than "
+                f"{where} ({mem_mb:.0f} MB); pour fewer particles")
+        minutes = self.pour_runtime_min(None, 1)
+        if minutes > ABSURD_RUNTIME_MIN:
+            warn(f"pour.n_particles = {n}, pour.rate = {self.config['pour']['rate']}: each pour is "
+                 f"estimated to take {minutes / 1440:.0f} days on {self.threads} threads")
