@@ -6,15 +6,17 @@ with the command lines (workflow/commands.py) and the resources of the jobs
 
 import json
 import math
+import subprocess
+import sys
 from types import SimpleNamespace
 
 import pytest
-from workflow_config import configuration
+from workflow_config import REPO, configuration
 
 from workflow.commands import Commands
-from workflow.piles import Piles, Unrecorded, check, probe_input_stage
+from workflow.piles import Piles, Unrecorded, probe_input_stage
 from workflow.resources import ABSURD_RUNTIME_MIN, SimResources, per_attempt
-from workflow.validation import merge_configs
+from workflow.validation import check_problems, merge_configs
 
 
 def piles_of(**probe):
@@ -124,13 +126,13 @@ def test_a_configuration_the_stages_cannot_name_is_refused_naming_setting_and_va
     assert len(problems) == 1
     assert all(w in problems[0] for w in words), problems[0]
     with pytest.raises(ValueError, match="^invalid configuration:\n  probe"):
-        check(problems)
+        check_problems(problems)
 
 
 def test_the_configurations_of_the_repository_have_no_problem():
     for layers in ([], ["config/scenes/elastic_probes.yaml"], ["config/scenes/six_constants.yaml"]):
         assert Piles(configuration(*layers, base="config/config.yaml")).problems() == []
-    check([])
+    check_problems([])
 
 
 # --- command lines -------------------------------------------------------------
@@ -190,3 +192,13 @@ def test_a_pour_estimated_to_take_more_than_a_week_is_warned_about():
     assert len(warnings) == 1 and "pour.n_particles = 3500, pour.rate = 0.01" in warnings[0]
     SimResources(configuration(base="config/config.yaml")).check_size(None, False, warnings.append)
     assert len(warnings) == 1
+
+
+def test_the_workflows_modules_import_without_snakemake():
+    """Every module of workflow/ is plain Python: importable where Snakemake is not."""
+    modules = sorted(p.stem for p in (REPO / "workflow").glob("*.py"))
+    code = ("import sys; sys.modules['snakemake'] = None; import importlib; "
+            f"[importlib.import_module('workflow.' + m) for m in {modules!r}]")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert {"piles", "scene", "analysis_inputs", "numerics_piles", "resources", "commands", "reporting"} <= set(modules)

@@ -314,20 +314,3 @@ class Piles:
             )
         return problems
 
-
-def check(problems, what="configuration"):
-    """Raise when `problems` is not empty, listing each on its own line.
-
-    Parameters
-    ----------
-    problems : list of str
-    what : str
-        What is invalid, for the first line ("configuration", "scene").
-
-    Raises
-    ------
-    ValueError
-        ``invalid WHAT:`` followed by the problems.
-    """
-    if problems:
-        raise ValueError(f"invalid {what}:\n  " + "\n  ".join(problems))

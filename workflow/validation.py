@@ -17,7 +17,10 @@ allowed:
    :func:`analysis.params.resolve_params`): what a schema cannot express,
    such as ``relax.hold_time <= relax.max_time`` or an ordered grid.
 
-A job therefore never meets a setting that its program would refuse.
+A job therefore never meets a setting that its program would refuse. The
+workflow's own checks (its stage names, scenes and pile numerics:
+``problems()`` of the classes in workflow/piles.py, scene.py and
+numerics_piles.py) are raised by :func:`check_problems`.
 
 Before them, :func:`check_config_files` reads each ``--configfile`` again
 strictly (:func:`sim.settings_file.read_settings_file`): a key repeated in one
@@ -212,6 +215,24 @@ def validate_config(config):
             check()
         except ValueError as exc:
             raise ConfigurationError(f"invalid configuration: {exc}") from None
+
+
+def check_problems(problems, what="configuration"):
+    """Raise when `problems` is not empty, listing each on its own line.
+
+    Parameters
+    ----------
+    problems : list of str
+    what : str
+        What is invalid, for the first line ("configuration", "scene").
+
+    Raises
+    ------
+    ValueError
+        ``invalid WHAT:`` followed by the problems.
+    """
+    if problems:
+        raise ValueError(f"invalid {what}:\n  " + "\n  ".join(problems))
 
 
 def check_config_files(paths):

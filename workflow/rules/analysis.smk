@@ -6,7 +6,7 @@
 #   probe_stages(), extra_probe_stages()  the gravity reductions, and the tilts and restore
 #   ANALYSIS_DIGEST  digest of the analysis/*.py files (param `code`: code edits rerun the analysis)
 #   results_path(p)  p in the configuration's results folder (config `results`)
-#   PY, py_shell   the python executable and the helper that prefixes it to a shell command
+#   py_shell       the helper that prefixes the python executable to a shell command
 #   field_quantities()  the scene's optional quantities of the fields
 #   analysis_inputs  the analysis' inputs and settings (workflow/analysis_inputs.py), with
 #                  ANALYSIS_PARAMS, ANALYSIS_MEM_MB, labelled() and the general fit's protocols

@@ -22,10 +22,10 @@ from workflow.analysis_inputs import ANALYSIS_FIGURES, ANALYSIS_MEM_MB, Analysis
 from workflow.commands import Commands
 from workflow.digest import code_digest
 from workflow.numerics_piles import NumericsPiles
-from workflow.piles import PILE_STAGE_PATTERN, STAGE_PATTERN, Piles, Unrecorded, check, probe_input_stage
+from workflow.piles import PILE_STAGE_PATTERN, STAGE_PATTERN, Piles, Unrecorded, probe_input_stage
 from workflow.resources import SimResources, per_attempt
 from workflow.scene import Scene
-from workflow.validation import check_config_files, validate_config
+from workflow.validation import check_config_files, check_problems, validate_config
 
 # The --configfile files read again strictly: a repeated key, which YAML
 # reads as its last value, and an empty section laid over another file, which
@@ -40,7 +40,7 @@ REPO = Path(workflow.basedir).resolve()
 
 # --- the piles (workflow/piles.py) -----------------------------------------
 piles = Piles(config)
-check(piles.problems())
+check_problems(piles.problems())
 PROTOCOLS, seeds, results_path, RESULTS = piles.protocols, piles.seeds, piles.results_path, piles.results
 pile, pour_log, pour_checkpoint = piles.pile, piles.pour_log, piles.pour_checkpoint
 pile_frames, pile_film, pile_vtk, pile_figure = piles.pile_frames, piles.pile_film, piles.pile_vtk, piles.pile_figure
@@ -71,7 +71,7 @@ ANALYSIS_NUMERICS_DIGEST = f"{ANALYSIS_DIGEST}-{code_digest(REPO / 'analysis' / 
 commands = Commands(
     "python" if DeploymentMethod.CONDA in workflow.deployment_settings.deployment_method else sys.executable,
     REPO / ".numba_cache")
-PY, PY_SIM, sim_shell, py_shell = commands.python, commands.py_sim, commands.sim_shell, commands.py_shell
+sim_shell, py_shell = commands.sim_shell, commands.py_shell
 
 # --- resources of the simulation jobs (workflow/resources.py) --------------
 # Refuses, before any job, a pile whose job cannot fit in memory (--resources
@@ -85,8 +85,8 @@ sim_resources.check_size(workflow.global_resources.get("mem_mb"), workflow.local
 
 # --- the scene (workflow/scene.py) -----------------------------------------
 scene = Scene(piles)
-check(scene.problems(REPO), "scene")
-wants, has_probes, field_quantities = scene.wants, scene.has_probes, scene.field_quantities
+check_problems(scene.problems(REPO), "scene")
+wants, field_quantities = scene.wants, scene.field_quantities
 
 # --- the analysis (workflow/analysis_inputs.py) ----------------------------
 analysis_inputs = AnalysisInputs(scene, REPO)
@@ -98,7 +98,7 @@ analysis_targets = analysis_inputs.targets
 
 # --- the pile numerics (workflow/numerics_piles.py) ------------------------
 pile_numerics = NumericsPiles(piles)
-check(pile_numerics.problems())
+check_problems(pile_numerics.problems())
 NUMERICS_PILES, NUMERICS_ENSEMBLE, NUMERICS_DIR = pile_numerics.settings, pile_numerics.ensemble, pile_numerics.folder
 
 
