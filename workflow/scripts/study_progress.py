@@ -20,7 +20,7 @@ work is counted in CPU seconds: a stage not yet run costs the mean
 ``cpu_time`` of that stage in the Snakemake benchmark files
 (``{results}/benchmarks/{pour,relax,probe}/...tsv``) of the finished piles; the stage
 a running pile is in costs what the ETA of its log's last progress line
-(``sim.protocols.Progress``) says instead, when there is one. The cores it
+(``sim.progress.Progress``) says instead, when there is one. The cores it
 can use are the jobs that run side by side, ``cores // threads``, but no more
 than there are unfinished piles; and the study cannot end before its longest
 single pile. The share done is one less the work left over the work of the
@@ -65,7 +65,7 @@ LOG_TAIL_BYTES = 65536
 # The rule that makes each stage (workflow/rules/{pour,relax,probe}.smk).
 RULES = {"poured": "pour", "relaxed": "relax"}
 
-# Parts of a progress line of sim.protocols.Progress, e.g.
+# Parts of a progress line of sim.progress.Progress, e.g.
 # "pour wedge seed 3: released 2743 of 3500 (78 %), ETA 0:06:37; t = 31.9000 s
 #  simulated, about 3.2000 s to go, 4705393 steps, 1100 ns per particle-step" or
 # "relax ...: ETA at most 0:02:00; ..., 3500 particles, ..."; lines written
@@ -236,7 +236,7 @@ def benchmark_cpu(path):
 
 
 def parse_progress(line):
-    """ETA and particle count of a progress line of ``sim.protocols.Progress``.
+    """ETA and particle count of a progress line of ``sim.progress.Progress``.
 
     Parameters
     ----------
