@@ -149,9 +149,10 @@ def particle_pair_index(pi, pj, n):
     -------
     (numpy.ndarray, numpy.ndarray)
         ``offset`` (n + 1) and ``pairs``: the pairs of particle ``p`` are
-        ``pairs[offset[p]:offset[p + 1]]``, each as ``q`` where ``p`` is the
-        pair's ``i`` and as ``~q = -q - 1`` where it is its ``j`` (so the
-        force sums need not read the pair list).
+        ``pairs[offset[p]:offset[p + 1]]``, each as ``2 q`` where ``p`` is the
+        pair's ``i`` and as ``2 q + 1`` where it is its ``j`` (so the force
+        sums need not read the pair list, and take the side from the low bit
+        without a branch).
     """
     offset = np.zeros(n + 1, np.int64)
     for p in range(pi.shape[0]):
@@ -162,9 +163,9 @@ def particle_pair_index(pi, pj, n):
     fill = offset[:-1].copy()
     pairs = np.empty(offset[n], np.int64)
     for p in range(pi.shape[0]):
-        pairs[fill[pi[p]]] = p
+        pairs[fill[pi[p]]] = 2 * p
         fill[pi[p]] += 1
-        pairs[fill[pj[p]]] = ~p
+        pairs[fill[pj[p]]] = 2 * p + 1
         fill[pj[p]] += 1
     return offset, pairs
 

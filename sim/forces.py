@@ -10,10 +10,11 @@ A step is two parallel passes without write races:
    particle belongs to (in the fixed order of the broad phase's index, so the
    sum is deterministic), adds its contacts with the fixed bodies (support,
    walls; their spring history is per particle) and gravity, applies the
-   integrator's corrector (:func:`sim.integrators.nordsieck_correct`) and
-   then already the next step's predictor for this particle: its predicted
-   position and velocity (``Particles.pred``), world corners and bounding
-   box, while its data are in cache.
+   integrator's corrector and then already the next step's predictor for
+   this particle (:func:`sim.integrators.nordsieck_step`: its predicted
+   position and velocity, ``Particles.pred``), and after each block of
+   :data:`BLOCK` particles their world corners and bounding boxes
+   (:func:`_place_block`), while their data are in cache.
 
 ``Particles.r`` always holds the corrected state (what state files save);
 the prediction lives in ``pred`` (:func:`sim.integrators.nordsieck_predicted`,
@@ -67,8 +68,8 @@ from numba import njit, prange
 from .builds import build
 from .contact_law import (characteristic_length, elastic_force, normal_force,
                           reduced_mass, tangential_force, tangential_mass)
-from .geometry import halfplane_overlap_range, polygon_overlap_range
-from .integrators import nordsieck_correct, nordsieck_predict, nordsieck_predicted
+from .geometry import halfplane_overlap_range, polygon_overlap_range, rotation
+from .integrators import nordsieck_predicted, nordsieck_step
 from .warmstart import axis_separates, find_axis, find_crossings, overlap_from_crossings
 
 ROW = {"area": 0, "c1x": 1, "c1y": 2, "c2x": 3, "c2y": 4, "sx": 5, "sy": 6, "nx": 7,
@@ -76,7 +77,7 @@ ROW = {"area": 0, "c1x": 1, "c1y": 2, "c2x": 3, "c2y": 4, "sx": 5, "sy": 6, "nx"
        "ratio": 14, "active": 15}
 ROW_SIZE = 16
 GEOMETRY_SIZE = 10  # the narrow phase's part of a row (area .. length)
-PRED_SIZE = 6  # x, y, θ, r1x, r1y, r1θ of Particles.pred
+PRED_SIZE = 8  # x, y, θ, r1x, r1y, r1θ, cos θ, sin θ of Particles.pred
 BLOCK = 256  # particles per parallel work item of the predictor and the gather
 PAIR_BLOCK = 128  # pairs per parallel work item of the pair pass
 
@@ -87,7 +88,8 @@ Particles.__doc__ = """The particles' state and shapes (capacity-sized arrays).
 r : (n_values, 3, capacity) scaled derivatives of (x, y, θ)
 (:mod:`sim.integrators`), corrected; pred : (capacity, PRED_SIZE) the step's
 prediction of ``r_0`` and ``r_1`` (x, y, θ, then their scaled rates:
-velocity × dt); node_offset, node_x, node_y : CSR body-frame corners; wx, wy :
+velocity × dt) and the cosine and sine of its θ (one row of 64 bytes per
+particle); node_offset, node_x, node_y : CSR body-frame corners; wx, wy :
 world corners (of the prediction); box : (capacity, 4) bounding boxes (xmin,
 xmax, ymin, ymax); mass, inv_mass, inv_inertia, area : per particle.
 """
@@ -101,7 +103,8 @@ axis : (n_pairs,) separating edge, cross : (n_pairs, 4) crossing edges
 rows; force : (n_pairs, 4) the force on i (x, y) and the torques on i and j,
 zero where the pair does not touch (the gather's compact copy of the rows'
 force columns); offset, index : CSR list of the pairs of each particle
-(:func:`sim.broadphase.particle_pair_index`: ``~p`` where it is the pair's j).
+(:func:`sim.broadphase.particle_pair_index`: ``2 p`` where the particle is
+the pair's i, ``2 p + 1`` where it is its j).
 """
 
 Bodies = namedtuple("Bodies", "point normal friction spring out")
@@ -156,41 +159,53 @@ def predict_and_place(n, pt, motion, work):
     r, pred, node_offset, node_x, node_y, wx, wy, box = pt[:8]
     n_blocks = (n + BLOCK - 1) // BLOCK
     for blk in prange(n_blocks):
-        for i in range(blk * BLOCK, min(blk * BLOCK + BLOCK, n)):
+        start = blk * BLOCK
+        stop = min(start + BLOCK, n)
+        for i in range(start, stop):
             nordsieck_predicted(r, i, pred)
-            _place(pred, i, node_offset, node_x, node_y, wx, wy, box)
+        _place_block(start, stop, pred, node_offset, node_x, node_y, wx, wy, box)
 
 
 @njit(cache=True, inline="always")
-def _place(pred, i, node_offset, node_x, node_y, wx, wy, box):
-    """World corners and bounding box of particle i at its prediction ``pred[i]``.
+def _place_block(start, stop, pred, node_offset, node_x, node_y, wx, wy, box):
+    """World corners and bounding boxes of particles ``start .. stop - 1`` at
+    their predictions ``pred``.
 
-    Called right after :func:`sim.integrators.nordsieck_predicted`.  Both are
-    called from the kernels' loops themselves: wrapped in one more inlined
-    function, whose array arguments Numba then reference-counts at every
-    call, the prediction cost four times as much.
+    Two loops: first the rotation of every particle of the block
+    (:func:`sim.geometry.rotation`, into ``pred[i, 6:8]``), then the corners.
+    In one loop each particle's corners waited for its cosine and sine (a
+    chain of some 50 cycles the processor could not overlap with the next
+    particle's work); apart, successive rotations overlap and the corners
+    loop has no long chain.  Called from the kernels' loops themselves: wrapped in
+    one more inlined function, whose array arguments Numba then
+    reference-counts at every call, the prediction cost four times as much.
     """
-    x = pred[i, 0]
-    y = pred[i, 1]
-    c = math.cos(pred[i, 2])
-    s = math.sin(pred[i, 2])
-    x0 = np.inf
-    x1 = -np.inf
-    y0 = np.inf
-    y1 = -np.inf
-    for k in range(node_offset[i], node_offset[i + 1]):
-        px = x + c * node_x[k] - s * node_y[k]
-        py = y + s * node_x[k] + c * node_y[k]
-        wx[k] = px
-        wy[k] = py
-        x0 = min(x0, px)
-        x1 = max(x1, px)
-        y0 = min(y0, py)
-        y1 = max(y1, py)
-    box[i, 0] = x0
-    box[i, 1] = x1
-    box[i, 2] = y0
-    box[i, 3] = y1
+    for i in range(start, stop):
+        pred[i, 6], pred[i, 7] = rotation(pred[i, 2])
+    for i in range(start, stop):
+        x = pred[i, 0]
+        y = pred[i, 1]
+        c = pred[i, 6]
+        s = pred[i, 7]
+        x0 = np.inf
+        x1 = -np.inf
+        y0 = np.inf
+        y1 = -np.inf
+        # unsigned corner indices: Numba then indexes without its test for
+        # negative indices (three integer operations per array access)
+        for k in range(np.uint64(node_offset[i]), np.uint64(node_offset[i + 1])):
+            px = x + c * node_x[k] - s * node_y[k]
+            py = y + s * node_x[k] + c * node_y[k]
+            wx[k] = px
+            wy[k] = py
+            x0 = min(x0, px)
+            x1 = max(x1, px)
+            y0 = min(y0, py)
+            y1 = max(y1, py)
+        box[i, 0] = x0
+        box[i, 1] = x1
+        box[i, 2] = y0
+        box[i, 3] = y1
 
 
 @njit(cache=True, inline="always")
@@ -244,7 +259,7 @@ def _write_row(rows, p, geo, fx, fy, torque_i, torque_j, ratio):
     rows[p, 15] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _clip_pair(wx, wy, a0, a1, b0, b1, xi, yi, xj, yj, eps, geo, S, axis, cross, p):
     """The general narrow phase of pair p, for when its witness failed; finds a new one.
 
@@ -356,7 +371,7 @@ def pair_forces(pt, pairs, law, dt, work, record):
             force[p, 3] = tq_j
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _body_contact(b, i, pred, node_offset, wx, wy, inv_mass, inv_inertia, area, bodies,
                   law, dt, S, geo, record):
     """Force (x, y) and torque on particle i (at its prediction ``pred[i]``) from
@@ -437,7 +452,7 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
     spin_drag = motion.spin_drag
     gx = motion.gravity_x
     gy = motion.gravity_y
-    n_dof = 3 if motion.rotate else 2
+    rotate = motion.rotate
     n_bodies = point.shape[0]
     half_dt2 = 0.5 * dt * dt
     n_blocks = (n + BLOCK - 1) // BLOCK
@@ -446,21 +461,22 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
         S = scratch[tid]
         geo = geo_rows[tid]
         bm = 0.0
-        for i in range(blk * BLOCK, min(blk * BLOCK + BLOCK, n)):
+        start = blk * BLOCK
+        stop = min(start + BLOCK, n)
+        for i in range(start, stop):
             fx = mass[i] * gx
             fy = mass[i] * gy
             tq = 0.0
             for q in range(offset[i], offset[i + 1]):
-                p = index[q]
-                if p >= 0:  # i is the pair's i
-                    fx += force[p, 0]
-                    fy += force[p, 1]
-                    tq += force[p, 2]
-                else:  # i is the pair's j (index ~p)
-                    p = ~p
-                    fx -= force[p, 0]
-                    fy -= force[p, 1]
-                    tq += force[p, 3]
+                # index 2 p where i is pair p's i, 2 p + 1 where it is its j:
+                # the force on j is minus that on i (sign × force: the same bits
+                # as a subtraction), its torque the next column; no branch
+                side = index[q] & 1
+                p = index[q] >> 1
+                sign = 1.0 - 2.0 * side
+                fx += sign * force[p, 0]
+                fy += sign * force[p, 1]
+                tq += force[p, 2 + side]
             for b in range(n_bodies):
                 # the corner of i's box deepest into the body decides whether to clip
                 mx = normal[b, 0]
@@ -475,17 +491,23 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
                 fx += bfx
                 fy += bfy
                 tq += btq
-            nordsieck_predict(r, i, n_dof)
-            nordsieck_correct(r, i, half_dt2 * (fx * inv_mass[i] - drag * pred[i, 3] / dt),
-                              half_dt2 * (fy * inv_mass[i] - drag * pred[i, 4] / dt),
-                              half_dt2 * (tq * inv_inertia[i] - spin_drag * pred[i, 5] / dt),
-                              coeffs, n_dof)
+            nordsieck_step(r, i, 0, half_dt2 * (fx * inv_mass[i] - drag * pred[i, 3] / dt),
+                           coeffs, pred, not record)
+            nordsieck_step(r, i, 1, half_dt2 * (fy * inv_mass[i] - drag * pred[i, 4] / dt),
+                           coeffs, pred, not record)
+            if rotate:
+                nordsieck_step(r, i, 2,
+                               half_dt2 * (tq * inv_inertia[i] - spin_drag * pred[i, 5] / dt),
+                               coeffs, pred, not record)
+            elif not record:
+                # θ keeps its value (zero rates): its prediction is θ itself
+                pred[i, 2] = r[0, 2, i]
+                pred[i, 5] = 0.0
             dx = r[0, 0, i] - x_ref[i]
             dy = r[0, 1, i] - y_ref[i]
             bm = max(bm, dx * dx + dy * dy)
-            if not record:
-                nordsieck_predicted(r, i, pred)
-                _place(pred, i, node_offset, node_x, node_y, wx, wy, box)
+        if not record:
+            _place_block(start, stop, pred, node_offset, node_x, node_y, wx, wy, box)
         block_moved[blk] = bm
     # the blocks' maxima, not a reduction variable of the parallel loop:
     # reductions need Numba's reference counting, which the kernels go without

@@ -45,34 +45,11 @@ FLUSH_BELOW = 1e-200
 
 
 @njit(cache=True, inline="always")
-def nordsieck_predict(r, i, n_dof):
-    """Predictor ``r ← P r`` (Pascal triangle) of particle i, in place.
-
-    Applied as repeated in-place sweeps ``r_k += r_{k+1}``; serves both
-    integrators (Gear: six values, velocity Verlet: three).
-
-    Parameters
-    ----------
-    r : numpy.ndarray, shape (n_values, 3, capacity)
-        Scaled derivatives; particle i's are replaced by their prediction.
-    i : int
-        Particle.
-    n_dof : int
-        Degrees of freedom predicted: 2 (x, y) or 3 (x, y, θ).
-    """
-    nv = r.shape[0]
-    for d in range(n_dof):
-        for top in range(nv - 1, 0, -1):
-            for k in range(top - 1, nv - 1):
-                r[k, d, i] += r[k + 1, d, i]
-
-
-@njit(cache=True, inline="always")
 def nordsieck_predicted(r, i, pred):
     """The predicted values and scaled rates of particle i, leaving ``r`` as it is.
 
     Writes ``pred[i] = (x, y, θ, r_1x, r_1y, r_1θ)``: ``r_0`` and ``r_1`` of the
-    prediction, by the additions of :func:`nordsieck_predict`'s sweeps in
+    prediction, by the additions of :func:`nordsieck_step`'s sweeps in
     their order, written out for the two schemes (three values: velocity
     Verlet; six: Gear), so that they are bit for bit the values the corrector
     starts from.  (A loop over a scratch copy instead made Gear's predictor
@@ -105,23 +82,108 @@ def nordsieck_predicted(r, i, pred):
 
 
 @njit(cache=True, inline="always")
-def nordsieck_correct(r, i, new_x, new_y, new_t, coeffs, n_dof):
-    """Corrector ``r_k ← r_k + c_k (r2_new − r2_pred)`` of particle i.
+def nordsieck_step(r, i, d, new, coeffs, pred, predict_next):
+    """Predictor ``r ← P r``, corrector and, with ``predict_next``, the next
+    prediction of degree of freedom d of particle i.
 
-    ``new_x, new_y, new_t`` are the evaluated ``a dt² / 2`` of each degree of
-    freedom, ``coeffs`` the integrator's ``c_k`` (:func:`corrector_coefficients`).
-    Values of the third and higher derivatives below :data:`FLUSH_BELOW` are
-    set to zero (no subnormal arithmetic in particles without contacts).
+    The predictor is the Pascal triangle applied as repeated in-place sweeps
+    ``r_k += r_{k+1}`` (top down), the corrector ``r_k ← r_k + c_k (new −
+    r2_pred)`` with ``new`` the evaluated ``a dt² / 2`` and ``coeffs`` the
+    integrator's ``c_k`` (:func:`corrector_coefficients`); values of the third
+    and higher derivatives below :data:`FLUSH_BELOW` become zero (no subnormal
+    arithmetic in particles without contacts).  The next prediction is that of
+    :func:`nordsieck_predicted`, with the same additions in the same order.
+    All of it is done on the values held in registers and written once: through
+    ``r`` between the phases, every store would force the next phase to read
+    ``r`` again (the compiler cannot tell ``r`` from ``pred``).  Written out
+    for the two schemes (three values: velocity Verlet, six: Gear).
+
+    Parameters
+    ----------
+    r : numpy.ndarray, shape (n_values, 3, capacity)
+        Scaled derivatives; particle i's of d are replaced by the corrected ones.
+    i, d : int
+        Particle, degree of freedom (0, 1, 2: x, y, θ).
+    new : float
+        Evaluated ``a dt² / 2`` of d.
+    coeffs : numpy.ndarray
+        Corrector coefficients.
+    pred : numpy.ndarray, shape (capacity, 6)
+        With ``predict_next``, ``pred[i, d]`` and ``pred[i, 3 + d]`` receive the
+        next step's prediction of d and its scaled rate.
+    predict_next : bool
     """
-    nv = r.shape[0]
-    for d in range(n_dof):
-        new = new_x if d == 0 else (new_y if d == 1 else new_t)
-        delta = new - r[2, d, i]
-        for k in range(nv):
-            v = r[k, d, i] + coeffs[k] * delta
-            if k > 2 and abs(v) < FLUSH_BELOW:
-                v = 0.0
-            r[k, d, i] = v
+    if r.shape[0] == 3:
+        v0 = r[0, d, i]
+        v1 = r[1, d, i]
+        v2 = r[2, d, i]
+        v1 += v2
+        v0 += v1
+        v1 += v2
+        delta = new - v2
+        v0 = v0 + coeffs[0] * delta
+        v1 = v1 + coeffs[1] * delta
+        v2 = v2 + coeffs[2] * delta
+        r[0, d, i] = v0
+        r[1, d, i] = v1
+        r[2, d, i] = v2
+        if predict_next:
+            w1 = v1 + v2
+            pred[i, d] = v0 + w1
+            pred[i, 3 + d] = w1 + v2
+    else:
+        v0 = r[0, d, i]
+        v1 = r[1, d, i]
+        v2 = r[2, d, i]
+        v3 = r[3, d, i]
+        v4 = r[4, d, i]
+        v5 = r[5, d, i]
+        v4, v3, v2, v1, v0 = _pascal6(v0, v1, v2, v3, v4, v5)
+        delta = new - v2
+        v0 = v0 + coeffs[0] * delta
+        v1 = v1 + coeffs[1] * delta
+        v2 = v2 + coeffs[2] * delta
+        v3 = _flushed(v3 + coeffs[3] * delta)
+        v4 = _flushed(v4 + coeffs[4] * delta)
+        v5 = _flushed(v5 + coeffs[5] * delta)
+        r[0, d, i] = v0
+        r[1, d, i] = v1
+        r[2, d, i] = v2
+        r[3, d, i] = v3
+        r[4, d, i] = v4
+        r[5, d, i] = v5
+        if predict_next:
+            w4, w3, w2, w1, w0 = _pascal6(v0, v1, v2, v3, v4, v5)
+            pred[i, d] = w0
+            pred[i, 3 + d] = w1
+
+
+@njit(cache=True, inline="always")
+def _pascal6(v0, v1, v2, v3, v4, v5):
+    """``P r`` of six values by the sweeps ``r_k += r_{k+1}``; returns r4 .. r0
+    (r5 is unchanged)."""
+    v4 += v5
+    v3 += v4
+    v4 += v5
+    v2 += v3
+    v3 += v4
+    v4 += v5
+    v1 += v2
+    v2 += v3
+    v3 += v4
+    v4 += v5
+    v0 += v1
+    v1 += v2
+    v2 += v3
+    v3 += v4
+    v4 += v5
+    return v4, v3, v2, v1, v0
+
+
+@njit(cache=True, inline="always")
+def _flushed(v):
+    """``v``, or 0 where ``|v|`` is below :data:`FLUSH_BELOW`."""
+    return 0.0 if abs(v) < FLUSH_BELOW else v
 
 
 def corrector_coefficients(name: str) -> np.ndarray:
