@@ -67,7 +67,8 @@ def axis_separates(x, y, a0, a1, b0, b1, axis):
     py = y[e]
     ex = x[f] - px
     ey = y[f] - py
-    for q in range(v0, v1):
+    # unsigned: Numba indexes without its test for negative indices
+    for q in range(np.uint64(v0), np.uint64(v1)):
         if ex * (y[q] - py) - ey * (x[q] - px) >= 0.0:
             return False
     return True
@@ -212,7 +213,7 @@ def overlap_from_crossings(x, y, a0, a1, b0, b1, cax, cay, cbx, cby, eps, out, c
                 vy = y[p0 + k]
                 ex = x[q1 - 1]
                 ey = y[q1 - 1]
-                for m in range(q0, q1):
+                for m in range(np.uint64(q0), np.uint64(q1)):
                     if (x[m] - ex) * (vy - ey) - (y[m] - ey) * (vx - ex) < 0.0:
                         ok = False
                         break
