@@ -68,7 +68,7 @@ from numba import njit, prange
 from .builds import build
 from .contact_law import (characteristic_length, elastic_force, normal_force,
                           reduced_mass, tangential_force, tangential_mass)
-from .geometry import halfplane_overlap_range, polygon_overlap_range, rotation
+from .geometry import halfplane_overlap_range, polygon_overlap_range
 from .integrators import nordsieck_predicted, nordsieck_step
 from .warmstart import axis_separates, find_axis, find_crossings, overlap_from_crossings
 
@@ -171,17 +171,17 @@ def _place_block(start, stop, pred, node_offset, node_x, node_y, wx, wy, box):
     """World corners and bounding boxes of particles ``start .. stop - 1`` at
     their predictions ``pred``.
 
-    Two loops: first the rotation of every particle of the block
-    (:func:`sim.geometry.rotation`, into ``pred[i, 6:8]``), then the corners.
-    In one loop each particle's corners waited for its cosine and sine (a
-    chain of some 50 cycles the processor could not overlap with the next
-    particle's work); apart, successive rotations overlap and the corners
-    loop has no long chain.  Called from the kernels' loops themselves: wrapped in
+    Two loops: first the cosine and sine of every particle of the block
+    (into ``pred[i, 6:8]``), then the corners.  In one loop each particle's
+    corners waited for its cosine and sine (one call of libm's ``sincos``, a
+    chain the processor could not overlap with the next particle's work);
+    apart, the corners loop has no long chain.  Called from the kernels' loops themselves: wrapped in
     one more inlined function, whose array arguments Numba then
     reference-counts at every call, the prediction cost four times as much.
     """
     for i in range(start, stop):
-        pred[i, 6], pred[i, 7] = rotation(pred[i, 2])
+        pred[i, 6] = math.cos(pred[i, 2])
+        pred[i, 7] = math.sin(pred[i, 2])
     for i in range(start, stop):
         x = pred[i, 0]
         y = pred[i, 1]

@@ -94,8 +94,6 @@ work array is allocated on each call (slower).  The capacity must satisfy
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
@@ -108,7 +106,6 @@ __all__ = [
     "polygon_overlap_range",
     "halfplane_overlap",
     "halfplane_overlap_range",
-    "rotation",
     "world_corners",
 ]
 
@@ -821,63 +818,6 @@ def halfplane_overlap(ax, ay, px, py, mx, my, eps, out, scratch=None):
 # ---------------------------------------------------------------------------
 # body frame -> world frame
 # ---------------------------------------------------------------------------
-# Constants of the rotation's cosine and sine (fdlibm's, as in musl's
-# __sin.c, __cos.c and __rem_pio2.c): pi/2 in three parts whose first two
-# have 33 significant bits, so that k * part is exact for |k| < 2**20, and the
-# minimax polynomials of sin and cos on [-pi/4, pi/4].
-_TWO_OVER_PI = 6.36619772367581382433e-01
-_PIO2_1 = 1.57079632673412561417e+00
-_PIO2_2 = 6.07710050630396597660e-11
-_PIO2_3 = 2.02226624871116645580e-21
-_S1 = -1.66666666666666324348e-01
-_S2 = 8.33333333332248946124e-03
-_S3 = -1.98412698298579493134e-04
-_S4 = 2.75573137070700676789e-06
-_S5 = -2.50507602534068634195e-08
-_S6 = 1.58969099521155010221e-10
-_C1 = 4.16666666666666019037e-02
-_C2 = -1.38888888888741095749e-03
-_C3 = 2.48015872894767294178e-05
-_C4 = -2.75573143513906633035e-07
-_C5 = 2.08757232129817482790e-09
-_C6 = -1.13596475577881948265e-11
-
-
-@njit(cache=True, inline="always")
-def rotation(theta):
-    """``(cos θ, sin θ)`` in arithmetic only, for the kernels' loops.
-
-    The angle is reduced to ``x = θ − k π/2`` with ``|x| <= π/4`` (Cody–Waite,
-    π/2 in three parts), both polynomials are evaluated on ``x`` and the
-    quadrant ``k mod 4`` swaps and negates them.  Within 1 ulp of libm's
-    ``cos`` and ``sin`` for ``|θ| <= 100``, 2 ulp up to 1e5, except near
-    their zeros, where the error is below 1e-24 absolute (fdlibm's tail of the
-    reduced angle is left out; tested); beyond
-    ``|θ| ≈ 1.6e6`` the reduction is no longer exact and the error grows with
-    ``|θ|``.  Why not ``math.cos``, ``math.sin``: LLVM calls libm's
-    ``sincos`` for them, a call the loop over a block of particles
-    (:func:`sim.forces._place_block`) cannot overlap as well as these few
-    dozen operations without a call or a branch.  Plain IEEE arithmetic (no
-    fast-math), so the same bits on every thread and in every run.
-    """
-    k = math.floor(theta * _TWO_OVER_PI + 0.5)
-    x = ((theta - k * _PIO2_1) - k * _PIO2_2) - k * _PIO2_3
-    z = x * x
-    w = z * z
-    s = x + z * x * (_S1 + z * (_S2 + z * (_S3 + z * _S4) + z * w * (_S5 + z * _S6)))
-    r = z * (_C1 + z * (_C2 + z * _C3)) + w * w * (_C4 + z * (_C5 + z * _C6))
-    hz = 0.5 * z
-    u = 1.0 - hz
-    c = u + (((1.0 - u) - hz) + z * r)
-    q = int(k) & 3
-    if q & 1:
-        s, c = c, -s
-    if q & 2:
-        s = -s
-        c = -c
-    return c, s
-
-
 def world_corners(node_x, node_y, x, y, theta):
     """World coordinates of one particle's corners (numpy, for tests and tools).
 

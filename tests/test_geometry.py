@@ -5,7 +5,6 @@ and boundary intersections, exact rational arithmetic (fractions) for tiny
 overlaps, and hand-derived values for constructed degenerate configurations.
 """
 
-import math
 from fractions import Fraction
 
 import numpy as np
@@ -19,7 +18,6 @@ from sim.geometry import (
     make_scratch,
     polygon_overlap,
     polygon_overlap_range,
-    rotation,
     world_corners,
 )
 from sim.shapes import make_shapes
@@ -568,22 +566,6 @@ def test_world_corners_rotation_convention():
     wx, wy = world_corners([1.0, 0.0], [0.0, 1.0], 2.0, 3.0, np.pi / 2)
     np.testing.assert_allclose(wx, [2.0, 1.0], atol=1e-15)
     np.testing.assert_allclose(wy, [4.0, 3.0], atol=1e-15)
-
-
-@pytest.mark.parametrize("bound, ulps", [(100.0, 1), (1e5, 2)])
-def test_rotation_is_libm_cosine_and_sine_within_an_ulp_or_two(bound, ulps):
-    """The kernels' arithmetic cosine and sine against libm's (math.cos, math.sin),
-    at random angles and at multiples of pi/4 (where the quadrant changes):
-    within ``ulps`` ulp, or near a zero (without fdlibm's tail of the reduced
-    angle) within 1e-24 absolute, far below an ulp of any corner's position."""
-    rng = np.random.default_rng(7)
-    angles = np.concatenate([rng.uniform(-bound, bound, 20000),
-                             np.pi / 4 * np.arange(-400, 401), [0.0, -0.0, 1e-300]])
-    for t in angles:
-        c, s = rotation(t)
-        for got, want in ((c, math.cos(t)), (s, math.sin(t))):
-            assert abs(got - want) <= ulps * np.spacing(abs(want)) or \
-                abs(got - want) <= 1e-24, (t, got, want)
 
 
 # ---------------------------------------------------------------------------
