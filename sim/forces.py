@@ -421,7 +421,7 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
     ``motion.drag`` and ``motion.spin_drag`` (1/s) add the background damping
     ``−drag·m·v`` and ``−spin_drag·I·ω``: both ``relax.drag`` while relaxing,
     only the rotation's (``pour.spin_drag``) while pouring (see
-    :mod:`sim.protocols`); 0 otherwise.
+    :mod:`sim.relax` and :mod:`sim.pour`); 0 otherwise.
 
     Parameters
     ----------
