@@ -10,7 +10,7 @@ digest of the package's sources (:func:`source_digest`), under
 beside the package in a checkout, the user's cache folder when the package
 lies where the user cannot write, as in a system-wide install).  Numba
 keys a cached kernel by the modification time of its own file only, so a
-kernel of ``sim/forces.py`` that inlines a helper from ``sim/warmstart.py``
+kernel of ``sim/step.py`` that inlines a helper from ``sim/warmstart.py``
 would otherwise keep running the old helper after an edit.
 """
 

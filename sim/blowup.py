@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .energy import elastic_energy, kinetic_energy, potential_energy
-from .forces import ROW
+from .step import ROW
 
 #: How much :func:`sim.energy.elastic_energy` can underestimate the stored
 #: energy, as a fraction of itself.  For an overlap of area ``A ∝ d^p`` at

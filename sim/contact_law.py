@@ -1,7 +1,7 @@
 """The contact force law of the paper's Appendix, one function per formula.
 
 All functions are Numba kernels operating on scalars, called from the pair and
-body loops of :mod:`sim.forces`.  Notation (Appendix, Fig. 6): ``A`` overlap
+body loops of :mod:`sim.step`.  Notation (Appendix, Fig. 6): ``A`` overlap
 area, ``l`` characteristic length, ``n`` unit normal of the contact line
 pointing from particle i to particle j, ``t = (−n_y, n_x)`` the tangent,
 ``v_rel`` the velocity of i's material point at the force point ``s`` relative

@@ -7,7 +7,7 @@ import numpy as np
 
 from .broadphase import carry_history
 from .contact_law import tangential_stiffness
-from .forces import ROW, ROW_SIZE
+from .step import ROW, ROW_SIZE
 
 
 def contacts(state, scene):

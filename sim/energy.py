@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .contact_law import tangential_stiffness
-from .forces import ROW, ROW_SIZE
+from .step import ROW, ROW_SIZE
 
 
 def kinetic_energy(state, scene):

@@ -3,13 +3,13 @@
 The pieces, each a module: the state as a plain structure of arrays
 (:mod:`sim.state`) and the fixed scene (:mod:`sim.scene`); the integrator as
 an ``init, step`` pair over the state (:mod:`sim.integrate`) on the force
-kernels (:mod:`sim.forces`); the run loop (:mod:`sim.run_loop`), the
+kernels (:mod:`sim.step`); the run loop (:mod:`sim.run_loop`), the
 pair-list rebuild policy (:mod:`sim.rebuild`), the blow-up detector
 (:mod:`sim.blowup`), the energies (:mod:`sim.energy`) and the contacts
 (:mod:`sim.contacts`).  :class:`Simulation` ties them together for callers
 (the protocols, the state files, the numerical checks, the tests).
 
-The step does only the work the run needs (see :mod:`sim.forces`): no damping
+The step does only the work the run needs (see :mod:`sim.step`): no damping
 force when ``model.damping`` is 0, no tangential force or spring history
 between particles when ``model.friction`` is 0 (nor with the bodies when
 ``model.support_friction`` is 0), no body contacts without bodies, and no
@@ -25,7 +25,7 @@ import numba
 
 from . import blowup, contacts, energy, state as states
 from .config import ModelParams
-from .forces import Bodies, Law, Motion, Pairs, Particles
+from .step import Bodies, Law, Motion, Pairs, Particles
 from .integrate import integrator, load_derivatives
 from .rebuild import rebuild
 from .run_loop import run

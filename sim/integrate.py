@@ -3,7 +3,7 @@
 ``init(state, k, position, velocity)`` starts particle ``k`` in the scaled
 derivatives of the scene's integrator (:mod:`sim.integrators`);
 ``step(state, n_steps, kernel_state, parallel, rebuild_sq)`` advances the
-state by up to ``n_steps`` steps with the force kernels of :mod:`sim.forces`
+state by up to ``n_steps`` steps with the force kernels of :mod:`sim.step`
 (the law) and returns the steps done.  Both read the scene's time step when
 called, so a scene built for a time-step study may set its own step first.
 """
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .forces import KERNELS_PARALLEL, KERNELS_SERIAL, advance
+from .step import KERNELS_PARALLEL, KERNELS_SERIAL, advance
 from .integrators import scale_derivatives, unscale_derivatives
 
 

@@ -3,7 +3,7 @@
 The candidate pairs are those within the Verlet skin (:mod:`sim.broadphase`).
 The list is rebuilt before the next step once a particle has moved more than
 :data:`REBUILD_FRACTION` of the skin since the last build (the kernels report
-it, :func:`sim.forces.advance`), and after any change of the particle set or
+it, :func:`sim.step.advance`), and after any change of the particle set or
 a return to a snapshot.  Tangential springs and narrow-phase witnesses stay
 with their pairs across a rebuild.
 """
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .broadphase import candidate_pairs, carry_history, particle_pair_index
-from .forces import ROW_SIZE
+from .step import ROW_SIZE
 
 #: Displacement since the last build, as a fraction of the skin, that calls
 #: for a rebuild: two particles closing in on each other by that much each

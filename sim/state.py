@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .forces import BLOCK, PRED_SIZE, ROW_SIZE, Workspace
+from .step import BLOCK, PRED_SIZE, ROW_SIZE, Workspace
 from .geometry import make_scratch
 
 #: Length of each thread's narrow-phase output row (it needs GEOMETRY_SIZE):
@@ -64,7 +64,7 @@ class State:
         Tangential spring and contact row of each body and particle.
     wx, wy, box, pred, work
         The kernels' buffers: world corners, bounding boxes, predictions,
-        per-thread scratch (:class:`sim.forces.Workspace`).
+        per-thread scratch (:class:`sim.step.Workspace`).
     """
 
     n: int

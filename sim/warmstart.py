@@ -27,7 +27,7 @@ past a corner, more than two crossings, a contact line shorter than ``eps``)
 is left to the general kernel, after which the witness is found anew.
 
 The serial kernels that call these are compiled without Numba's reference
-counting (:data:`sim.forces.KERNELS_SERIAL`); with it, every array handed to an
+counting (:data:`sim.step.KERNELS_SERIAL`); with it, every array handed to an
 inlined helper is counted at every call (an atomic increment and decrement
 per array).  :func:`overlap_from_crossings` has a single exit with every value defined
 on every path (a value defined on some paths only gave wrong results in the

@@ -25,7 +25,7 @@ def warmup():
 
     Each scene runs with the serial kernels and, when this process has more
     than one thread, once more with the parallel ones (the two builds are
-    cached apart, :mod:`sim.forces`).
+    cached apart, :mod:`sim.step`).
     """
     t0 = time.monotonic()
     shapes = make_shapes(np.random.default_rng(0), 4)

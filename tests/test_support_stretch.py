@@ -28,7 +28,7 @@ from scenes import rectangle, scene
 from sim.config import SimConfig
 from sim.contact_law import tangential_stiffness
 from sim.engine import Simulation
-from sim.forces import ROW
+from sim.step import ROW
 from sim.io import save_state
 from sim.pour import GRAVITY, pile_shapes
 from sim.probe import probe_file, stretch_file, tilt_file

@@ -8,7 +8,7 @@ below the parallel threshold runs before the large one), as in a pour.
 
 The test judges what the threads did, not how fast: the pair pass gives
 each thread its own narrow-phase row (``Simulation.work.out[thread id]``,
-:mod:`sim.forces`), so after a step of a packing in contact the second
+:mod:`sim.step`), so after a step of a packing in contact the second
 thread's row holds a contact's geometry only if that thread computed pairs.
 The serial build runs on thread 0 alone and leaves the row zero.  Numba's
 schedulers (OpenMP, workqueue) give every thread its share of the loop, so a

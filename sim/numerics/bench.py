@@ -37,7 +37,7 @@ import numpy as np
 
 from ..config import ModelParams, ParticleParams, RelaxParams, SimConfig
 from ..engine import Simulation
-from ..forces import KERNELS_PARALLEL, KERNELS_SERIAL
+from ..step import KERNELS_PARALLEL, KERNELS_SERIAL
 from ..integrators import INTEGRATORS
 from ..io import load_simulation, read_state, save_state
 from ..relax import RelaxationError, relax
@@ -186,7 +186,7 @@ def kernel_shares(sim, steps):
     The kernels are called one by one from Python (with the build
     :meth:`Simulation.run` would use), each timed; the pair list is not
     rebuilt, so keep ``steps`` short of a rebuild.  The predictor runs inside
-    the gather's pass (:mod:`sim.forces`); its share is that of the same
+    the gather's pass (:mod:`sim.step`); its share is that of the same
     prediction timed alone each step (it only rewrites the prediction the
     gather made), and the gather's share is the rest of that pass.
 
