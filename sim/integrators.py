@@ -62,23 +62,10 @@ def nordsieck_predicted(r, i, pred):
             pred[i, d] = r[0, d, i] + r1
             pred[i, 3 + d] = r1 + r[2, d, i]
         else:
-            v1 = r[1, d, i]
-            v2 = r[2, d, i]
-            v3 = r[3, d, i]
-            v4 = r[4, d, i]
-            v5 = r[5, d, i]
-            v4 += v5
-            v3 += v4
-            v4 += v5
-            v2 += v3
-            v3 += v4
-            v4 += v5
-            v1 += v2
-            v2 += v3
-            v3 += v4
-            v4 += v5
-            pred[i, d] = r[0, d, i] + v1
-            pred[i, 3 + d] = v1 + v2
+            _, _, _, w1, w0 = _pascal6(r[0, d, i], r[1, d, i], r[2, d, i], r[3, d, i],
+                                       r[4, d, i], r[5, d, i])
+            pred[i, d] = w0
+            pred[i, 3 + d] = w1
 
 
 @njit(cache=True, inline="always")
