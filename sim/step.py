@@ -419,9 +419,7 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
     next step's predictor.
 
     ``motion.drag`` and ``motion.spin_drag`` (1/s) add the background damping
-    ``−drag·m·v`` and ``−spin_drag·I·ω``: both ``relax.drag`` while relaxing,
-    only the rotation's (``pour.spin_drag``) while pouring (see
-    :mod:`sim.relax` and :mod:`sim.pour`); 0 otherwise.
+    ``−drag·m·v`` and ``−spin_drag·I·ω`` (when each is set: :class:`Motion`).
 
     Parameters
     ----------
