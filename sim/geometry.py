@@ -334,6 +334,70 @@ def write_contact(out, area, c1x, c1y, c2x, c2y, nx, ny, ox, oy):
 # polygon - polygon
 # ---------------------------------------------------------------------------
 @njit(cache=True, inline="always")
+def _clip_step(S, src, dst, n):
+    """Cut the labelled polygon in rows ``src..src+2`` of ``S`` at one edge line of ``b``.
+
+    Row 6 of ``S`` holds the vertices' signed distances to the line (``>= 0``
+    inside).  The part inside is written to rows ``dst..dst+2``; a vertex
+    where the boundary leaves the half-plane starts an edge along ``b``'s
+    line (label 1.0).
+
+    Returns
+    -------
+    tuple of (int, float, float, float, float)
+        ``m``, the number of vertices written, and their bounding box
+        ``x0, x1, y0, y1``.
+    """
+    m = 0
+    kp = n - 1
+    dp = S[6, kp]
+    x0 = np.inf
+    x1 = -np.inf
+    y0 = np.inf
+    y1 = -np.inf
+    for k in range(n):
+        dq = S[6, k]
+        if dq >= 0.0:
+            if dp < 0.0:  # entering: crossing on the edge kp -> k
+                t = dp / (dp - dq)
+                u = S[src, kp] + t * (S[src, k] - S[src, kp])
+                v = S[src + 1, kp] + t * (S[src + 1, k] - S[src + 1, kp])
+                S[dst, m] = u
+                S[dst + 1, m] = v
+                S[dst + 2, m] = S[src + 2, kp]
+                x0 = min(x0, u)
+                x1 = max(x1, u)
+                y0 = min(y0, v)
+                y1 = max(y1, v)
+                m += 1
+            u = S[src, k]
+            v = S[src + 1, k]
+            S[dst, m] = u
+            S[dst + 1, m] = v
+            S[dst + 2, m] = S[src + 2, k]
+            x0 = min(x0, u)
+            x1 = max(x1, u)
+            y0 = min(y0, v)
+            y1 = max(y1, v)
+            m += 1
+        elif dp >= 0.0:  # leaving: continue along b's edge line
+            t = dp / (dp - dq)
+            u = S[src, kp] + t * (S[src, k] - S[src, kp])
+            v = S[src + 1, kp] + t * (S[src + 1, k] - S[src + 1, kp])
+            S[dst, m] = u
+            S[dst + 1, m] = v
+            S[dst + 2, m] = 1.0
+            x0 = min(x0, u)
+            x1 = max(x1, u)
+            y0 = min(y0, v)
+            y1 = max(y1, v)
+            m += 1
+        kp = k
+        dp = dq
+    return m, x0, x1, y0, y1
+
+
+@njit(cache=True, inline="always")
 def _clip(ax, ay, a0, a1, bx, by, b0, b1, ox, oy, gx, gy, S):
     """Clip polygon ``a`` by the closed half-planes of ``b``'s edges.
 
@@ -417,53 +481,7 @@ def _clip(ax, ay, a0, a1, bx, by, b0, b1, ox, oy, gx, gy, S):
             _fail(4)
             return 0, src
         dst = 3 - src
-        m = 0
-        kp = n - 1
-        dp = S[6, kp]
-        x0 = np.inf
-        x1 = -np.inf
-        y0 = np.inf
-        y1 = -np.inf
-        for k in range(n):
-            dq = S[6, k]
-            if dq >= 0.0:
-                if dp < 0.0:  # entering: crossing on the edge kp -> k
-                    t = dp / (dp - dq)
-                    u = S[src, kp] + t * (S[src, k] - S[src, kp])
-                    v = S[src + 1, kp] + t * (S[src + 1, k] - S[src + 1, kp])
-                    S[dst, m] = u
-                    S[dst + 1, m] = v
-                    S[dst + 2, m] = S[src + 2, kp]
-                    x0 = min(x0, u)
-                    x1 = max(x1, u)
-                    y0 = min(y0, v)
-                    y1 = max(y1, v)
-                    m += 1
-                u = S[src, k]
-                v = S[src + 1, k]
-                S[dst, m] = u
-                S[dst + 1, m] = v
-                S[dst + 2, m] = S[src + 2, k]
-                x0 = min(x0, u)
-                x1 = max(x1, u)
-                y0 = min(y0, v)
-                y1 = max(y1, v)
-                m += 1
-            elif dp >= 0.0:  # leaving: continue along b's edge line
-                t = dp / (dp - dq)
-                u = S[src, kp] + t * (S[src, k] - S[src, kp])
-                v = S[src + 1, kp] + t * (S[src + 1, k] - S[src + 1, kp])
-                S[dst, m] = u
-                S[dst + 1, m] = v
-                S[dst + 2, m] = 1.0
-                x0 = min(x0, u)
-                x1 = max(x1, u)
-                y0 = min(y0, v)
-                y1 = max(y1, v)
-                m += 1
-            kp = k
-            dp = dq
-        n = m
+        n, x0, x1, y0, y1 = _clip_step(S, src, dst, n)
         src = dst
         if n < 3:
             return 0, src
