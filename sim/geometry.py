@@ -522,6 +522,26 @@ def orient_normal(nx, ny, gx, gy, S, r, n, smx, smy, eps):
 
 
 @njit(cache=True, inline="always")
+def _near_both(ax, ay, a0, a1, bx, by, b0, b1, ox, oy, eps, S, r, n, r_idx):
+    """List the vertices of the overlap polygon within ``eps`` of both boundaries.
+
+    The overlap has ``n`` vertices in rows ``r, r+1`` of ``S`` (local
+    coordinates, origin ``(ox, oy)``); ``a`` and ``b`` are as for
+    :func:`polygon_overlap_range`.  The indices of the vertices found are
+    written to row ``r_idx`` of ``S`` (as floats); returns their number.
+    """
+    m = 0
+    for k in range(n):
+        vx = S[r, k]
+        vy = S[r + 1, k]
+        if (_min_edge_distance(vx, vy, ax, ay, a0, a1, ox, oy) <= eps
+                and _min_edge_distance(vx, vy, bx, by, b0, b1, ox, oy) <= eps):
+            S[r_idx, m] = k
+            m += 1
+    return m
+
+
+@njit(cache=True, inline="always")
 def polygon_overlap_range(ax, ay, a0, a1, bx, by, b0, b1, cax, cay, cbx, cby, eps, out,
                           scratch):
     """Overlap geometry of the convex polygons ``a = ax[a0:a1]`` and ``b = bx[b0:b1]``.
@@ -589,14 +609,7 @@ def polygon_overlap_range(ax, ay, a0, a1, bx, by, b0, b1, cax, cay, cbx, cby, ep
         i, j, d2 = _farthest_pair(scratch, r, r_idx, m)
     if not (d2 > eps * eps):
         # fall-back: overlap vertices within eps of both boundaries
-        m = 0
-        for k in range(n):
-            vx = scratch[r, k]
-            vy = scratch[r + 1, k]
-            if (_min_edge_distance(vx, vy, ax, ay, a0, a1, ox, oy) <= eps
-                    and _min_edge_distance(vx, vy, bx, by, b0, b1, ox, oy) <= eps):
-                scratch[r_idx, m] = k
-                m += 1
+        m = _near_both(ax, ay, a0, a1, bx, by, b0, b1, ox, oy, eps, scratch, r, n, r_idx)
         i, j, d2 = _farthest_pair(scratch, r, r_idx, m)
     gx = cbx - cax
     gy = cby - cay
