@@ -688,6 +688,49 @@ def polygon_overlap(ax, ay, bx, by, cax, cay, cbx, cby, eps, out, scratch=None):
 # polygon - half-plane
 # ---------------------------------------------------------------------------
 @njit(cache=True, inline="always")
+def _cut_at_line(ax, ay, a0, na, ox, oy, S):
+    """Write the part of the polygon ``ax[a0:a0+na]`` inside the half-plane body to ``S``.
+
+    Row 6 of ``S`` holds the corners' depths below the line (``>= 0``
+    inside).  The part inside goes to rows 0, 1, 2 (x, y, label) in local
+    coordinates (origin ``(ox, oy)``); label 0.0 for an edge of the
+    polygon, 1.0 for the edge along the line.  Returns the number of its
+    vertices.
+    """
+    m = 0
+    kp = na - 1
+    dp = S[6, kp]
+    for k in range(na):
+        dq = S[6, k]
+        qx = ax[a0 + k] - ox
+        qy = ay[a0 + k] - oy
+        if dq >= 0.0:
+            if dp < 0.0:
+                t = dp / (dp - dq)
+                rx = ax[a0 + kp] - ox
+                ry = ay[a0 + kp] - oy
+                S[0, m] = rx + t * (qx - rx)
+                S[1, m] = ry + t * (qy - ry)
+                S[2, m] = 0.0
+                m += 1
+            S[0, m] = qx
+            S[1, m] = qy
+            S[2, m] = 0.0
+            m += 1
+        elif dp >= 0.0:
+            t = dp / (dp - dq)
+            rx = ax[a0 + kp] - ox
+            ry = ay[a0 + kp] - oy
+            S[0, m] = rx + t * (qx - rx)
+            S[1, m] = ry + t * (qy - ry)
+            S[2, m] = 1.0
+            m += 1
+        kp = k
+        dp = dq
+    return m
+
+
+@njit(cache=True, inline="always")
 def halfplane_overlap_range(ax, ay, a0, a1, px, py, mx, my, eps, out, scratch):
     """Overlap of the convex polygon ``ax[a0:a1]`` with a solid half-plane body.
 
@@ -738,37 +781,7 @@ def halfplane_overlap_range(ax, ay, a0, a1, px, py, mx, my, eps, out, scratch):
         n_in += d >= 0.0
     if n_in == 0:
         return False
-    m = 0
-    kp = na - 1
-    dp = S[6, kp]
-    for k in range(na):
-        dq = S[6, k]
-        qx = ax[a0 + k] - ox
-        qy = ay[a0 + k] - oy
-        if dq >= 0.0:
-            if dp < 0.0:
-                t = dp / (dp - dq)
-                rx = ax[a0 + kp] - ox
-                ry = ay[a0 + kp] - oy
-                S[0, m] = rx + t * (qx - rx)
-                S[1, m] = ry + t * (qy - ry)
-                S[2, m] = 0.0
-                m += 1
-            S[0, m] = qx
-            S[1, m] = qy
-            S[2, m] = 0.0
-            m += 1
-        elif dp >= 0.0:
-            t = dp / (dp - dq)
-            rx = ax[a0 + kp] - ox
-            ry = ay[a0 + kp] - oy
-            S[0, m] = rx + t * (qx - rx)
-            S[1, m] = ry + t * (qy - ry)
-            S[2, m] = 1.0
-            m += 1
-        kp = k
-        dp = dq
-    n = m
+    n = _cut_at_line(ax, ay, a0, na, ox, oy, S)
     if n < 3:
         return False
     area, m, i, j = _area_and_crossings(S, 0, n, 3)
