@@ -140,6 +140,59 @@ def _edge_crossing(x, y, a0, a1, ka, b0, b1, kb, entering, ox, oy):
 
 
 @njit(cache=True, inline="always")
+def _arcs_area(x, y, a0, a1, b0, b1, ka_in, kb_in, ka_out, kb_out, ox, oy, x1, y1, tx, ty):
+    """Test the corners between the crossings and sum the overlap's shoelace area.
+
+    The corners of ``a`` from edge ``ka_in`` to ``ka_out`` must lie inside
+    ``b``, those of ``b`` from edge ``kb_out`` to ``kb_in`` inside ``a``
+    (module docstring).  ``(x1, y1)`` is the entry point relative to
+    ``(ox, oy)``, ``(tx, ty)`` the exit point relative to the entry.
+
+    Returns
+    -------
+    (bool, float)
+        Whether every corner passed, and twice the overlap's area (partial
+        when a corner failed).  One exit, like :func:`overlap_from_crossings`.
+    """
+    na = a1 - a0
+    nb = b1 - b0
+    ok = True
+    # shoelace over X1, a's corners inside b, X2, b's corners inside a
+    # (relative to X1): the two arcs in turn, each corner tested against
+    # the other polygon
+    a2 = 0.0
+    qx = 0.0
+    qy = 0.0
+    for side in range(2):
+        if side == 0:
+            p0, n, k, k_to, q0, q1 = a0, na, ka_in, ka_out, b0, b1
+        else:
+            p0, n, k, k_to, q0, q1 = b0, nb, kb_out, kb_in, a0, a1
+        while ok and k != k_to:
+            k = k + 1 if k + 1 < n else 0
+            vx = x[p0 + k]
+            vy = y[p0 + k]
+            ex = x[q1 - 1]
+            ey = y[q1 - 1]
+            for m in range(np.uint64(q0), np.uint64(q1)):
+                if (x[m] - ex) * (vy - ey) - (y[m] - ey) * (vx - ex) < 0.0:
+                    ok = False
+                    break
+                ex = x[m]
+                ey = y[m]
+            vx = (vx - ox) - x1
+            vy = (vy - oy) - y1
+            a2 += qx * vy - vx * qy
+            qx = vx
+            qy = vy
+        if side == 0:
+            a2 += qx * ty - tx * qy
+            qx = tx
+            qy = ty
+    return ok, a2
+
+
+@njit(cache=True, inline="always")
 def overlap_from_crossings(x, y, a0, a1, b0, b1, cax, cay, cbx, cby, eps, out, cross, p):
     """Overlap geometry of ``a = [a0, a1)`` and ``b = [b0, b1)`` from the crossing
     edges ``cross[p]`` of the last step, if they still describe it.
@@ -196,38 +249,8 @@ def overlap_from_crossings(x, y, a0, a1, b0, b1, cax, cay, cbx, cby, eps, out, c
     if ok:
         tx = x2 - x1
         ty = y2 - y1
-        # shoelace over X1, a's corners inside b, X2, b's corners inside a
-        # (relative to X1): the two arcs in turn, each corner tested against
-        # the other polygon
-        a2 = 0.0
-        qx = 0.0
-        qy = 0.0
-        for side in range(2):
-            if side == 0:
-                p0, n, k, k_to, q0, q1 = a0, na, ka_in, ka_out, b0, b1
-            else:
-                p0, n, k, k_to, q0, q1 = b0, nb, kb_out, kb_in, a0, a1
-            while ok and k != k_to:
-                k = k + 1 if k + 1 < n else 0
-                vx = x[p0 + k]
-                vy = y[p0 + k]
-                ex = x[q1 - 1]
-                ey = y[q1 - 1]
-                for m in range(np.uint64(q0), np.uint64(q1)):
-                    if (x[m] - ex) * (vy - ey) - (y[m] - ey) * (vx - ex) < 0.0:
-                        ok = False
-                        break
-                    ex = x[m]
-                    ey = y[m]
-                vx = (vx - ox) - x1
-                vy = (vy - oy) - y1
-                a2 += qx * vy - vx * qy
-                qx = vx
-                qy = vy
-            if side == 0:
-                a2 += qx * ty - tx * qy
-                qx = tx
-                qy = ty
+        ok, a2 = _arcs_area(x, y, a0, a1, b0, b1, ka_in, kb_in, ka_out, kb_out, ox, oy,
+                            x1, y1, tx, ty)
         d2 = tx * tx + ty * ty
         ok = ok and 0.5 * a2 > eps * eps and d2 > eps * eps
     if ok:
