@@ -25,12 +25,12 @@ import numba
 
 from . import blowup, contacts, energy, state as states
 from .config import ModelParams
-from .step import Bodies, Law, Motion, Pairs, Particles
 from .integrate import integrator, load_derivatives
 from .rebuild import rebuild
 from .run_loop import run
 from .scene import Scene, make_scene
 from .state import Snapshot, State
+from .step import Bodies, Law, Motion, Pairs, Particles
 
 
 class _Field:

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .step import KERNELS_PARALLEL, KERNELS_SERIAL, advance
 from .integrators import scale_derivatives, unscale_derivatives
+from .step import KERNELS_PARALLEL, KERNELS_SERIAL, advance
 
 
 def integrator(scene):
