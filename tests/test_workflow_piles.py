@@ -14,7 +14,7 @@ import pytest
 from workflow_config import REPO, configuration
 
 from workflow.commands import Commands
-from workflow.piles import Piles, Unrecorded, probe_input_stage
+from workflow.piles import Piles, Unrecorded, probe_input_stage, stage_rule
 from workflow.resources import ABSURD_RUNTIME_MIN, SimResources, per_attempt
 from workflow.validation import check_problems, merge_configs
 
@@ -52,6 +52,12 @@ def test_without_extra_probes_a_pile_has_poured_relaxed_and_its_reductions():
     assert piles.all_stages() == ["poured", "relaxed", "reduced"]
 
 
+def test_a_pile_is_finished_with_every_probe_or_else_relaxed():
+    assert piles_of(levels=[0.1], tilts=[0.05], stretch=0.0, restore=True).final_stages() == [
+        "reduced", "tiltp05", "tiltm05", "restored"]
+    assert piles_of(levels=[], tilts=[], stretch=0.0, restore=False).final_stages() == ["relaxed"]
+
+
 # --- files -----------------------------------------------------------------
 
 def test_every_file_of_a_pile_lies_in_the_configurations_results_folder():
@@ -63,6 +69,20 @@ def test_every_file_of_a_pile_lies_in_the_configurations_results_folder():
     for path in (piles.pour_log("wedge", 1), piles.pour_checkpoint("wedge", 1), piles.pile_frames("wedge", 1),
                  piles.pile_vtk("wedge", 1, "relaxed"), piles.run_times_table, *piles.pile_benchmarks()):
         assert path.startswith("results/smoke/")
+
+
+def test_the_log_and_benchmark_of_a_stages_job_are_named_by_its_rule():
+    piles = Piles(configuration())        # config/smoke.yaml: results/smoke
+    assert [stage_rule(s) for s in ("poured", "relaxed", "reduced", "tiltm05", "{stage}")] == [
+        "pour", "relax", "probe", "probe", "probe"]
+    assert piles.stage_log("wedge", 3, "poured") == piles.pour_log("wedge", 3) == "results/smoke/logs/pour/wedge/seed3.log"
+    assert piles.stage_log("wedge", 3, "relaxed") == "results/smoke/logs/relax/wedge/seed3.log"
+    assert piles.stage_benchmark("wedge", 3, "poured") == "results/smoke/benchmarks/pour/wedge/seed3.tsv"
+    assert piles.stage_benchmark("layered", 1, "tiltm05") == "results/smoke/benchmarks/probe/layered/seed1_tiltm05.tsv"
+    # with the wildcards: the patterns of rule probe's log: and benchmark:
+    assert piles.stage_log("{protocol}", "{seed}", "{stage}") == "results/smoke/logs/probe/{protocol}/seed{seed}_{stage}.log"
+    assert piles.stage_benchmark("{protocol}", "{seed}", "{stage}") == (
+        "results/smoke/benchmarks/probe/{protocol}/seed{seed}_{stage}.tsv")
 
 
 def test_the_targets_are_every_stage_of_every_pile_wedge_first():

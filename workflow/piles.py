@@ -23,6 +23,9 @@ PILE_STAGE_PATTERN = rf"poured|relaxed|{STAGE_PATTERN}"
 #: its job reads them, and only it gets them (:meth:`Piles.probe_sim_params`).
 STRETCH_STAGE = "stretched"
 STRETCH_KEYS = ("stretch", "stretch_time")
+#: The rules that make the stages no probe makes (workflow/rules/pour.smk,
+#: relax.smk); rule probe (probe.smk) makes every other stage.
+STAGE_RULES = {"poured": "pour", "relaxed": "relax"}
 
 
 class Unrecorded:
@@ -56,6 +59,12 @@ def tilt_stage(tilt):
         ``tiltpNN`` for tilt > 0, ``tiltmNN`` for tilt < 0, NN = round(100 |tilt|).
     """
     return f"tilt{'p' if tilt > 0 else 'm'}{round(100 * abs(float(tilt))):02d}"
+
+
+def stage_rule(stage):
+    """The rule that makes `stage`: ``pour``, ``relax``, or ``probe`` for any
+    other stage (the rules' wildcard ``"{stage}"`` included)."""
+    return STAGE_RULES.get(stage, "probe")
 
 
 def probe_input_stage(stage):
@@ -105,12 +114,33 @@ class Piles:
         """Path of a particle-state file (docs/formats.md#state-files)."""
         return self.results_path(f"piles/{protocol}/seed{seed}/{stage}.nc")
 
+    def _job_file(self, folder, protocol, seed, stage, suffix):
+        """Path of a file of the job making `stage` in `folder` (``logs``,
+        ``benchmarks``): ``{folder}/{rule}/{protocol}/seed{seed}.{suffix}``
+        for a pour or relaxation, ``seed{seed}_{stage}`` for a probe."""
+        rule = stage_rule(stage)
+        job = f"seed{seed}_{stage}" if rule == "probe" else f"seed{seed}"
+        return self.results_path(f"{folder}/{rule}/{protocol}/{job}.{suffix}")
+
+    def stage_log(self, protocol, seed, stage):
+        """The log with the progress lines of the job making `stage`
+        (study_progress.py reads them): the rule's ``log:`` for a relaxation
+        or a probe, the pile's :meth:`pour_log` for ``poured``. With the
+        wildcards ``"{protocol}", "{seed}"`` and a stage (or ``"{stage}"``)
+        it is the pattern the rules name."""
+        return self._job_file("logs", protocol, seed, stage, "log")
+
+    def stage_benchmark(self, protocol, seed, stage):
+        """The benchmark file (the rule's ``benchmark:``) of the job making
+        `stage`, also as a pattern with wildcards as :meth:`stage_log`."""
+        return self._job_file("benchmarks", protocol, seed, stage, "tsv")
+
     def pour_log(self, protocol, seed):
         """The pile's pour log: the lines of every run of its pour that held the
         pour's lock, each run from a line "pour P seed S: started by process
         HOST PID" (the simulator's --log; study_progress.py reads its progress
-        lines)."""
-        return self.results_path(f"logs/pour/{protocol}/seed{seed}.log")
+        lines). Not the pour rule's ``log:``, which holds what one job printed."""
+        return self.stage_log(protocol, seed, "poured")
 
     def pour_checkpoint(self, protocol, seed):
         """Checkpoint of a running pour. Deliberately not a Snakemake output: it
@@ -240,6 +270,12 @@ class Piles:
         """Every stage of a pile: poured, relaxed and every probe."""
         return ["poured", "relaxed"] + self.probe_stages() + self.extra_probe_stages()
 
+    def final_stages(self):
+        """The stages a pile makes last, whose files make it finished: every
+        probe (:meth:`all_stages` after ``relaxed``), or ``relaxed`` when there
+        is none."""
+        return self.all_stages()[2:] or ["relaxed"]
+
     def pile_targets(self, stages=None):
         """All particle-state files of the configured piles (default: every stage)."""
         stages = self.all_stages() if stages is None else stages
@@ -251,14 +287,8 @@ class Piles:
 
     def pile_benchmarks(self):
         """Benchmark files of every simulation job of the piles (pour, relax, each probe)."""
-        return [
-            path
-            for protocol, seed in self.each()
-            for path in [self.results_path(f"benchmarks/pour/{protocol}/seed{seed}.tsv"),
-                         self.results_path(f"benchmarks/relax/{protocol}/seed{seed}.tsv")]
-            + [self.results_path(f"benchmarks/probe/{protocol}/seed{seed}_{stage}.tsv")
-               for stage in self.probe_stages() + self.extra_probe_stages()]
-        ]
+        return [self.stage_benchmark(protocol, seed, stage)
+                for protocol, seed in self.each() for stage in self.all_stages()]
 
     # --- checks ----------------------------------------------------------
 

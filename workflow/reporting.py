@@ -118,8 +118,8 @@ def piles_made(piles, analysis_seeds):
         there = sum(len(analysis_seeds(p)) for p in piles.protocols)
         return (f"from the per-pile results committed under {config['committed']}/ "
                 f"({there} of the {total} piles recorded)")
-    last = piles.probe_stages() + piles.extra_probe_stages() or ["relaxed"]
-    there = sum(all(os.path.exists(piles.pile(p, s, st)) for st in last) for p, s in piles.each())
+    there = sum(all(os.path.exists(piles.pile(p, s, st)) for st in piles.final_stages())
+                for p, s in piles.each())
     return f"{there} of {total} piles of {config['pour']['n_particles']} particles made so far"
 
 

@@ -43,6 +43,7 @@ piles = Piles(config)
 check_problems(piles.problems())
 PROTOCOLS, seeds, results_path, RESULTS = piles.protocols, piles.seeds, piles.results_path, piles.results
 pile, pour_log, pour_checkpoint = piles.pile, piles.pour_log, piles.pour_checkpoint
+stage_log, stage_benchmark = piles.stage_log, piles.stage_benchmark
 pile_frames, pile_film, pile_vtk, pile_figure = piles.pile_frames, piles.pile_film, piles.pile_vtk, piles.pile_figure
 probe_stages, extra_probe_stages, probe_change = piles.probe_stages, piles.extra_probe_stages, piles.probe_change
 sim_params, probe_sim_params, sim_bookkeeping = piles.sim_params, piles.probe_sim_params, piles.sim_bookkeeping

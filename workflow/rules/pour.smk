@@ -50,7 +50,7 @@ rule pour:
         # pour's log before the simulator's lock refused it
         results_path("logs/pour/{protocol}/seed{seed}.job.log"),
     benchmark:
-        results_path("benchmarks/pour/{protocol}/seed{seed}.tsv")
+        stage_benchmark("{protocol}", "{seed}", "poured")
     threads: SIM_THREADS
     resources:
         mem_mb=sim_mem_mb,

@@ -22,9 +22,9 @@ rule probe:
         bookkeeping=sim_bookkeeping(),
         change=lambda wildcards: probe_change(wildcards.stage),
     log:
-        results_path("logs/probe/{protocol}/seed{seed}_{stage}.log"),
+        stage_log("{protocol}", "{seed}", "{stage}"),
     benchmark:
-        results_path("benchmarks/probe/{protocol}/seed{seed}_{stage}.tsv")
+        stage_benchmark("{protocol}", "{seed}", "{stage}")
     threads: SIM_THREADS
     resources:
         mem_mb=sim_mem_mb,

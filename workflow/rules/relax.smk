@@ -12,9 +12,9 @@ rule relax:
         sim=sim_params("model", "pour", "relax"),
         bookkeeping=sim_bookkeeping(),
     log:
-        results_path("logs/relax/{protocol}/seed{seed}.log"),
+        stage_log("{protocol}", "{seed}", "relaxed"),
     benchmark:
-        results_path("benchmarks/relax/{protocol}/seed{seed}.tsv")
+        stage_benchmark("{protocol}", "{seed}", "relaxed")
     threads: SIM_THREADS
     resources:
         mem_mb=sim_mem_mb,

@@ -2,7 +2,7 @@
 # docs/reproduction/ (rule record_pile), and the ensembles, fits, figures and
 # per-pile table rebuilt from those files alone (`make reproduction`: config
 # `committed`, rule reproduction), without a state file or a simulation.
-# Expects from common.smk pile(), probe_stages(), sim_shell, py_shell, REPO, wants(),
+# Expects from common.smk pile(), stage_benchmark(), probe_stages(), sim_shell, py_shell, REPO, wants(),
 # and of the analysis (workflow/analysis_inputs.py) pile_result(), PILE_RESULTS,
 # COMMITTED, ANALYSIS_FIGURES, analysis_targets(), reported_general_protocols(),
 # reported_probes() and labelled().
@@ -40,7 +40,7 @@ if not config["committed"]:
         # extra probes (config/scenes/elastic_probes.yaml) their increments.
         input:
             **{kind: pile_result("{protocol}", "{seed}", kind) for kind in PILE_RESULTS},
-            pour=results_path("benchmarks/pour/{protocol}/seed{seed}.tsv"),
+            pour=stage_benchmark("{protocol}", "{seed}", "poured"),
         output:
             **{kind: f"{RECORD}/{name}" for kind, name in RECORD_FILES.items()},
         log:
