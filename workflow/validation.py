@@ -29,7 +29,9 @@ another file, which Snakemake's merge ignores, are refused naming the file and
 line. A file Snakemake itself cannot read (empty, a list, bad syntax, missing)
 stops Snakemake before the Snakefile with a message that does not name it;
 ``python -m workflow.validation FILE ...`` checks such files alone, then their
-merged configuration, and names the file and line.
+merged configuration, and names the file and line. :func:`load_config` reads,
+merges and validates files so (that command and
+workflow/scripts/study_progress.py use it).
 """
 
 from __future__ import annotations
@@ -281,6 +283,33 @@ def merge_configs(base, layer):
     return out
 
 
+def load_config(paths):
+    """The workflow configuration of the ``--configfile`` files `paths` as the
+    Snakefile sees it: each file read strictly (:func:`check_config_files`),
+    merged in order (:func:`merge_configs`) and validated with every default
+    filled in (:func:`validate_config`).
+
+    Parameters
+    ----------
+    paths : list of str or Path
+        The files, first to last.
+
+    Returns
+    -------
+    dict
+
+    Raises
+    ------
+    ConfigurationError
+        As :func:`check_config_files` and :func:`validate_config` raise it.
+    """
+    config = {}
+    for layer in check_config_files(paths):
+        config = merge_configs(config, layer)
+    validate_config(config)
+    return config
+
+
 def main(argv=None):
     """``python -m workflow.validation FILE ...``: the files, then their merged configuration.
 
@@ -294,10 +323,7 @@ def main(argv=None):
               "(the files of snakemake --configfile, in their order)", file=sys.stderr)
         return 2
     try:
-        config = {}
-        for layer in check_config_files(paths):
-            config = merge_configs(config, layer)
-        validate_config(config)
+        load_config(paths)
     except ConfigurationError as exc:
         print(exc, file=sys.stderr)
         return 2
