@@ -1,6 +1,7 @@
 """workflow/scripts/study_progress.py: the one-line progress of the study
 (issue 15, item 4), on fake piles/, logs/ and benchmarks/ trees in the
-configuration's results folder (results/study, issue 29 item 2)."""
+configuration's results folder (results/study, issue 29 item 2), at the paths
+of workflow/piles.py."""
 
 import importlib.util
 import os
@@ -19,6 +20,9 @@ _spec = importlib.util.spec_from_file_location("study_progress", SCRIPT)
 sp = sys.modules["study_progress"] = importlib.util.module_from_spec(_spec)  # for its dataclass
 _spec.loader.exec_module(sp)
 
+from workflow.piles import Piles  # noqa: E402  (the script put the checkout on sys.path)
+from workflow.validation import load_config  # noqa: E402
+
 NOW = 1.8e9  # s since the epoch, the "now" of the pure functions
 STAGES = ["poured", "relaxed", "reduced"]
 # CPU seconds of the finished piles' jobs: pour, relax, probe.
@@ -30,11 +34,6 @@ ETA_LINE = ("2026-12-01 18:35:03,828 INFO pour wedge seed 3: released 2743 of 35
 # The same line as written before issue 29 (logs of pours started then).
 OLD_ETA_LINE = ("2026-12-01 18:35:03,828 INFO pour wedge seed 3: t = 31.9 s simulated, about 3.2 s "
                 "to go, 2743 particles, 4705393 steps, 1100 ns per particle-step, ETA 397 s\n")
-
-
-def F(root):
-    """The results folder of the configuration in `root` (config `results`'s default)."""
-    return Path(root) / "results" / "study"
 
 
 def write_config(root, wedge=(1, 2, 3), layered=(1, 2)):
@@ -57,19 +56,20 @@ def touch(path, mtime=None, text=""):
     return path
 
 
-def benchmark(folder, protocol, seed, stage, cpu_time, wall=None):
+def benchmark(root, piles, protocol, seed, stage, cpu_time, wall=None):
     header = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
     wall = 2 * cpu_time if wall is None else wall
-    touch(sp.benchmark_file(folder, protocol, seed, stage),
+    touch(Path(root) / piles.stage_benchmark(protocol, seed, stage),
           text=header + f"{wall}\t0:00:00\t258\t492\t187\t209\t0\t67\t50\t{cpu_time}\n")
 
 
-def finished_pile(folder, protocol, seed, cpu, now):
-    """State files, old logs and benchmarks of a finished pile in the results `folder`."""
-    for stage, cpu_time in zip(STAGES, cpu):
-        touch(sp.stage_file(folder, protocol, seed, stage))
-        touch(sp.log_file(folder, protocol, seed, stage), mtime=now - 3600, text="done\n")
-        benchmark(folder, protocol, seed, stage, cpu_time)
+def finished_pile(root, piles, protocol, seed, cpu, now, stages=STAGES):
+    """State files, old logs and benchmarks of a finished pile of `piles` (a
+    Piles) in the workflow's directory `root`; `cpu` per stage of `stages`."""
+    for stage, cpu_time in zip(stages, cpu):
+        touch(Path(root) / piles.pile(protocol, seed, stage))
+        touch(Path(root) / piles.stage_log(protocol, seed, stage), mtime=now - 3600, text="done\n")
+        benchmark(root, piles, protocol, seed, stage, cpu_time)
 
 
 def fake_study(root, now=NOW):
@@ -77,41 +77,40 @@ def fake_study(root, now=NOW):
     layered 2 relaxing (log written a minute ago, no progress line yet);
     layered 1 not started."""
     write_config(root)
+    piles, root = piles_of(root), Path(root)
     for (protocol, seed), cpu in CPU.items():
-        finished_pile(F(root), protocol, seed, cpu, now)
-    touch(sp.checkpoint_file(F(root), "wedge", 3))
-    touch(sp.log_file(F(root), "wedge", 3, "poured"), mtime=now - 7,
+        finished_pile(root, piles, protocol, seed, cpu, now)
+    touch(root / piles.pour_checkpoint("wedge", 3))
+    touch(root / piles.stage_log("wedge", 3, "poured"), mtime=now - 7,
           text="2026-12-01 18:30:00,000 INFO pouring 3500 particles (wedge, seed 3)\n" + ETA_LINE)
-    touch(sp.stage_file(F(root), "layered", 2, "poured"))
-    touch(sp.log_file(F(root), "layered", 2, "poured"), mtime=now - 900, text="poured\n")
-    touch(sp.log_file(F(root), "layered", 2, "relaxed"), mtime=now - 60,
+    touch(root / piles.pile("layered", 2, "poured"))
+    touch(root / piles.stage_log("layered", 2, "poured"), mtime=now - 900, text="poured\n")
+    touch(root / piles.stage_log("layered", 2, "relaxed"), mtime=now - 60,
           text="2026-12-01 18:30:00,000 INFO relaxing 3500 particles\n")
     return root
 
 
 def config_of(root):
-    return sp.load_config(Path(root) / "config" / "config.yaml")
+    return load_config([Path(root) / "config" / "config.yaml"])
 
 
-def states(root, now=NOW):
-    config = config_of(root)
+def piles_of(root):
+    """The piles of the configuration in `root` (results/study, config `results`'s default)."""
+    return Piles(config_of(root))
+
+
+def states(root, now=NOW, piles=None):
+    piles = piles_of(root) if piles is None else piles
     return {(p.protocol, p.seed): p for p in (
-        sp.pile_state(F(root), protocol, seed, STAGES, 3500, now)
-        for protocol, seed in sp.study_piles(config))}
+        sp.pile_state(root, piles, protocol, seed, now) for protocol, seed in piles.each())}
 
 
-def test_stages_and_paths():
-    assert sp.pile_stages([0.1]) == STAGES
-    assert sp.pile_stages([]) == ["poured", "relaxed"]
-    assert sp.pile_stages([0.1, 0.05]) == STAGES + ["reduced05"]
-    root = Path("r")
-    assert sp.benchmark_file(root, "wedge", 3, "poured") == root / "benchmarks/pour/wedge/seed3.tsv"
-    assert (sp.benchmark_file(root, "wedge", 3, "reduced")
-            == root / "benchmarks/probe/wedge/seed3_reduced.tsv")
-    assert sp.log_file(root, "layered", 1, "relaxed") == root / "logs/relax/layered/seed1.log"
-    assert sp.checkpoint_file(root, "wedge", 3) == root / "piles/wedge/seed3/pour.checkpoint.nc"
-    assert sp.stage_file(root, "wedge", 3, "poured") == root / "piles/wedge/seed3/poured.nc"
-    assert sp.results_folder(root, {"results": "results/smoke"}) == root / "results/smoke"
+def test_the_paths_are_those_of_the_workflow(tmp_path):
+    write_config(tmp_path)
+    piles = piles_of(tmp_path)
+    assert piles.all_stages() == STAGES
+    assert piles.stage_benchmark("wedge", 3, "poured") == "results/study/benchmarks/pour/wedge/seed3.tsv"
+    assert piles.stage_log("layered", 1, "relaxed") == "results/study/logs/relax/layered/seed1.log"
 
 
 def test_parse_progress_lines():
@@ -135,8 +134,10 @@ def test_parse_progress_lines():
 
 
 def test_benchmark_cpu(tmp_path):
-    benchmark(F(tmp_path), "wedge", 1, "poured", 4756.78, wall=8339.04)
-    assert sp.benchmark_cpu(sp.benchmark_file(F(tmp_path), "wedge", 1, "poured")) == 4756.78
+    write_config(tmp_path)
+    piles = piles_of(tmp_path)
+    benchmark(tmp_path, piles, "wedge", 1, "poured", 4756.78, wall=8339.04)
+    assert sp.benchmark_cpu(tmp_path / piles.stage_benchmark("wedge", 1, "poured")) == 4756.78
     assert sp.benchmark_cpu(tmp_path / "missing.tsv") is None
     two = touch(tmp_path / "two.tsv", text="s\tcpu_time\n10\t4\n12\t6\n")
     assert sp.benchmark_cpu(two) == 5.0  # --benchmark-repeats: the mean
@@ -165,8 +166,9 @@ def test_killed_pour_keeps_its_eta(tmp_path, line):
     work its pour still needs, not reduced by the time since (also from a log
     in the format before issue 29)."""
     write_config(tmp_path)
-    touch(sp.checkpoint_file(F(tmp_path), "wedge", 1))
-    touch(sp.log_file(F(tmp_path), "wedge", 1, "poured"), mtime=NOW - 86400, text=line)
+    piles = piles_of(tmp_path)
+    touch(tmp_path / piles.pour_checkpoint("wedge", 1))
+    touch(tmp_path / piles.stage_log("wedge", 1, "poured"), mtime=NOW - 86400, text=line)
     pile = states(tmp_path)["wedge", 1]
     assert (pile.state, pile.eta) == ("running", 397.0)
     assert pile.fraction == pytest.approx(2743 / 3500)
@@ -193,7 +195,7 @@ def test_reads_the_line_the_simulator_writes():
 def test_fraction_done_by_hand(tmp_path):
     root = fake_study(tmp_path)
     piles = list(states(root).values())
-    means, _ = sp.stage_means(F(root), piles, STAGES)
+    means, _ = sp.stage_means(root, piles_of(root), piles)
     # Work left as in test_time_left_by_hand, of 5 piles of 1375 s each.
     left = (390 + 120 + 55) + (120 + 55) + 1375
     assert sp.fraction_done(piles, means, cores=1, threads=1) == pytest.approx(1 - left / (5 * 1375))
@@ -204,14 +206,15 @@ def test_fraction_done_by_hand(tmp_path):
 
 def test_stale_log_without_checkpoint_is_left(tmp_path):
     write_config(tmp_path)
-    touch(sp.log_file(F(tmp_path), "wedge", 1, "poured"), mtime=NOW - 2 * sp.RECENT_S, text=ETA_LINE)
+    touch(tmp_path / piles_of(tmp_path).stage_log("wedge", 1, "poured"), mtime=NOW - 2 * sp.RECENT_S,
+          text=ETA_LINE)
     assert states(tmp_path)["wedge", 1].state == "left"
 
 
 def test_time_left_by_hand(tmp_path):
     root = fake_study(tmp_path)
     piles = list(states(root).values())
-    means, counted = sp.stage_means(F(root), piles, STAGES)
+    means, counted = sp.stage_means(root, piles_of(root), piles)
     assert counted == 2
     assert means == {"poured": 1200.0, "relaxed": 120.0, "reduced": 55.0}
     # wedge 3: its ETA 390 s, then relax 120 + probe 55; layered 2: relax 120
@@ -249,7 +252,7 @@ def test_progress_line(tmp_path):
 def test_unknown_before_a_pile_has_finished(tmp_path):
     root = fake_study(tmp_path)
     for seed in (1, 2):  # the finished piles' last stage gone
-        sp.stage_file(F(root), "wedge", seed, "reduced").unlink()
+        (root / piles_of(root).pile("wedge", seed, "reduced")).unlink()
     line = sp.progress_line(root, config_of(root), cores=2, now=NOW)
     assert line.startswith("study (results/study/): 0 of 5 piles done, 2 running "
                            "(wedge 3: pour 78 %, ETA 0:06:30;")
@@ -264,16 +267,40 @@ def test_unknown_before_a_pile_has_finished(tmp_path):
 def test_seed10_is_not_seed1(tmp_path):
     """A benchmark or log of seed 10 does not count for seed 1."""
     write_config(tmp_path, wedge=(1, 10), layered=())
-    finished_pile(F(tmp_path), "wedge", 10, (1000.0, 100.0, 50.0), NOW)
-    touch(sp.log_file(F(tmp_path), "wedge", 10, "poured"), mtime=NOW - 10, text=ETA_LINE)
+    piles = piles_of(tmp_path)
+    finished_pile(tmp_path, piles, "wedge", 10, (1000.0, 100.0, 50.0), NOW)
+    touch(tmp_path / piles.stage_log("wedge", 10, "poured"), mtime=NOW - 10, text=ETA_LINE)
     line = sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW)
     assert line.startswith("study (results/study/): 1 of 2 piles done, 0 running, 1 left; "
                            "50 % of the simulation done, about 0:19:10 left")
 
 
+def test_a_scenes_probes_are_stages_of_the_piles(tmp_path):
+    """With a scene's probes (config/scenes/six_constants.yaml over
+    config/config.yaml: tilts, the support stretch, restored gravity) a pile
+    is done only with them all: one with only its gravity probe runs the next
+    probe, and the work left counts the probes it misses (before the stages
+    came from workflow/piles.py it counted as done)."""
+    config = load_config([REPO / "config" / "config.yaml", REPO / "config" / "scenes" / "six_constants.yaml"])
+    piles = Piles(config)
+    stages = piles.all_stages()
+    assert stages == STAGES + ["tiltp05", "tiltm05", "stretched", "restored"]
+    finished_pile(tmp_path, piles, "wedge", 1, [1000.0, 100.0] + [50.0] * 5, NOW, stages)
+    finished_pile(tmp_path, piles, "wedge", 2, [1000.0, 100.0, 50.0], NOW)  # the gravity probe only
+    touch(tmp_path / piles.stage_log("wedge", 2, "tiltp05"), mtime=NOW - 60, text="INFO probing\n")
+    pile = states(tmp_path, piles=piles)["wedge", 2]
+    assert (pile.state, pile.missing) == ("running", ("tiltp05", "tiltm05", "stretched", "restored"))
+    # 19 piles of 1350 s of CPU: wedge 2 needs 4 x 50 s, the 17 left all of it,
+    # 23 150 s in all over 2 jobs; 1 - 23 150 / (19 x 1350) = 9.7 % done.
+    assert sp.progress_line(tmp_path, config, cores=2, now=NOW) == (
+        "study (results/study/): 1 of 19 piles done, 1 running (wedge 2: probe tiltp05), 17 left; "
+        "9 % of the simulation done, about 3:12:55 left at 2 jobs at a time "
+        "(mean of 1 finished pile: 0:22:30 of CPU per pile)")
+
+
 def test_all_done(tmp_path):
     write_config(tmp_path, wedge=(1,), layered=())
-    finished_pile(F(tmp_path), "wedge", 1, (1000.0, 100.0, 50.0), NOW)
+    finished_pile(tmp_path, piles_of(tmp_path), "wedge", 1, (1000.0, 100.0, 50.0), NOW)
     assert sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW) == (
         "study (results/study/): 1 of 1 piles done, 0 running, 0 left; all piles simulated")
 
@@ -284,8 +311,9 @@ def test_no_probe_levels(tmp_path):
     config = yaml.safe_load(path.read_text())
     config["probe"] = {"levels": []}
     path.write_text(yaml.safe_dump(config))
-    touch(sp.stage_file(F(tmp_path), "wedge", 1, "poured"))
-    touch(sp.stage_file(F(tmp_path), "wedge", 1, "relaxed"))
+    piles = piles_of(tmp_path)
+    for stage in ("poured", "relaxed"):
+        touch(tmp_path / piles.pile("wedge", 1, stage))
     assert sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW).startswith(
         "study (results/study/): 1 of 1 piles done")
 
@@ -331,10 +359,10 @@ def test_counts_only_the_piles_of_its_own_results_folder(tmp_path):
     smoke.write_text(yaml.safe_dump({"protocols": {"wedge": {"seeds": [1, 2]}}, "threads": 1,
                                      "results": "results/smoke", "pour": {"n_particles": 150}}))
     for seed in (1, 2):
-        finished_pile(tmp_path / "results" / "smoke", "wedge", seed, (10.0, 1.0, 1.0), NOW)
+        finished_pile(tmp_path, Piles(load_config([smoke])), "wedge", seed, (10.0, 1.0, 1.0), NOW)
     assert sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW).startswith(
         "study (results/study/): 0 of 2 piles done, 0 running, 2 left; time left unknown")
-    line = sp.progress_line(tmp_path, sp.load_config(smoke), 2, NOW, label="config/smoke.yaml")
+    line = sp.progress_line(tmp_path, load_config([smoke]), 2, NOW, label="config/smoke.yaml")
     assert line == "config/smoke.yaml (results/smoke/): 2 of 2 piles done, 0 running, 0 left; all piles simulated"
     result = subprocess.run([sys.executable, str(SCRIPT), "--directory", str(tmp_path), "--configfile",
                              str(tmp_path / "config" / "config.yaml"), str(smoke)],
@@ -345,7 +373,8 @@ def test_counts_only_the_piles_of_its_own_results_folder(tmp_path):
 def test_a_tree_from_before_the_results_folders_is_named(tmp_path):
     """Piles under results/piles/ (the layout before issue 29) are not counted, but named."""
     write_config(tmp_path, wedge=(1,), layered=())
-    finished_pile(tmp_path / "results", "wedge", 1, (10.0, 1.0, 1.0), NOW)
+    legacy = Piles(dict(config_of(tmp_path), results="results"))  # results/piles/..., results/logs/...
+    finished_pile(tmp_path, legacy, "wedge", 1, (10.0, 1.0, 1.0), NOW)
     line = sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW)
     assert line.startswith("study (results/study/): 0 of 1 piles done")
     assert "results/piles holds piles made before" in line and "move them to results/study/" in line

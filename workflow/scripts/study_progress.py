@@ -1,15 +1,20 @@
 """One line on the progress of the study: piles done, running and left, and
 the time left (issue 15, item 4).
 
-The piles are those of the validated configuration (``protocols``), looked
-for in its own results folder (config ``results``: ``results/study`` for
+The piles, their stages and the paths of their files are those the
+workflow makes (:class:`workflow.piles.Piles` of the configuration, as the
+Snakefile reads it): the piles of ``protocols``, looked for in the
+configuration's own results folder (config ``results``: ``results/study`` for
 ``config/config.yaml``, ``results/smoke`` for ``config/smoke.yaml``), so the
 piles of another configuration never count; the line begins with the
 configuration files and that folder. A pile is
 
-* **done** when its last stage exists: every gravity probe of
-  ``probe.levels`` (``reduced.nc``, ``reducedNN.nc``), or ``relaxed.nc``
-  when there is none;
+* **done** when its last stages exist (``Piles.final_stages``): every probe,
+  the gravity probes of ``probe.levels`` (``reduced.nc``, ``reducedNN.nc``)
+  and those a scene adds (tilts, the support stretch, the restored gravity),
+  or ``relaxed.nc`` when there is none. Before the stages came from ``Piles``
+  the scene's probes were left out, so that a pile with only its gravity
+  probes counted as done and the time left missed the other probes;
 * **running** when it is not done but its pour checkpoint
   (``pour.checkpoint.nc``) exists, or one of its logs was written in the last
   :data:`RECENT_S` seconds;
@@ -18,7 +23,7 @@ configuration files and that folder. A pile is
 The time left is the work still to do divided by the cores it can use. The
 work is counted in CPU seconds: a stage not yet run costs the mean
 ``cpu_time`` of that stage in the Snakemake benchmark files
-(``{results}/benchmarks/{pour,relax,probe}/...tsv``) of the finished piles; the stage
+(``Piles.stage_benchmark``) of the finished piles; the stage
 a running pile is in costs what the ETA of its log's last progress line
 (``sim.progress.Progress``) says instead, when there is one. The cores it
 can use are the jobs that run side by side, ``cores // threads``, but no more
@@ -51,19 +56,17 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
-
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO))  # for workflow/validation.py and sim/durations.py
+sys.path.insert(0, str(REPO))  # for workflow/ and sim/durations.py
 
 from sim.durations import hms, parse_hms  # noqa: E402
+from workflow.piles import Piles, stage_rule  # noqa: E402
+from workflow.validation import load_config  # noqa: E402
 
 # A pile whose log was written this recently (s) counts as running.
 RECENT_S = 300.0
 # How much of the end of a log (bytes) is searched for its last progress line.
 LOG_TAIL_BYTES = 65536
-# The rule that makes each stage (workflow/rules/{pour,relax,probe}.smk).
-RULES = {"poured": "pour", "relaxed": "relax"}
 
 # Parts of a progress line of sim.progress.Progress, e.g.
 # "pour wedge seed 3: released 2743 of 3500 (78 %), ETA 0:06:37; t = 31.9000 s
@@ -102,104 +105,6 @@ class PileState:
     eta: float | None = None
     at_most: bool = False
     fraction: float | None = None
-
-
-def load_config(*paths):
-    """The workflow configuration of `paths`, merged in order, validated and
-    with every default filled in (``workflow/validation.py``, as the Snakefile
-    does).
-
-    Parameters
-    ----------
-    *paths : path-like
-        YAML configurations such as ``config/config.yaml`` (and overlays).
-
-    Returns
-    -------
-    dict
-    """
-    from workflow.validation import merge_configs, validate_config
-
-    config = {}
-    for path in paths:
-        config = merge_configs(config, yaml.safe_load(Path(path).read_text()) or {})
-    validate_config(config)
-    return config
-
-
-def results_folder(root, config):
-    """The folder of the configuration's piles, logs and benchmarks: config
-    ``results`` under the workflow's directory `root`."""
-    return Path(root) / config["results"]
-
-
-def study_piles(config):
-    """The piles of the study, wedge before layered as in the workflow.
-
-    Parameters
-    ----------
-    config : dict
-        Validated configuration.
-
-    Returns
-    -------
-    list of (str, int)
-        (protocol, seed) in config order.
-    """
-    protocols = config["protocols"]
-    return [(protocol, int(seed)) for protocol in ("wedge", "layered") if protocol in protocols
-            for seed in protocols[protocol]["seeds"]]
-
-
-def pile_stages(levels):
-    """The stages of a pile, in the order they are made.
-
-    Parameters
-    ----------
-    levels : sequence of float
-        ``probe.levels``: the first gives the stage ``reduced``, any other
-        ``reducedNN`` with NN = round(100 * level) (``Piles.stage_for_level`` in
-        workflow/piles.py).
-
-    Returns
-    -------
-    list of str
-        ``poured``, ``relaxed``, then one stage per gravity probe.
-    """
-    probes = ["reduced"] + [f"reduced{round(100 * float(level)):02d}" for level in levels[1:]]
-    return ["poured", "relaxed"] + probes[:len(levels)]
-
-
-def rule_of(stage):
-    """The rule that makes `stage`: ``pour``, ``relax`` or ``probe``."""
-    return RULES.get(stage, "probe")
-
-
-def stage_file(folder, protocol, seed, stage):
-    """Path of a pile's state file in the results `folder` (``Piles.pile`` in
-    workflow/piles.py)."""
-    return Path(folder) / "piles" / protocol / f"seed{seed}" / f"{stage}.nc"
-
-
-def checkpoint_file(folder, protocol, seed):
-    """Path of a running pour's checkpoint (``Piles.pour_checkpoint`` in workflow/piles.py)."""
-    return Path(folder) / "piles" / protocol / f"seed{seed}" / "pour.checkpoint.nc"
-
-
-def _job_name(seed, stage):
-    """File name, without suffix, of the log and benchmark of the job making
-    `stage`: ``seed3`` (pour, relax) or ``seed3_reduced`` (probe)."""
-    return f"seed{seed}" if rule_of(stage) != "probe" else f"seed{seed}_{stage}"
-
-
-def log_file(folder, protocol, seed, stage):
-    """Path of the log of the job making `stage` (the rules' ``log:``)."""
-    return Path(folder) / "logs" / rule_of(stage) / protocol / f"{_job_name(seed, stage)}.log"
-
-
-def benchmark_file(folder, protocol, seed, stage):
-    """Path of the benchmark TSV of the job making `stage` (the rules' ``benchmark:``)."""
-    return Path(folder) / "benchmarks" / rule_of(stage) / protocol / f"{_job_name(seed, stage)}.tsv"
 
 
 def benchmark_cpu(path):
@@ -299,19 +204,18 @@ def _age(path, now):
         return None
 
 
-def pile_state(root, protocol, seed, stages, n_particles, now):
+def pile_state(root, study, protocol, seed, now):
     """Where one pile stands (see the module's docstring for the rules).
 
     Parameters
     ----------
     root : path-like
-        The configuration's results folder (holding piles/, logs/).
+        The workflow's directory, which the paths of `study` are relative to.
+    study : workflow.piles.Piles
+        The piles of the configuration (its ``pour.n_particles`` for the
+        fraction of a pour).
     protocol : str
     seed : int
-    stages : list of str
-        :func:`pile_stages`.
-    n_particles : int
-        ``pour.n_particles``, for the fraction of a pour.
     now : float
         Time (s since the epoch) the logs' ages are measured at.
 
@@ -323,15 +227,16 @@ def pile_state(root, protocol, seed, stages, n_particles, now):
         not written for :data:`RECENT_S` s (a killed pour) is taken as it
         stands, the work its stage still needs when it resumes.
     """
-    missing = tuple(s for s in stages if not stage_file(root, protocol, seed, s).exists())
-    if not set(stages[2:] or stages[1:2]) & set(missing):  # its gravity probes, else relaxed
+    root, stages = Path(root), study.all_stages()
+    missing = tuple(s for s in stages if not (root / study.pile(protocol, seed, s)).exists())
+    if not set(study.final_stages()) & set(missing):
         return PileState(protocol, seed, "done")
-    ages = [_age(log_file(root, protocol, seed, s), now) for s in stages]
+    ages = [_age(root / study.stage_log(protocol, seed, s), now) for s in stages]
     recent = any(a is not None and a < RECENT_S for a in ages)
-    if not (recent or checkpoint_file(root, protocol, seed).exists()):
+    if not (recent or (root / study.pour_checkpoint(protocol, seed)).exists()):
         return PileState(protocol, seed, "left", missing)
     stage = missing[0]
-    log = log_file(root, protocol, seed, stage)
+    log = root / study.stage_log(protocol, seed, stage)
     progress = last_progress(log)
     if progress is None:
         return PileState(protocol, seed, "running", missing)
@@ -339,18 +244,21 @@ def pile_state(root, protocol, seed, stages, n_particles, now):
     age = _age(log, now)
     if age is not None and 0 < age < RECENT_S:
         eta = max(eta - age, 0.0)
-    fraction = particles / n_particles if rule_of(stage) == "pour" and particles else None
+    n_particles = int(study.config["pour"]["n_particles"])
+    fraction = particles / n_particles if stage == "poured" and particles else None
     return PileState(protocol, seed, "running", missing, eta, at_most, fraction)
 
 
-def stage_means(root, piles, stages):
+def stage_means(root, study, piles):
     """Mean CPU seconds of each stage over the finished piles with benchmarks.
 
     Parameters
     ----------
     root : path-like
+        The workflow's directory, which the paths of `study` are relative to.
+    study : workflow.piles.Piles
+        The piles of the configuration, for their stages and benchmark files.
     piles : list of PileState
-    stages : list of str
 
     Returns
     -------
@@ -358,10 +266,10 @@ def stage_means(root, piles, stages):
         Mean CPU seconds per stage (empty when no pile counts) and the number
         of piles averaged: the done ones with a benchmark of every stage.
     """
-    rows = []
+    rows, stages = [], study.all_stages()
     for p in piles:
         if p.state == "done":
-            cpu = [benchmark_cpu(benchmark_file(root, p.protocol, p.seed, s)) for s in stages]
+            cpu = [benchmark_cpu(Path(root) / study.stage_benchmark(p.protocol, p.seed, s)) for s in stages]
             if None not in cpu:
                 rows.append(cpu)
     means = {s: sum(r[i] for r in rows) / len(rows) for i, s in enumerate(stages)} if rows else {}
@@ -439,7 +347,7 @@ def fraction_done(piles, means, cores, threads):
 def describe_running(pile):
     """A running pile in words: ``wedge 3: pour 78 %, ETA 0:06:30``."""
     stage = pile.missing[0]
-    what = rule_of(stage) if stage in ("poured", "relaxed", "reduced") else f"probe {stage}"
+    what = stage_rule(stage) if stage in ("poured", "relaxed", "reduced") else f"probe {stage}"
     text = f"{pile.protocol} {pile.seed}: {what}"
     if pile.fraction is not None:
         text += f" {math.floor(100 * pile.fraction)} %"
@@ -454,10 +362,10 @@ def progress_line(root, config, cores, now, label="study"):
     Parameters
     ----------
     root : path-like
-        The workflow's directory; the piles, logs and benchmarks are in its
-        :func:`results_folder`.
+        The workflow's directory; the piles, logs and benchmarks are in the
+        configuration's results folder below it.
     config : dict
-        Validated configuration (:func:`load_config`).
+        Validated configuration (:func:`workflow.validation.load_config`).
     cores : int
     now : float
         Time (s since the epoch).
@@ -475,20 +383,19 @@ def progress_line(root, config, cores, now, label="study"):
     if config.get("committed"):
         return (f"{label} ({config['results']}/): built from the per-pile results committed under "
                 f"{config['committed']}/, nothing to simulate")
-    line = f"{label} ({config['results']}/): " + _progress(results_folder(root, config), config, cores, now)
+    study = Piles(config)
+    line = f"{label} ({study.results}/): " + _progress(root, study, cores, now)
     legacy = Path(root) / "results" / "piles"
-    if not results_folder(root, config).is_dir() and legacy.is_dir():
+    if not (Path(root) / study.results).is_dir() and legacy.is_dir():
         line += (f"; {legacy} holds piles made before each configuration had its results folder: "
                  f"move them to {config['results']}/ (docs/workflow.md, \"Results folders\")")
     return line
 
 
-def _progress(root, config, cores, now):
-    """:func:`progress_line` after its label, for the results folder `root`."""
-    stages = pile_stages(config["probe"]["levels"])
-    n_particles = int(config["pour"]["n_particles"])
-    piles = [pile_state(root, protocol, seed, stages, n_particles, now)
-             for protocol, seed in study_piles(config)]
+def _progress(root, study, cores, now):
+    """:func:`progress_line` after its label, for the piles `study` (a
+    :class:`workflow.piles.Piles`) in the workflow's directory `root`."""
+    piles = [pile_state(root, study, protocol, seed, now) for protocol, seed in study.each()]
     done = [p for p in piles if p.state == "done"]
     running = [p for p in piles if p.state == "running"]
     left = len(piles) - len(done) - len(running)
@@ -496,14 +403,15 @@ def _progress(root, config, cores, now):
     if running:
         line += " (" + "; ".join(describe_running(p) for p in running) + ")"
     line += f", {left} left; "
-    means, counted = stage_means(root, piles, stages)
-    seconds, jobs = time_left(piles, means, cores, config["threads"])
+    means, counted = stage_means(root, study, piles)
+    threads = study.config["threads"]
+    seconds, jobs = time_left(piles, means, cores, threads)
     if seconds is None:
         return line + "time left unknown until a pile has finished (with benchmark files)"
     if not running and not left:
         return line + "all piles simulated"
     per_pile = hms(sum(means.values()))
-    done_pct = math.floor(100 * fraction_done(piles, means, cores, config["threads"]))
+    done_pct = math.floor(100 * fraction_done(piles, means, cores, threads))
     return (line + f"{done_pct} % of the simulation done, about {hms(seconds)} left at "
             f"{jobs} job{'s' * (jobs != 1)} "
             f"at a time (mean of {counted} finished pile{'s' * (counted != 1)}: "
@@ -561,7 +469,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     root = Path(args.directory)
     files = args.configfile or [root / "config" / "config.yaml"]
-    config = load_config(*files)
+    config = load_config(files)
     label = ", ".join(_shown(f, root) for f in files)
 
     def line():
