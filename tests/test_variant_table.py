@@ -131,6 +131,11 @@ def test_the_small_sample_note_gives_students_t_at_the_fewest_variant_piles():
     three = {"wedge": {1: {}, 2: {}, 3: {}}, "layered": {1: {}}}  # a single pile borrows the study's scatter
     assert "beyond 4.3 " in variant_table.small_sample_note(three)
     assert variant_table.small_sample_note({"wedge": {1: {}}, "layered": {}}) == ""
+    assert "guide" in variant_table.small_sample_note(three)
+    # Four degrees of freedom: 2.776; from five piles on the z values are read against it, no longer a guide.
+    five = {p: {s: {} for s in range(1, 6)} for p in ("wedge", "layered")}
+    assert "beyond 2.78 " in variant_table.small_sample_note(five)
+    assert "guide" not in variant_table.small_sample_note(five)
 
 
 def test_the_rank_test_is_exact_mann_whitney():

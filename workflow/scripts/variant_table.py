@@ -175,7 +175,8 @@ def small_sample_note(variant: dict) -> str:
     degrees of freedom, so ``z = d / se`` follows Student's t, not the
     normal law: at ``n = 2`` two-sided 5 % needs ``|z| > 12.7``.  The
     sentence gives that quantile for the smallest set of variant piles with
-    at least two (none with one pile, whose scatter is the study's).
+    at least two (none with one pile, whose scatter is the study's), and below
+    five piles a reminder that the z values are only a guide.
 
     Parameters
     ----------
@@ -191,10 +192,10 @@ def small_sample_note(variant: dict) -> str:
     if not counts:
         return ""
     n = min(counts)
+    guide = "; read the z values as a guide until each protocol has five piles (2.78)" if n < 5 else ""
     return (f" With {n} variant piles of a protocol a standard error has {n - 1} degree"
             f"{'s' if n > 2 else ''} of freedom, so a z of these tables is significant at two-sided 5 % "
-            f"beyond {student_t.ppf(0.975, n - 1):.3g} (Student's t), not 1.96; read the z values as a "
-            "guide until each protocol has five piles (2.78).")
+            f"beyond {student_t.ppf(0.975, n - 1):.3g} (Student's t), not 1.96{guide}.")
 
 
 def seeds_text(piles: dict) -> str:
