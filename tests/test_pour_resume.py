@@ -216,11 +216,29 @@ def test_a_pour_with_particles_in_flight_fails_naming_the_cause(tmp_path):
         run_log.read_text().splitlines()[-1]
 
 
+def fresh_numba_process_lock():
+    """Give a forked child its own lock around Numba's threading-layer start.
+
+    Numba takes a process-shared semaphore (made by the parent before the
+    fork) at every ``numba.get_num_threads()``, which the engine asks at every
+    run; a child SIGKILLed while holding it would leave it held for its
+    siblings and the parent, which then wait for ever.  A pour started by
+    exec (the workflow's) makes its own, so this is an artefact of forking."""
+    from numba.np.ufunc import parallel
+
+    parallel._backend_init_process_lock = None
+
+
 def pour_killed_repeatedly(folder, kills, seed):
     """Pour the tiny pile into `folder`, forking a pour that is SIGKILLed at a
     random moment (up to 0.4 s in) `kills` times, each fork resuming from what
     the last left, then pouring to the end.  Run in a fresh process whose
-    Numba threading layer is fork-safe (workqueue; GNU OpenMP is not)."""
+    Numba threading layer is fork-safe (workqueue; GNU OpenMP is not); a fork
+    whose pour fails exits with status 1 after printing why, and ends this."""
+    import faulthandler
+    import traceback
+
+    faulthandler.dump_traceback_later(300, exit=True)    # a hang says where, within the timeout
     logging.basicConfig(level=logging.INFO)
     out, ckpt = Path(folder) / "poured.nc", Path(folder) / "pour.checkpoint.nc"
     frames = out.with_name("frames.nc")
@@ -231,17 +249,24 @@ def pour_killed_repeatedly(folder, kills, seed):
     while done < kills:
         pid = os.fork()
         if pid == 0:
+            status = 0
             try:
+                fresh_numba_process_lock()
                 pour(tiny(), "wedge", 3, out, checkpoint=ckpt, frames=frames)
+            except BaseException:
+                traceback.print_exc()
+                status = 1
             finally:
-                os._exit(0)
+                sys.stderr.flush()
+                os._exit(status)
         time.sleep(rng.uniform(0.0, 0.4))
         os.kill(pid, signal.SIGKILL)
         _, status = os.waitpid(pid, 0)
         if os.WIFSIGNALED(status):
             done += 1
-        elif out.exists():       # finished before the kill: pour again from scratch
-            out.unlink()
+        else:
+            assert os.WEXITSTATUS(status) == 0, "a forked pour failed (its traceback is above)"
+            out.unlink()         # finished before the kill: pour again from scratch
             frames.unlink()
     assert ckpt.exists(), "no kill came after the first checkpoint"
     pour(tiny(), "wedge", 3, out, checkpoint=ckpt, frames=frames)
