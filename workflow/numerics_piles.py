@@ -109,10 +109,8 @@ class NumericsPiles:
             return [results_path(f"fields/{p}/seed{s}.nc") for p, s in piles.each()]
         if kind == "base_pressure":
             return [results_path(f"ensemble/{p}/base_pressure.nc") for p in piles.protocols]
-        if kind == "probe":
-            return [results_path(f"benchmarks/probe/{p}/seed{s}_{st}.tsv")
-                    for p, s in piles.each() for st in piles.probe_stages()]
-        return [results_path(f"benchmarks/{kind}/{p}/seed{s}.tsv") for p, s in piles.each()]
+        stages = {"pour": ["poured"], "relax": ["relaxed"], "probe": piles.probe_stages()}[kind]
+        return [piles.stage_benchmark(p, s, st) for p, s in piles.each() for st in stages]
 
     def ensemble_args(self, wildcards, input):
         """Per-protocol arguments of ``ensemble_cost data``, in protocol order (a list)."""
