@@ -99,6 +99,12 @@ class Simulation:
         Steps between blow-up checks (1 ms of simulated time, at least 50).
     parallel_threshold : int
         Particles from which the kernels run their parallel builds.
+    threads : int
+        Numba's thread count when the simulation was made (asked once:
+        every ``numba.get_num_threads()`` takes a lock shared between
+        processes, which a forked worker killed while holding it would leave
+        held for the others).  A caller that changes it with
+        ``numba.set_num_threads`` makes its simulations afterwards.
     """
 
     _stale = _Field("state", "stale")
@@ -111,6 +117,10 @@ class Simulation:
         self.full_law = False
         self.check_every = max(50, int(round(1e-3 / self.dt)))
         self.parallel_threshold = 400
+        # also starts Numba's threading layer, which the serial builds need too
+        # (their numba.get_thread_id does not link before it: "LLVM ERROR:
+        # Symbol not found")
+        self.threads = numba.get_num_threads()
         self.drag = 0.0
         self.spin_drag = 0.0
         self._energy = blowup.EnergyReference()
@@ -193,12 +203,8 @@ class Simulation:
 
     def parallel_kernels(self):
         """Whether the kernels run their parallel builds: with at least
-        ``parallel_threshold`` particles and more than one thread.
-
-        Asking Numba for its thread count first also starts its threading
-        layer, which the serial builds need too (their ``numba.get_thread_id``
-        does not link before it: "LLVM ERROR: Symbol not found")."""
-        return numba.get_num_threads() > 1 and self.n >= self.parallel_threshold
+        ``parallel_threshold`` particles and more than one thread."""
+        return self.threads > 1 and self.n >= self.parallel_threshold
 
     def _rebuild(self):
         rebuild(self.state, self.scene, self._law_flags()[1], self.parallel_kernels())

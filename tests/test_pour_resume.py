@@ -220,9 +220,10 @@ def fresh_numba_process_lock():
     """Give a forked child its own lock around Numba's threading-layer start.
 
     Numba takes a process-shared semaphore (made by the parent before the
-    fork) at every ``numba.get_num_threads()``, which the engine asks at every
-    run; a child SIGKILLed while holding it would leave it held for its
-    siblings and the parent, which then wait for ever.  A pour started by
+    fork) at every ``numba.get_num_threads()``, which each new simulation asks
+    once (:attr:`sim.engine.Simulation.threads`); a child SIGKILLed while
+    holding it would leave it held for its siblings and the parent, which then
+    wait for ever.  A pour started by
     exec (the workflow's) makes its own, so this is an artefact of forking."""
     from numba.np.ufunc import parallel
 

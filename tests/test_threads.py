@@ -72,3 +72,19 @@ def test_a_two_thread_job_computes_on_both_threads_and_gets_the_serial_bits():
     assert len(job["rows"]) == 2 and job["rows"][0] > 0
     assert job["rows"][1] > 0, f"thread 1 computed no pair ({job['layer']} threading layer)"
     assert job["bits"] == _serial_bits()
+
+
+def test_a_run_does_not_take_numbas_process_shared_lock(monkeypatch):
+    """Only making a simulation asks Numba for its thread count, the call that
+    takes a lock shared with forked processes: its runs, the place a worker is
+    killed, never do (a worker killed holding it hangs every other one)."""
+    sim = dense_packing(50, seed=1)
+    threads = sim.threads
+
+    def asked():
+        raise AssertionError("numba.get_num_threads() called during a run")
+
+    monkeypatch.setattr(numba, "get_num_threads", asked)
+    before = sim.step
+    sim.run(steps=120)          # chunks between checks, rebuilds
+    assert sim.step == before + 120 and sim.threads == threads
