@@ -63,7 +63,9 @@ def test_the_ensemble_study_reads_each_protocols_piles_and_benchmarks():
     assert files["base_pressure"] == ["results/smoke/ensemble/wedge/base_pressure.nc",
                                       "results/smoke/ensemble/layered/base_pressure.nc"]
     assert files["probe"][-1] == "results/smoke/benchmarks/probe/layered/seed2_reduced.tsv"
-    args = study.ensemble_args(None, SimpleNamespace(**files))
+    args = study.ensemble_args()
+    # every input file is handed to the script once, under its protocol
+    assert sorted(a for a in args if a.startswith("results/")) == sorted(sum(files.values(), []))
     layered = args[args.index("layered") - 1:]
     assert layered[:4] == ["--protocol", "layered", "--seeds", "1"]
     assert "results/smoke/fields/wedge/seed1.nc" not in layered

@@ -100,28 +100,31 @@ class NumericsPiles:
             return [self.cpu(i, f, s, kind[:-4]) for i, f, s in runs]
         return [self.benchmark(i, f, s, kind) for i, f, s in runs]
 
-    def ensemble_inputs(self, kind):
-        """The study's files of one kind for the ensemble study: ``fields`` (per
-        pile), ``base_pressure`` (per protocol), or a simulation step's benchmarks
-        (``pour``, ``relax``, ``probe``: the gravity probes)."""
-        piles, results_path = self.piles, self.piles.results_path
+    def protocol_files(self, kind, protocol):
+        """The study's files of one kind and protocol for the ensemble study:
+        ``fields`` (per pile), ``base_pressure`` (one), or a simulation step's
+        benchmarks (``pour``, ``relax``, ``probe``: the gravity probes)."""
+        piles, seeds = self.piles, self.piles.seeds(protocol)
         if kind == "fields":
-            return [results_path(f"fields/{p}/seed{s}.nc") for p, s in piles.each()]
+            return [piles.results_path(f"fields/{protocol}/seed{s}.nc") for s in seeds]
         if kind == "base_pressure":
-            return [results_path(f"ensemble/{p}/base_pressure.nc") for p in piles.protocols]
+            return [piles.results_path(f"ensemble/{protocol}/base_pressure.nc")]
         stages = {"pour": ["poured"], "relax": ["relaxed"], "probe": piles.probe_stages()}[kind]
-        return [piles.stage_benchmark(p, s, st) for p, s in piles.each() for st in stages]
+        return [piles.stage_benchmark(protocol, s, st) for s in seeds for st in stages]
 
-    def ensemble_args(self, wildcards, input):
+    def ensemble_inputs(self, kind):
+        """The files of one kind (:meth:`protocol_files`) of every protocol, in protocol order."""
+        return [f for p in self.piles.protocols for f in self.protocol_files(kind, p)]
+
+    def ensemble_args(self):
         """Per-protocol arguments of ``ensemble_cost data``, in protocol order (a list)."""
-        args, results_path = [], self.piles.results_path
+        args = []
         for p in self.piles.protocols:
             args += ["--protocol", p, "--seeds", *map(str, self.piles.seeds(p)),
-                     "--fields", *[f for f in input.fields if f.startswith(results_path(f"fields/{p}/"))],
-                     "--base-pressure", results_path(f"ensemble/{p}/base_pressure.nc")]
+                     "--fields", *self.protocol_files("fields", p),
+                     "--base-pressure", *self.protocol_files("base_pressure", p)]
             for kind in ("pour", "relax", "probe"):
-                files = [f for f in getattr(input, kind) if f.startswith(results_path(f"benchmarks/{kind}/{p}/"))]
-                args += [f"--{kind}-benchmarks", *files]
+                args += [f"--{kind}-benchmarks", *self.protocol_files(kind, p)]
         return args
 
     def targets(self):

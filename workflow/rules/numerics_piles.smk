@@ -144,7 +144,7 @@ rule numerics_ensemble:
         code=ANALYSIS_NUMERICS_DIGEST,
         cfg=json.dumps(NUMERICS_ENSEMBLE, sort_keys=True),
         analysis=ANALYSIS_PARAMS,
-        protocols=pile_numerics.ensemble_args,
+        protocols=pile_numerics.ensemble_args(),
     log:
         results_path("logs/numerics/ensemble.log"),
     threads: 1
