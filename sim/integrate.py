@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .integrators import scale_derivatives, unscale_derivatives
-from .step import KERNELS_PARALLEL, KERNELS_SERIAL, advance
+from .step import ADVANCE_PARALLEL, ADVANCE_SERIAL
 
 
 def integrator(scene):
@@ -46,9 +46,9 @@ def integrator(scene):
         state.r[2, :2, k] = 0.5 * dt ** 2 * np.asarray(state.gravity)
 
     def step(state, n_steps, kernel_state, parallel, rebuild_sq):
-        kernels = KERNELS_PARALLEL if parallel else KERNELS_SERIAL
-        done, stale = advance(kernels, n_steps, state.n, *kernel_state, state.x_ref,
-                              state.y_ref, rebuild_sq)
+        advance = ADVANCE_PARALLEL if parallel else ADVANCE_SERIAL
+        done, stale = advance(n_steps, state.n, *kernel_state, state.x_ref, state.y_ref,
+                              rebuild_sq)
         state.step += done
         state.stale = state.stale or stale
         return done

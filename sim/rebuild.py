@@ -3,7 +3,7 @@
 The candidate pairs are those within the Verlet skin (:mod:`sim.broadphase`).
 The list is rebuilt before the next step once a particle has moved more than
 :data:`REBUILD_FRACTION` of the skin since the last build (the kernels report
-it, :func:`sim.step.advance`), and after any change of the particle set or
+it, :func:`sim.step.advance_on`), and after any change of the particle set or
 a return to a snapshot.  Tangential springs and narrow-phase witnesses stay
 with their pairs across a rebuild.
 """

@@ -19,7 +19,7 @@ A step is two parallel passes without write races:
 ``Particles.r`` always holds the corrected state (what state files save);
 the prediction lives in ``pred`` (:func:`sim.integrators.nordsieck_predicted`,
 bit for bit the values the corrector starts from).  A run of steps
-(:func:`advance`) starts with one :func:`predict_and_place` pass and the last
+(:data:`ADVANCE_SERIAL`, :data:`ADVANCE_PARALLEL`) starts with one :func:`predict_and_place` pass and the last
 step predicts nothing.
 
 The state reaches the kernels bundled in four named tuples, so that a kernel's
@@ -58,7 +58,6 @@ reference counts are updated in the hot loops.
 from __future__ import annotations
 
 import math
-import warnings
 from collections import namedtuple
 
 import numba
@@ -141,7 +140,7 @@ the largest squared displacement (n_blocks,)."""
 def predict_and_place(n, pt, motion, work):
     """Prediction, world corners and bounding boxes of the first n particles.
 
-    Starts a run of steps (:func:`advance`); within it,
+    Starts a run of steps (:func:`advance_on`); within it,
     :func:`gather_and_correct` predicts each particle right after correcting it.
 
     Parameters
@@ -515,9 +514,6 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
     return moved
 
 
-# kernels are passed to advance() as first-class functions
-warnings.filterwarnings("ignore", category=numba.NumbaExperimentalFeatureWarning)
-
 KERNELS = (predict_and_place, pair_forces, gather_and_correct)
 
 
@@ -533,42 +529,53 @@ KERNELS_PARALLEL = tuple(build(k, True, nrt=True) for k in KERNELS)
 KERNELS_SERIAL = tuple(build(k, False, nrt=False) for k in KERNELS)
 
 
-# Not cached: its signature holds the types of the kernel dispatchers passed in,
-# which differ in every new process, so each process would miss the cache, compile
-# anyway and append an entry to the cache index.  Compiling this small loop costs
-# well under a second; the kernels themselves stay cached.
-@njit(cache=False)
-def advance(kernels, n_steps, n, pt, pairs, bodies, law, motion, work, x_ref, y_ref,
-            rebuild_sq):
-    """Run up to ``n_steps`` steps; stop early when the pair list needs a rebuild.
+def advance_on(kernels):
+    """:func:`advance` for one set of kernels (:data:`KERNELS_PARALLEL` or
+    :data:`KERNELS_SERIAL`), which it calls as constants.
 
-    Parameters
-    ----------
-    kernels : tuple
-        :data:`KERNELS_PARALLEL` or :data:`KERNELS_SERIAL`.
-    n_steps, n : int
-        Steps to run, active particles.
-    pt, pairs, bodies, law, motion, work
-        See the module docstring.
-    x_ref, y_ref : numpy.ndarray
-        Centres at the last pair-list build.
-    rebuild_sq : float
-        Squared displacement that calls for a rebuild, m².
-
-    Returns
-    -------
-    done : int
-        Steps done.
-    stale : bool
-        Some particle moved more than ``sqrt(rebuild_sq)`` since the last
-        pair-list build: the list must be rebuilt before the next step (also
-        when that happened in the last of the ``n_steps``).
+    Not handed in as an argument: Numba types a tuple of dispatchers in
+    Python at every call (``inspect.signature`` of each), about 0.3 ms per
+    run of steps, which a pour makes every few dozen steps (11 % of a
+    700-particle pour's time under cProfile).  Not cached either: a closure
+    over dispatchers is compiled in each process, well under a second.
     """
     predict, pair_pass, gather = kernels
-    predict(n, pt, motion, work)
-    for s in range(n_steps):
-        last = s + 1 == n_steps
-        pair_pass(pt, pairs, law, motion.dt, work, last)
-        if gather(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, last) > rebuild_sq:
-            return s + 1, True
-    return n_steps, False
+
+    @njit(cache=False)
+    def advance(n_steps, n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, rebuild_sq):
+        """Run up to ``n_steps`` steps; stop early when the pair list needs a rebuild.
+
+        Parameters
+        ----------
+        n_steps, n : int
+            Steps to run, active particles.
+        pt, pairs, bodies, law, motion, work
+            See the module docstring.
+        x_ref, y_ref : numpy.ndarray
+            Centres at the last pair-list build.
+        rebuild_sq : float
+            Squared displacement that calls for a rebuild, m².
+
+        Returns
+        -------
+        done : int
+            Steps done.
+        stale : bool
+            Some particle moved more than ``sqrt(rebuild_sq)`` since the last
+            pair-list build: the list must be rebuilt before the next step (also
+            when that happened in the last of the ``n_steps``).
+        """
+        predict(n, pt, motion, work)
+        for s in range(n_steps):
+            last = s + 1 == n_steps
+            pair_pass(pt, pairs, law, motion.dt, work, last)
+            if gather(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, last) > rebuild_sq:
+                return s + 1, True
+        return n_steps, False
+
+    return advance
+
+
+#: Runs of steps (:func:`advance_on`) on the parallel and on the serial kernels.
+ADVANCE_PARALLEL = advance_on(KERNELS_PARALLEL)
+ADVANCE_SERIAL = advance_on(KERNELS_SERIAL)
