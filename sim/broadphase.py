@@ -187,17 +187,16 @@ def match_pairs(old_i, old_j, new_i, new_j):
     return out
 
 
-def carry_history(old_i, old_j, old_value, new_i, new_j, fill=0.0):
+def carry_history(match, old_value, fill=0.0):
     """Carry per-pair history from an old sorted pair list to a new one.
 
     Parameters
     ----------
-    old_i, old_j : numpy.ndarray
-        The old pair list, sorted by ``(i, j)``.
+    match : numpy.ndarray
+        For each new pair its index in the old list, -1 where absent
+        (:func:`match_pairs`; one match serves every kind of history).
     old_value : numpy.ndarray, shape (n_old,) or (n_old, k)
         History per old pair (tangential springs, narrow-phase witnesses).
-    new_i, new_j : numpy.ndarray
-        The new pair list, sorted by ``(i, j)``.
     fill : scalar
         Value of pairs absent from the old list: 0 for a spring (a new
         contact's spring is unloaded, Appendix), -1 for a witness (none).
@@ -208,8 +207,7 @@ def carry_history(old_i, old_j, old_value, new_i, new_j, fill=0.0):
         One row of history per new pair, of ``old_value``'s dtype.
     """
     old_value = np.asarray(old_value)
-    idx = match_pairs(old_i, old_j, new_i, new_j)
-    out = np.full((len(idx),) + old_value.shape[1:], fill, dtype=old_value.dtype)
-    found = idx >= 0
-    out[found] = old_value[idx[found]]
+    out = np.full((len(match),) + old_value.shape[1:], fill, dtype=old_value.dtype)
+    found = match >= 0
+    out[found] = old_value[match[found]]
     return out

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .broadphase import carry_history
+from .broadphase import carry_history, match_pairs
 from .contact_law import tangential_stiffness
 from .step import ROW, ROW_SIZE
 
@@ -65,10 +65,10 @@ def load_history(state, scene, ci, cj, spring, witness=None):
     lo = np.minimum(ci[pair], cj[pair])
     hi = np.maximum(ci[pair], cj[pair])
     order = np.lexsort((hi, lo))
-    state.spring = carry_history(lo[order], hi[order], spring[pair][order], state.pi, state.pj)
+    match = match_pairs(lo[order], hi[order], state.pi, state.pj)
+    state.spring = carry_history(match, spring[pair][order])
     if witness is not None:
-        state.cross = carry_history(lo[order], hi[order], witness[pair][order],
-                                    state.pi, state.pj, fill=-1)
+        state.cross = carry_history(match, witness[pair][order], fill=-1)
 
 
 def stretch_body(state, scene, body_id, strain):

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .broadphase import candidate_pairs, carry_history, particle_pair_index
+from .broadphase import candidate_pairs, carry_history, match_pairs, particle_pair_index
 from .step import ROW_SIZE
 
 #: Displacement since the last build, as a fraction of the skin, that calls
@@ -42,14 +42,15 @@ def rebuild(state, scene, tangential, parallel):
     x = np.ascontiguousarray(state.r[0, 0, :n])
     y = np.ascontiguousarray(state.r[0, 1, :n])
     pi, pj = candidate_pairs(x, y, scene.shapes.radius, n, scene.skin, parallel)
+    match = match_pairs(state.pi, state.pj, pi, pj)
     if tangential:
-        state.spring = carry_history(state.pi, state.pj, state.spring, pi, pj)
+        state.spring = carry_history(match, state.spring)
     else:
         state.spring = np.zeros(len(pi))
     # the witnesses stay with their pairs, so that no result depends on when
     # the list was rebuilt (nor on a restart, which rebuilds it)
-    state.axis = carry_history(state.pi, state.pj, state.axis, pi, pj, fill=-1)
-    state.cross = carry_history(state.pi, state.pj, state.cross, pi, pj, fill=-1)
+    state.axis = carry_history(match, state.axis, fill=-1)
+    state.cross = carry_history(match, state.cross, fill=-1)
     if not scene.rotate:
         # orientations are fixed: no angular velocity (so θ's prediction is θ)
         state.r[1:, 2, :n] = 0.0

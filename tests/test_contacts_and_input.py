@@ -72,11 +72,12 @@ def test_normal_damping_is_the_appendix_value_clamped_at_minus_the_elastic_force
 def test_pair_history_is_carried_across_a_rebuild():
     """The tangential springs of pairs kept by a new pair list keep their
     value; new pairs start at zero (both lists sorted by (i, j))."""
-    from sim.broadphase import carry_history
+    from sim.broadphase import carry_history, match_pairs
 
     old_i, old_j = np.array([0, 0, 1, 2]), np.array([1, 3, 2, 5])
     new_i, new_j = np.array([0, 1, 1, 2, 4]), np.array([3, 2, 4, 5, 6])
-    carried = carry_history(old_i, old_j, np.array([1.5, -2.5, 3.5, 4.5]), new_i, new_j)
+    match = match_pairs(old_i, old_j, new_i, new_j)
+    carried = carry_history(match, np.array([1.5, -2.5, 3.5, 4.5]))
     np.testing.assert_array_equal(carried, [-2.5, 3.5, 0.0, 4.5, 0.0])
 
 
