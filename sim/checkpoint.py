@@ -33,11 +33,13 @@ def keep_last_good(sim, out, cfg, exc, **attrs):
     log.error("last good state (t = %.6g s) saved to %s", sim.time, path)
 
 
-def remove_temporaries(checkpoint):
-    """Delete the temporary files of checkpoints (and of their frames) whose
-    writer was killed; only the holder of the pour's lock may."""
-    for name in (checkpoint.name, partial_path(checkpoint).name):
-        for stale in checkpoint.parent.glob(f".{name}.*.tmp"):
+def remove_temporaries(checkpoint, *outputs):
+    """Delete the temporary files whose writer was killed: of checkpoints, of
+    their frames and of the pour's ``outputs`` (its state and film, written
+    under the same lock); only the holder of the pour's lock may."""
+    paths = [checkpoint, partial_path(checkpoint), *(Path(o) for o in outputs if o)]
+    for path in paths:
+        for stale in path.parent.glob(f".{path.name}.*.tmp"):
             stale.unlink()
 
 

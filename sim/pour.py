@@ -118,11 +118,13 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
 
 
 
-def _start(cfg, protocol, seed, checkpoint, shapes):
+def _start(cfg, protocol, seed, checkpoint, shapes, outputs):
     """The simulation to pour with, its next release time and whether it was
-    resumed from a usable checkpoint (:func:`sim.checkpoint.resume`)."""
+    resumed from a usable checkpoint (:func:`sim.checkpoint.resume`); the
+    temporary files a killed run left of the checkpoint and of ``outputs``
+    are removed first."""
     if checkpoint is not None:
-        remove_temporaries(checkpoint)
+        remove_temporaries(checkpoint, *outputs)
         resumed = resume(cfg, protocol, seed, checkpoint, shapes) if checkpoint.exists() else None
         if resumed is not None:
             return (*resumed, True)
@@ -138,7 +140,7 @@ def _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock, frames):
     p = cfg.pour
     shapes = pile_shapes(cfg, seed)
     interval = 1.0 / p.rate
-    sim, next_release, resumed = _start(cfg, protocol, seed, checkpoint, shapes)
+    sim, next_release, resumed = _start(cfg, protocol, seed, checkpoint, shapes, (out, frames))
     recorder = FrameRecorder(shapes, p.n_particles, p.frame_interval) if frames else None
     if recorder is not None and resumed:
         recorder.resume(partial_path(checkpoint), sim.time)

@@ -189,6 +189,22 @@ def test_the_piles_log_gains_each_run_that_holds_the_lock_and_no_other(tmp_path,
     assert " INFO pour wedge seed 3 done: " in lines[-1], lines[-1]
 
 
+def test_a_run_killed_while_writing_its_results_leaves_no_temporary_file(tmp_path, whole):
+    """Killed while writing the poured state or its film (after the last
+    checkpoint, before the rename), a run leaves ``.NAME.PID.tmp`` files; the
+    next run, holding the lock, removes them with the checkpoint's and pours
+    the same pile."""
+    ckpt = tmp_path / "pour.checkpoint.nc"
+    left = [tmp_path / f".{name}.{pid}.tmp" for name in ("poured.nc", "frames.nc",
+                                                          "pour.checkpoint.nc") for pid in (7, 8)]
+    for path in left:
+        path.write_bytes(b"CDF half written")
+    pour(tiny(), "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt,
+         frames=tmp_path / "frames.nc")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frames.nc", "poured.nc"]
+    assert_same_pile(whole, tmp_path / "poured.nc")
+
+
 def test_another_hosts_lock_counts_until_it_is_stale(tmp_path):
     lock_path = tmp_path / "x.lock"
     lock_path.write_text("some-other-host 1\n")
