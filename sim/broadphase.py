@@ -142,6 +142,86 @@ _PAIRS_SERIAL = build(_candidate_pairs, False)
 
 
 @njit(cache=True)
+def refreshed_pairs(x_ref, y_ref, radius, n, skin, moved, pi, pj):
+    """The candidate pairs after the particles ``moved`` took new reference centres.
+
+    The list ``(pi, pj)`` holds the pairs closer than ``R_i + R_j + skin`` at
+    the reference centres ``x_ref, y_ref`` (each particle's centre when it
+    last took one); the particles of the mask ``moved`` have just taken
+    theirs.  Their pairs are tested anew against every other particle's
+    reference (O(n) per moved particle, with the test of
+    :func:`candidate_pairs`); the pairs of two particles that kept theirs
+    stay as they are.  So the result is :func:`candidate_pairs` of the
+    reference centres, pair for pair, at the cost of a merge when few
+    particles moved (in a pour, mostly one falling or rolling particle).
+
+    Parameters
+    ----------
+    x_ref, y_ref : numpy.ndarray
+        Reference centres, the moved particles' already new, m.
+    radius : numpy.ndarray
+        Circumradii, m.
+    n : int
+        Active particles.
+    skin : float
+        Verlet skin, m.
+    moved : numpy.ndarray of bool
+        The particles with new reference centres.
+    pi, pj : numpy.ndarray
+        The list at the old references, sorted by ``(pi, pj)``.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray, numpy.ndarray)
+        ``pi``, ``pj`` (sorted) and, for each pair, its index in the old list
+        or -1 (the ``match`` of :func:`carry_history`).
+    """
+    # the moved particles' pairs, as keys i * n + j, found by a scan of all
+    found = []
+    for i in range(n):
+        if not moved[i]:
+            continue
+        for k in range(n):
+            if k == i or (moved[k] and k < i):
+                continue  # a pair of two moved particles is found from the first
+            a = min(i, k)
+            b = max(i, k)
+            reach = radius[a] + radius[b] + skin
+            dx = x_ref[b] - x_ref[a]
+            dy = y_ref[b] - y_ref[a]
+            if dx * dx + dy * dy < reach * reach:
+                found.append(a * n + b)
+    new_keys = np.sort(np.array(found, np.int64)) if found else np.empty(0, np.int64)
+    old_keys = pi * n + pj
+    kept = 0
+    for p in range(pi.shape[0]):
+        if not (moved[pi[p]] or moved[pj[p]]):
+            kept += 1
+    total = kept + new_keys.shape[0]
+    out_i = np.empty(total, np.int64)
+    out_j = np.empty(total, np.int64)
+    match = np.empty(total, np.int64)
+    # merge the kept pairs (in the old order) with the found ones
+    p = 0
+    q = 0
+    for m in range(total):
+        while p < pi.shape[0] and (moved[pi[p]] or moved[pj[p]]):
+            p += 1
+        if q == new_keys.shape[0] or (p < pi.shape[0] and old_keys[p] < new_keys[q]):
+            key = old_keys[p]
+            match[m] = p
+            p += 1
+        else:
+            key = new_keys[q]
+            old = np.searchsorted(old_keys, key)
+            match[m] = old if old < old_keys.shape[0] and old_keys[old] == key else -1
+            q += 1
+        out_i[m] = key // n
+        out_j[m] = key % n
+    return out_i, out_j, match
+
+
+@njit(cache=True)
 def particle_pair_index(pi, pj, n):
     """CSR index of the pairs each particle belongs to, in pair order.
 

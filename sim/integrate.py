@@ -35,8 +35,8 @@ def integrator(scene):
         run up to ``n_steps`` steps of ``state.n`` particles on the kernels'
         tuples ``kernel_state`` (:meth:`sim.engine.Simulation.kernel_state`),
         with their parallel builds or not; count them in ``state.step``;
-        stop early, marking the state stale, once a particle moved more than
-        ``sqrt(rebuild_sq)`` since the pair list was built.
+        stop early, marking the state ``moved``, once a particle moved more than
+        ``sqrt(rebuild_sq)`` from its reference centre (:mod:`sim.rebuild`).
     """
     def init(state, k, position, velocity):
         dt = scene.dt
@@ -47,10 +47,10 @@ def integrator(scene):
 
     def step(state, n_steps, kernel_state, parallel, rebuild_sq):
         advance = ADVANCE_PARALLEL if parallel else ADVANCE_SERIAL
-        done, stale = advance(n_steps, state.n, *kernel_state, state.x_ref, state.y_ref,
+        done, moved = advance(n_steps, state.n, *kernel_state, state.x_ref, state.y_ref,
                               rebuild_sq)
         state.step += done
-        state.stale = state.stale or stale
+        state.moved = state.moved or moved
         return done
 
     return init, step

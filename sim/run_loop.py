@@ -44,7 +44,7 @@ def run(sim, steps, step, rebuild):
     last_good = sim.snapshot()
     rebuild_sq = rebuild_distance_sq(sim.skin)
     while done < steps:
-        if sim.state.stale:
+        if sim.state.stale or sim.state.moved:
             rebuild()
         chunk = min(steps - done, sim.check_every - sim.step % sim.check_every)
         if sim.step == 0:

@@ -57,9 +57,14 @@ class State:
     pair_offset, pair_index : numpy.ndarray
         The pairs of each particle (CSR).
     x_ref, y_ref : numpy.ndarray
-        Centres at the last pair-list build.
+        Each particle's reference centre: where it was when its pairs were
+        last tested (:mod:`sim.rebuild`).
     stale : bool
-        The pair list must be rebuilt before the next step.
+        The whole pair list must be built before the next step (the
+        particle set, the state or its velocities were set).
+    moved : bool
+        A particle moved too far from its reference: its pairs must be
+        refreshed before the next step.
     bspring, bout : numpy.ndarray
         Tangential spring and contact row of each body and particle.
     wx, wy, box, pred, work
@@ -84,6 +89,7 @@ class State:
     x_ref: np.ndarray
     y_ref: np.ndarray
     stale: bool
+    moved: bool
     bspring: np.ndarray
     bout: np.ndarray
     wx: np.ndarray
@@ -106,7 +112,7 @@ def new_state(scene, gravity) -> State:
         axis=np.empty(0, np.int64), cross=np.empty((0, 4), np.int64),
         pout=np.zeros((0, ROW_SIZE)), pforce=np.zeros((0, 4)),
         pair_offset=np.zeros(1, np.int64), pair_index=np.empty(0, np.int64),
-        x_ref=np.empty(0), y_ref=np.empty(0), stale=True,
+        x_ref=np.empty(0), y_ref=np.empty(0), stale=True, moved=False,
         bspring=np.zeros((n_bodies, capacity)), bout=np.zeros((n_bodies, capacity, ROW_SIZE)),
         wx=np.zeros_like(shapes.node_x), wy=np.zeros_like(shapes.node_y),
         box=np.zeros((capacity, 4)), pred=np.zeros((capacity, PRED_SIZE)),

@@ -8,7 +8,7 @@ import yaml
 
 from scenes import rectangle, regular_polygon, scene, shapes_of
 from sim.blowup import BlowUpError
-from sim.broadphase import candidate_pairs
+from sim.broadphase import candidate_pairs, refreshed_pairs
 from sim.config import ConfigError, ModelParams, SimConfig
 from sim.contact_law import characteristic_length, normal_force, tangential_force
 from sim.engine import Simulation
@@ -304,6 +304,74 @@ def test_broad_phase_finds_every_close_pair(parallel):
     reach = radius[:, None] + radius[None] + skin
     bi, bj = np.nonzero(np.triu(d < reach, 1))
     assert list(zip(pi, pj)) == list(zip(bi, bj))  # same pairs, same (i, j) order
+
+
+def brute_force_pairs(x, y, radius, skin):
+    """Every pair i < j closer than R_i + R_j + skin, by all distances."""
+    d = np.hypot(x[:, None] - x[None], y[:, None] - y[None])
+    return np.nonzero(np.triu(d < radius[:, None] + radius[None] + skin, 1))
+
+
+@pytest.mark.parametrize("n_moved", [1, 2, 7])
+def test_refreshing_the_pairs_of_moved_particles_gives_the_list_of_all_references(n_moved):
+    """Some particles take new reference centres (one jumps far, others move
+    within and beyond reach, two of them neighbours): the refreshed list is
+    the brute-force list of all references, in (i, j) order, and each pair
+    kept from the old list points at its old row."""
+    rng = np.random.default_rng(11 + n_moved)
+    n, skin = 300, 1e-3
+    x = rng.uniform(0, 0.08, n)
+    y = rng.uniform(0, 0.08, n)
+    radius = rng.uniform(2e-3, 4e-3, n)
+    pi, pj = candidate_pairs(x, y, radius, n, skin)
+    moved = np.zeros(n, bool)
+    moved[rng.choice(n, n_moved, replace=False)] = True
+    first = np.flatnonzero(moved)[0]
+    moved[pj[pi == first][:1]] = True          # and one of its partners
+    x_ref, y_ref = x.copy(), y.copy()
+    x_ref[moved] += rng.normal(0, 4e-3, moved.sum())
+    y_ref[moved] += rng.normal(0, 4e-3, moved.sum())
+    x_ref[first], y_ref[first] = 0.5, 0.5       # far from everyone
+    ri, rj, match = refreshed_pairs(x_ref, y_ref, radius, n, skin, moved, pi, pj)
+    bi, bj = brute_force_pairs(x_ref, y_ref, radius, skin)
+    assert list(zip(ri, rj)) == list(zip(bi, bj))
+    old = {(a, b): k for k, (a, b) in enumerate(zip(pi, pj))}
+    assert list(match) == [old.get((a, b), -1) for a, b in zip(ri, rj)]
+    assert not np.any((ri == first) | (rj == first))
+
+
+def test_a_pour_refreshing_few_pairs_keeps_every_touching_pair_listed():
+    """Particles dropped onto a heap (the pour's case: few move): at every
+    refresh the list holds every pair whose polygons' circumcircles are
+    within the skin at the current centres, and most refreshes were of the
+    movers' pairs only."""
+    from sim import rebuild as rebuilds
+
+    sim = Simulation(make_shapes(np.random.default_rng(3), 40), ModelParams(damping=0.3))
+    for k in range(40):
+        sim.place(k, 0.012 * (k % 8) - 0.042, 0.004 + 0.008 * (k // 8), 0.0, 0.0, 0.0)
+    sim.run(duration=0.02)
+    counts = {"refreshed": 0}
+    real = rebuilds.refreshed_pairs
+
+    def counted(*args):
+        counts["refreshed"] += 1
+        return real(*args)
+
+    rebuilds.refreshed_pairs = counted
+    try:
+        for k in range(30, 40):    # lift the top ten and drop them again, one at a time
+            sim.place(k, 0.0, 0.08, 0.3 * k, 0.0, -0.3)
+            for _ in range(20):
+                sim.run(duration=0.002)
+                s = sim.state
+                x, y = s.r[0, 0, :s.n], s.r[0, 1, :s.n]
+                bi, bj = brute_force_pairs(x, y, sim.scene.shapes.radius[:s.n], 0.0)
+                listed = set(zip(s.pi.tolist(), s.pj.tolist()))
+                assert set(zip(bi.tolist(), bj.tolist())) <= listed
+    finally:
+        rebuilds.refreshed_pairs = real
+    assert counts["refreshed"] > 10
 
 
 def test_given_dt_beyond_stability_limit_is_refused():
