@@ -2,10 +2,12 @@
 
 Every particle is enclosed by its circumcircle (radius ``R_i``, invariant under
 rotation).  Two particles are *candidates* when their centres are closer than
-``R_i + R_j + skin``.  The candidate list is rebuilt only when some particle
-has moved more than ``skin / 2`` since the last build, so between builds it
-is guaranteed to contain every overlapping pair; each step then tests only the
-candidates (bounding boxes, then the exact narrow phase of :mod:`sim.geometry`).
+``R_i + R_j + skin`` at their reference centres.  A particle's pairs are
+tested anew only when it has moved more than 0.45 ``skin`` from its
+reference (:mod:`sim.rebuild`; :func:`refreshed_pairs` for a few such
+particles, :func:`candidate_pairs` for all), so the list always contains
+every overlapping pair; each step then tests only the candidates (bounding
+boxes, then the exact narrow phase of :mod:`sim.geometry`).
 
 The build sorts particles into square cells of side ``2 R_max + skin`` (a
 counting sort, O(N)) and scans the 3 × 3 neighbourhood of each particle's cell,

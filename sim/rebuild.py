@@ -29,10 +29,14 @@ from .step import ROW_SIZE
 REBUILD_FRACTION = 0.45
 
 
+#: At a refresh, the particles that moved more than this fraction of the
+#: limit take new references (:func:`rebuild`).
+REFRESH_FRACTION = 0.5
+
 #: Up to this many moved particles only their pairs are refreshed; beyond it
 #: the whole list is built.  Each moved particle's pairs cost a scan of all n
 #: particles, the whole build about 20 tests per particle (its 3 × 3 cells).
-MOST_REFRESHED = 8
+MOST_REFRESHED = 16
 
 
 def rebuild_distance_sq(skin):
@@ -59,7 +63,11 @@ def rebuild(state, scene, tangential, parallel):
     y = np.ascontiguousarray(state.r[0, 1, :n])
     moved = None
     if not state.stale:
-        moved = (x - state.x_ref) ** 2 + (y - state.y_ref) ** 2 > rebuild_distance_sq(scene.skin)
+        # past half the limit, not only past it: particles creeping through a
+        # settling pile are then swept along by the refreshes that falling
+        # ones call for, instead of each calling one of its own
+        moved = ((x - state.x_ref) ** 2 + (y - state.y_ref) ** 2 >
+                 REFRESH_FRACTION ** 2 * rebuild_distance_sq(scene.skin))
         if np.count_nonzero(moved) > MOST_REFRESHED:
             moved = None
     if moved is None:
