@@ -23,11 +23,10 @@ from .broadphase import (candidate_pairs, carry_history, match_pairs, particle_p
                          refreshed_pairs)
 from .step import ROW_SIZE
 
-#: Displacement since the last build, as a fraction of the skin, that calls
-#: for a rebuild: two particles closing in on each other by that much each
-#: stay within the skin of the pair they are in.
+#: Displacement from a particle's reference centre, as a fraction of the
+#: skin, that calls for a refresh: two particles closing in on each other by
+#: that much each stay within the skin of the pair they are in.
 REBUILD_FRACTION = 0.45
-
 
 #: At a refresh, the particles that moved more than this fraction of the
 #: limit take new references (:func:`rebuild`).

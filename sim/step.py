@@ -427,7 +427,8 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
     pt, pairs, bodies, law, motion, work
         See the module docstring.
     x_ref, y_ref : numpy.ndarray
-        Centres at the last pair-list build.
+        Each particle's reference centre, where its pairs were last tested
+        (:mod:`sim.rebuild`).
     record : bool
         The last step of a run: write the body rows (``bodies.out``) and do
         not predict a next step (otherwise: no rows, and the next step's
@@ -436,8 +437,8 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
     Returns
     -------
     float
-        The largest squared displacement of a corrected centre since the last
-        build, m².
+        The largest squared displacement of a corrected centre from its
+        reference, m².
     """
     r, pred, node_offset, node_x, node_y, wx, wy, box, mass, inv_mass, inv_inertia, area = pt
     force, offset, index = pairs[6:]
@@ -552,18 +553,19 @@ def advance_on(kernels):
         pt, pairs, bodies, law, motion, work
             See the module docstring.
         x_ref, y_ref : numpy.ndarray
-            Centres at the last pair-list build.
+            Reference centres (:mod:`sim.rebuild`).
         rebuild_sq : float
-            Squared displacement that calls for a rebuild, m².
+            Squared displacement from a reference that calls for a refresh
+            of the pair list, m².
 
         Returns
         -------
         done : int
             Steps done.
-        stale : bool
-            Some particle moved more than ``sqrt(rebuild_sq)`` since the last
-            pair-list build: the list must be rebuilt before the next step (also
-            when that happened in the last of the ``n_steps``).
+        moved : bool
+            Some particle moved more than ``sqrt(rebuild_sq)`` from its
+            reference centre: the list must be refreshed before the next step
+            (also when that happened in the last of the ``n_steps``).
         """
         predict(n, pt, motion, work)
         for s in range(n_steps):
