@@ -4,8 +4,9 @@ The candidate pairs are those within the Verlet skin (:mod:`sim.broadphase`)
 at each particle's *reference centre*, where it was when its pairs were last
 tested.  The list is refreshed before the next step once a particle has
 moved more than :data:`REBUILD_FRACTION` of the skin from its reference (the
-kernels report it, :func:`sim.step.advance_on`; ``State.moved``): only such
-particles take new references and have their pairs tested anew
+kernels report it, :func:`sim.step.advance_on`; ``State.moved``): only the
+particles past :data:`REFRESH_FRACTION` of that distance take new references
+and have their pairs tested anew
 (:func:`sim.broadphase.refreshed_pairs`), so a falling particle does not
 rebuild everyone's list.  Every pair stays valid while both its particles
 are within that distance of their references, wherever those lie.  After
@@ -45,8 +46,9 @@ def rebuild_distance_sq(skin):
 
 def rebuild(state, scene, tangential, parallel):
     """Refresh the pair list of `state` (module docstring): the pairs of the
-    particles that moved past the limit, or, where ``state.stale`` or many
-    moved, the whole list from the current centres.
+    particles that moved past :data:`REFRESH_FRACTION` of the limit, or,
+    where ``state.stale`` or more than :data:`MOST_REFRESHED` moved, the
+    whole list from the current centres.
 
     Parameters
     ----------
