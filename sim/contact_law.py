@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 
@@ -72,10 +73,33 @@ def elastic_force(area, l, youngs_modulus):
 
 
 @njit(cache=True, inline="always")
-def normal_force(area, area_rate, l, m_perp, youngs_modulus, damping):
+def damping_coefficient(m_perp, youngs_modulus, damping):
+    """Coefficient ``γ sqrt(Y m⊥)`` of the normal damping (Appendix, (ii)), N s/m.
+
+    It depends on the two masses only, so the pair pass takes it per pair
+    from the pair list (:func:`pair_damping_coefficients`) instead of a
+    division and a square root per contact and step.
+    """
+    return damping * math.sqrt(youngs_modulus * m_perp)
+
+
+@njit(cache=True)
+def pair_damping_coefficients(pi, pj, inv_mass, youngs_modulus, damping):
+    """:func:`damping_coefficient` of each pair ``(pi[p], pj[p])`` from the
+    particles' inverse masses; the same bits as computed per contact."""
+    out = np.empty(pi.shape[0])
+    for p in range(pi.shape[0]):
+        out[p] = damping_coefficient(reduced_mass(inv_mass[pi[p]], inv_mass[pj[p]]),
+                                     youngs_modulus, damping)
+    return out
+
+
+@njit(cache=True, inline="always")
+def normal_force(area, area_rate, l, coefficient, youngs_modulus):
     """Elastic plus damping normal force ``F⊥ + D⊥`` (Appendix, (i) and (ii)).
 
-    ``F⊥ = Y A / l`` and ``D*⊥ = γ sqrt(Y m⊥) dA/dt / l``.  On approach
+    ``F⊥ = Y A / l`` and ``D*⊥ = γ sqrt(Y m⊥) dA/dt / l``, with the
+    coefficient ``γ sqrt(Y m⊥)`` of :func:`damping_coefficient`.  On approach
     (``dA/dt > 0``) ``D⊥ = D*⊥``; on separation ``D⊥ = max(D*⊥, −F⊥)`` so the
     total never attracts.  ``dA/dt`` is the exact rate ``L v_n`` of the
     contact-line length times the normal approach speed (the paper's
@@ -87,8 +111,11 @@ def normal_force(area, area_rate, l, m_perp, youngs_modulus, damping):
         Elastic part ``F⊥`` and total ``F⊥ + D⊥`` (>= 0).
     """
     f_el = elastic_force(area, l, youngs_modulus)
-    d = damping * math.sqrt(youngs_modulus * m_perp) * area_rate / l
-    if area_rate < 0.0 and d < -f_el:
+    d = coefficient * area_rate / l
+    # only a separation (d < 0) can pass -F⊥; one test, not two, so that the
+    # compiler selects instead of branching (the sign of dA/dt is a coin toss
+    # in a settled pile, a mispredicted branch per contact)
+    if d < -f_el:
         d = -f_el
     return f_el, f_el + d
 

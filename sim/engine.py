@@ -216,7 +216,7 @@ class Simulation:
         return (Particles(st.r, st.pred, sh.node_offset, sh.node_x, sh.node_y, st.wx,
                           st.wy, st.box, sh.mass, self.inv_mass,
                           self.inv_inertia, sh.area),
-                Pairs(st.pi, st.pj, st.spring, st.axis, st.cross, st.pout,
+                Pairs(st.pi, st.pj, st.spring, st.pdamping, st.axis, st.cross, st.pout,
                       st.pforce, st.pair_offset, st.pair_index),
                 Bodies(self.body_p, self.body_m, self.body_friction, st.bspring, st.bout),
                 Law(float(m.youngs_modulus), float(m.damping), float(m.friction), self.eps,

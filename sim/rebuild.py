@@ -22,6 +22,7 @@ import numpy as np
 
 from .broadphase import (candidate_pairs, carry_history, match_pairs, particle_pair_index,
                          refreshed_pairs)
+from .contact_law import pair_damping_coefficients
 from .step import ROW_SIZE
 
 #: Displacement from a particle's reference centre, as a fraction of the
@@ -93,6 +94,9 @@ def rebuild(state, scene, tangential, parallel):
         # orientations are fixed: no angular velocity (so θ's prediction is θ)
         state.r[1:, 2, :n] = 0.0
     state.pi, state.pj = pi, pj
+    state.pdamping = pair_damping_coefficients(pi, pj, scene.inv_mass,
+                                               float(scene.model.youngs_modulus),
+                                               float(scene.model.damping))
     state.pair_offset, state.pair_index = particle_pair_index(pi, pj, n)
     state.pout = np.zeros((len(pi), ROW_SIZE))
     state.pforce = np.zeros((len(pi), 4))

@@ -52,6 +52,9 @@ class State:
         Candidate pairs (``pi < pj``), sorted.
     spring, axis, cross : numpy.ndarray
         Each pair's tangential spring and narrow-phase witnesses.
+    pdamping : numpy.ndarray
+        Each pair's coefficient of the normal damping
+        (:func:`sim.contact_law.pair_damping_coefficients`).
     pout, pforce : numpy.ndarray
         Each pair's contact row and forces of the last evaluation.
     pair_offset, pair_index : numpy.ndarray
@@ -82,6 +85,7 @@ class State:
     spring: np.ndarray
     axis: np.ndarray
     cross: np.ndarray
+    pdamping: np.ndarray
     pout: np.ndarray
     pforce: np.ndarray
     pair_offset: np.ndarray
@@ -109,7 +113,7 @@ def new_state(scene, gravity) -> State:
         n=0, r=np.zeros((len(scene.coeffs), 3, capacity)), time=0.0, step=0,
         gravity=(float(gravity[0]), float(gravity[1])),
         pi=np.empty(0, np.int64), pj=np.empty(0, np.int64), spring=np.empty(0),
-        axis=np.empty(0, np.int64), cross=np.empty((0, 4), np.int64),
+        axis=np.empty(0, np.int64), cross=np.empty((0, 4), np.int64), pdamping=np.empty(0),
         pout=np.zeros((0, ROW_SIZE)), pforce=np.zeros((0, 4)),
         pair_offset=np.zeros(1, np.int64), pair_index=np.empty(0, np.int64),
         x_ref=np.empty(0), y_ref=np.empty(0), stale=True, moved=False,

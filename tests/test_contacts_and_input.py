@@ -10,7 +10,8 @@ from scenes import rectangle, regular_polygon, scene, shapes_of
 from sim.blowup import BlowUpError
 from sim.broadphase import candidate_pairs, refreshed_pairs
 from sim.config import ConfigError, ModelParams, SimConfig
-from sim.contact_law import characteristic_length, normal_force, tangential_force
+from sim.contact_law import (characteristic_length, damping_coefficient, normal_force,
+                             pair_damping_coefficients, tangential_force)
 from sim.engine import Simulation
 from sim.integrators import stability_limit
 from sim.io import StateFileError, load_simulation, save_state
@@ -50,7 +51,8 @@ def test_newtons_third_law_per_contact(seed):
 def test_normal_force_never_attracts():
     """On separation the damping is clamped at -F⊥ (Appendix (ii))."""
     for rate in np.linspace(-1.0, 1.0, 41):
-        f_el, total = normal_force(1e-9, rate * 1e-3, 1e-3, 0.02, 1e7, 5.0)
+        f_el, total = normal_force(1e-9, rate * 1e-3, 1e-3, damping_coefficient(0.02, 1e7, 5.0),
+                                   1e7)
         assert total >= 0.0
         assert f_el == pytest.approx(1e7 * 1e-9 / 1e-3)
         if rate > 0:
@@ -62,11 +64,28 @@ def test_normal_damping_is_the_appendix_value_clamped_at_minus_the_elastic_force
     """Total = F + D* with D* = gamma sqrt(Y m) dA/dt / l, but never below 0:
     a fast separation gives exactly 0, a slow one the undamped value less D*."""
     area, l, m, Y, gamma = 1e-9, 1e-3, 0.02, 1e7, 5.0
-    f_el, total = normal_force(area, rate, l, m, Y, gamma)
+    f_el, total = normal_force(area, rate, l, damping_coefficient(m, Y, gamma), Y)
     expected = Y * area / l + gamma * np.sqrt(Y * m) * rate / l
     assert total == pytest.approx(max(expected, 0.0), rel=1e-12, abs=1e-300)
     if expected < 0:
         assert total == 0.0
+
+
+def test_pair_damping_coefficients_use_each_pairs_reduced_mass():
+    """The pair list's damping coefficient is γ sqrt(Y m_i m_j / (m_i + m_j))
+    (Appendix (ii)) of that pair's masses, and the same bits as the
+    coefficient computed for one contact."""
+    rng = np.random.default_rng(3)
+    mass = rng.uniform(0.005, 0.05, 12)
+    pi = np.array([0, 0, 3, 5, 7, 10])
+    pj = np.array([1, 11, 4, 9, 8, 11])
+    Y, gamma = 1e7, 0.3
+    got = pair_damping_coefficients(pi, pj, 1.0 / mass, Y, gamma)
+    m_perp = mass[pi] * mass[pj] / (mass[pi] + mass[pj])
+    np.testing.assert_allclose(got, gamma * np.sqrt(Y * m_perp), rtol=1e-14)
+    for p in range(len(pi)):
+        one = damping_coefficient(1.0 / (1.0 / mass[pi[p]] + 1.0 / mass[pj[p]]), Y, gamma)
+        assert got[p] == one
 
 
 def test_pair_history_is_carried_across_a_rebuild():
