@@ -317,16 +317,18 @@ def pair_forces(pt, pairs, law, dt, work, record):
         S = scratch[tid]
         geo = geo_rows[tid]
         for p in range(blk * PAIR_BLOCK, min(blk * PAIR_BLOCK + PAIR_BLOCK, n_pairs)):
-            i = pi[p]
-            j = pj[p]
+            # unsigned particle indices: Numba then indexes without its test
+            # for negative indices (as the corner indices of sim.warmstart)
+            i = np.uint64(pi[p])
+            j = np.uint64(pj[p])
             if record:
                 out[p, 15] = 0.0
             for k in range(4):
                 force[p, k] = 0.0
             a0 = node_offset[i]
-            a1 = node_offset[i + 1]
+            a1 = node_offset[i + np.uint64(1)]
             b0 = node_offset[j]
-            b1 = node_offset[j + 1]
+            b1 = node_offset[j + np.uint64(1)]
             if (box[i, 1] < box[j, 0] or box[j, 1] < box[i, 0] or
                     box[i, 3] < box[j, 2] or box[j, 3] < box[i, 2] or
                     (axis[p] >= 0 and axis_separates(wx, wy, a0, a1, b0, b1, axis[p]))):

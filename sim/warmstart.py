@@ -61,13 +61,16 @@ def axis_separates(x, y, a0, a1, b0, b1, axis):
         e0, e1, v0, v1 = a0, a1, b0, b1
     else:
         e0, e1, v0, v1 = b0, b1, a0, a1
-    e = e0 + (axis >> 1)
-    f = e + 1 if e + 1 < e1 else e0
+    k = e0 + (axis >> 1)
+    # unsigned corner indices here and below: Numba then indexes without its
+    # test for negative indices (three integer operations per access, in a
+    # pair's every corner access; the pair pass took 12 % longer with them)
+    e = np.uint64(k)
+    f = np.uint64(k + 1 if k + 1 < e1 else e0)
     px = x[e]
     py = y[e]
     ex = x[f] - px
     ey = y[f] - py
-    # unsigned: Numba indexes without its test for negative indices
     for q in range(np.uint64(v0), np.uint64(v1)):
         if ex * (y[q] - py) - ey * (x[q] - px) >= 0.0:
             return False
@@ -128,10 +131,13 @@ def _edge_crossing(x, y, a0, a1, ka, b0, b1, kb, entering, ox, oy):
         point relative to ``(ox, oy)`` (as in the general kernel; 0 when not
         found).
     """
-    i = a0 + ka
-    i1 = i + 1 if i + 1 < a1 else a0
-    j = b0 + kb
-    j1 = j + 1 if j + 1 < b1 else b0
+    ia = a0 + ka
+    jb = b0 + kb
+    # unsigned (see axis_separates)
+    i = np.uint64(ia)
+    i1 = np.uint64(ia + 1 if ia + 1 < a1 else a0)
+    j = np.uint64(jb)
+    j1 = np.uint64(jb + 1 if jb + 1 < b1 else b0)
     found, t, un, den = _crossing(x[i], y[i], x[i1], y[i1], x[j], y[j], x[j1], y[j1],
                                   entering)
     if not found:
@@ -170,10 +176,10 @@ def _arcs_area(x, y, a0, a1, b0, b1, ka_in, kb_in, ka_out, kb_out, ox, oy, x1, y
             p0, n, k, k_to, q0, q1 = b0, nb, kb_out, kb_in, a0, a1
         while ok and k != k_to:
             k = k + 1 if k + 1 < n else 0
-            vx = x[p0 + k]
-            vy = y[p0 + k]
-            ex = x[q1 - 1]
-            ey = y[q1 - 1]
+            vx = x[np.uint64(p0 + k)]
+            vy = y[np.uint64(p0 + k)]
+            ex = x[np.uint64(q1 - 1)]
+            ey = y[np.uint64(q1 - 1)]
             for m in range(np.uint64(q0), np.uint64(q1)):
                 if (x[m] - ex) * (vy - ey) - (y[m] - ey) * (vx - ex) < 0.0:
                     ok = False
@@ -233,8 +239,8 @@ def overlap_from_crossings(x, y, a0, a1, b0, b1, cax, cay, cbx, cby, eps, out, c
     # every value defined on every path (the parallel pass needs it)
     t1 = un1 = t2 = un2 = x1 = y1 = x2 = y2 = tx = ty = a2 = d2 = nx = ny = 0.0
     den1 = den2 = 1.0
-    ox = x[a0]
-    oy = y[a0]
+    ox = x[np.uint64(a0)]
+    oy = y[np.uint64(a0)]
     if ok:
         ok, t1, un1, den1, x1, y1 = _edge_crossing(x, y, a0, a1, ka_in, b0, b1, kb_in, True,
                                                    ox, oy)
