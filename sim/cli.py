@@ -160,7 +160,8 @@ def _parser():
 
 
 # python -m sim numerics WHAT ...: module of sim.numerics whose main(argv) runs WHAT
-NUMERICS = {"collisions": "collisions", "stability": "stability"}
+NUMERICS = {"collisions": "collisions", "stability": "stability",
+            "kernel-profile": "kernel_profile"}
 
 
 def _numerics(argv):
