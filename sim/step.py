@@ -98,10 +98,10 @@ Pairs.__doc__ = """The candidate pairs of the broad phase (:mod:`sim.broadphase`
 
 i, j : particle indices (i < j, sorted); spring : tangential spring force;
 damping : the coefficient γ sqrt(Y m⊥) of the normal damping of each pair
-(:func:`sim.contact_law.pair_damping_coefficients`; a division and a square
-root per contact and step saved, about a tenth of the pair pass); axis : (n_pairs,) separating edge, cross : (n_pairs, 4) crossing edges
-(witnesses of the last step, :mod:`sim.warmstart`); out : (n_pairs, ROW_SIZE)
-rows; force : (n_pairs, 4) the force on i (x, y) and the torques on i and j,
+(:func:`sim.contact_law.pair_damping_coefficients`; it saves a division and
+a square root per contact and step); axis : (n_pairs,) separating edge,
+cross : (n_pairs, 4) crossing edges (witnesses of the last step,
+:mod:`sim.warmstart`); out : (n_pairs, ROW_SIZE) rows; force : (n_pairs, 4) the force on i (x, y) and the torques on i and j,
 zero where the pair does not touch (the gather's compact copy of the rows'
 force columns); offset, index : CSR list of the pairs of each particle
 (:func:`sim.broadphase.particle_pair_index`: ``2 p`` where the particle is

@@ -83,7 +83,7 @@ def _run_kernel(args, out):
     for _ in range(args.repeats):
         call()
     ns = (time.thread_time() - t0) / args.repeats / sim.n * 1e9
-    (cres,) = kernel.overloads.values()
+    cres = kernel.overloads[kernel.signatures[-1]]  # the build of the calls above
     symbol = cres.fndesc.llvm_func_name
     address = cres.library.get_pointer_to_function(symbol)
     size = min(1 << 16, _mapping_end(address) - address)
