@@ -97,6 +97,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .rotation import cos_sin
+
 __all__ = [
     "OUT_SIZE",
     "SCRATCH_ROWS",
@@ -865,6 +867,8 @@ def halfplane_overlap(ax, ay, px, py, mx, my, eps, out, scratch=None):
 def world_corners(node_x, node_y, x, y, theta):
     """World coordinates of one particle's corners (numpy, for tests and tools).
 
+    The cosine and sine are the kernels' (:func:`sim.rotation.cos_sin`).
+
     Parameters
     ----------
     node_x, node_y : array_like of float
@@ -881,6 +885,5 @@ def world_corners(node_x, node_y, x, y, theta):
     """
     node_x = np.asarray(node_x, dtype=np.float64)
     node_y = np.asarray(node_y, dtype=np.float64)
-    c = np.cos(theta)
-    s = np.sin(theta)
+    c, s = cos_sin(float(theta))
     return x + (c * node_x - s * node_y), y + (s * node_x + c * node_y)

@@ -69,6 +69,7 @@ from .contact_law import (characteristic_length, damping_coefficient, elastic_fo
                           normal_force, reduced_mass, tangential_force, tangential_mass)
 from .geometry import halfplane_overlap_range, polygon_overlap_range
 from .integrators import nordsieck_predicted, nordsieck_step
+from .rotation import cos_sin
 from .warmstart import axis_separates, find_axis, find_crossings, overlap_from_crossings
 
 ROW = {"area": 0, "c1x": 1, "c1y": 2, "c2x": 3, "c2y": 4, "sx": 5, "sy": 6, "nx": 7,
@@ -174,16 +175,16 @@ def _place_block(start, stop, pred, node_offset, node_x, node_y, wx, wy, box):
     their predictions ``pred``.
 
     Two loops: first the cosine and sine of every particle of the block
-    (into ``pred[i, 6:8]``), then the corners.  In one loop each particle's
-    corners waited for its cosine and sine (one call of libm's ``sincos``, a
+    (into ``pred[i, 6:8]``, :func:`sim.rotation.cos_sin`), then the corners.
+    In one loop each particle's corners waited for its cosine and sine (a
     chain the processor could not overlap with the next particle's work);
-    apart, the corners loop has no long chain.  Called from the kernels' loops themselves: wrapped in
-    one more inlined function, whose array arguments Numba then
-    reference-counts at every call, the prediction cost four times as much.
+    apart, the corners loop has no long chain.  Called from the kernels'
+    loops themselves: wrapped in one more inlined function, whose array
+    arguments Numba then reference-counts at every call, the prediction cost
+    four times as much.
     """
     for i in range(start, stop):
-        pred[i, 6] = math.cos(pred[i, 2])
-        pred[i, 7] = math.sin(pred[i, 2])
+        pred[i, 6], pred[i, 7] = cos_sin(pred[i, 2])
     for i in range(start, stop):
         x = pred[i, 0]
         y = pred[i, 1]
