@@ -6,8 +6,8 @@ and sine of θ are computed once per particle and step.  libm's ``sin`` and
 ``cos`` cost more than half of that prediction pass (measured with
 ``python -m sim numerics kernel-profile --kernel predict``), and their last
 bit may differ between hosts' math libraries.  :func:`cos_sin` computes both
-with a few multiplications and additions (IEEE arithmetic only, so the same
-bits on every host):
+with a few multiplications and additions (IEEE arithmetic, no math
+library):
 
 1. **Reduction.**  ``k = round(θ / (π/2))`` and ``y = θ − k π/2`` with π/2
    split in two parts (Cody & Waite): the first part carries 33 significant
@@ -16,7 +16,7 @@ bits on every host):
 2. **Kernels.**  Odd and even polynomials of degree 13 and 14 in ``y``
    (the minimax coefficients of Sun Microsystems' freely distributed fdlibm,
    whose error on ``[−π/4, π/4]`` lies below 2**-58); the cosine's
-   ``1 − y²/2`` is summed with its rounding error carried, as fdlibm does.
+   ``1 − y²/2`` is summed with its rounding error carried, in fdlibm's manner.
 3. **Quadrant.**  ``k mod 4`` swaps and negates the two.
 
 Both values are within one unit in the last place of the correctly rounded
