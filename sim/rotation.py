@@ -70,8 +70,10 @@ def cos_sin(theta):
     Returns
     -------
     (float, float)
-        ``cos(theta)`` and ``sin(theta)``, within one unit in the last place
-        of the correctly rounded values (module docstring).
+        ``cos(theta)`` and ``sin(theta)``: within one unit in the last place
+        of the correctly rounded values for ``|theta| ≤ 1000``, within 2**-53
+        of them up to :data:`REDUCTION_LIMIT`, libm's beyond (module
+        docstring).
     """
     if not abs(theta) <= REDUCTION_LIMIT:  # also NaN and ±inf: libm's answer
         return math.cos(theta), math.sin(theta)
