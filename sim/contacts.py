@@ -8,6 +8,7 @@ import numpy as np
 from .broadphase import carry_history, match_pairs
 from .contact_law import tangential_stiffness
 from .step import ROW, ROW_SIZE
+from .warmstart import WITNESS_DTYPE
 
 
 def contacts(state, scene):
@@ -68,7 +69,8 @@ def load_history(state, scene, ci, cj, spring, witness=None):
     match = match_pairs(lo[order], hi[order], state.pi, state.pj)
     state.spring = carry_history(match, spring[pair][order])
     if witness is not None:
-        state.cross = carry_history(match, witness[pair][order], fill=-1)
+        state.cross = carry_history(match, witness[pair][order].astype(WITNESS_DTYPE),
+                                    fill=-1)
 
 
 def stretch_body(state, scene, body_id, strain):

@@ -25,6 +25,7 @@ import numpy as np
 
 from .step import BLOCK, PRED_SIZE, ROW_SIZE, Workspace
 from .geometry import make_scratch
+from .warmstart import WITNESS_DTYPE
 
 #: Length of each thread's narrow-phase output row (it needs GEOMETRY_SIZE):
 #: 512 bytes, so that no two threads write into one cache line (with rows of
@@ -113,7 +114,7 @@ def new_state(scene, gravity) -> State:
         n=0, r=np.zeros((len(scene.coeffs), 3, capacity)), time=0.0, step=0,
         gravity=(float(gravity[0]), float(gravity[1])),
         pi=np.empty(0, np.int64), pj=np.empty(0, np.int64), spring=np.empty(0),
-        axis=np.empty(0, np.int64), cross=np.empty((0, 4), np.int64), pdamping=np.empty(0),
+        axis=np.empty(0, WITNESS_DTYPE), cross=np.empty((0, 4), WITNESS_DTYPE), pdamping=np.empty(0),
         pout=np.zeros((0, ROW_SIZE)), pforce=np.zeros((0, 4)),
         pair_offset=np.zeros(1, np.int64), pair_index=np.empty(0, np.int64),
         x_ref=np.empty(0), y_ref=np.empty(0), stale=True, moved=False,
