@@ -102,10 +102,11 @@ damping : the coefficient γ sqrt(Y m⊥) of the normal damping of each pair
 (:func:`sim.contact_law.pair_damping_coefficients`; it saves a division and
 a square root per contact and step); axis : (n_pairs,) separating edge,
 cross : (n_pairs, 4) crossing edges (witnesses of the last step,
-:mod:`sim.warmstart`, of type :data:`sim.warmstart.WITNESS_DTYPE`); out : (n_pairs, ROW_SIZE) rows; force : (n_pairs, 4)
-the force on i (x, y) and the torques on i and j, zero where the pair does
-not touch (the gather's compact copy of the rows' force columns); offset,
-index : CSR list of the pairs of each particle
+:mod:`sim.warmstart`, of type :data:`sim.warmstart.WITNESS_DTYPE`); out :
+(n_pairs, ROW_SIZE) rows; force : (n_pairs, 4) the force on i (x, y) and the
+torques on i and j, zero where the pair does not touch (the gather's
+compact copy of the rows' force columns); offset, index : CSR list of the
+pairs of each particle
 (:func:`sim.broadphase.particle_pair_index`: ``2 p`` where the particle is
 the pair's i, ``2 p + 1`` where it is its j).
 """
