@@ -5,17 +5,22 @@ Implements Section 2 and the Appendix of Roul, Schinner & Kassner,
 Granular Matter (2010).
 
 Importing the package points Numba's on-disk cache at a folder named by a
-digest of the package's sources (:func:`source_digest`), under
-``NUMBA_CACHE_DIR`` (default: :func:`default_cache_dir`, ``.numba_cache``
-beside the package in a checkout, the user's cache folder when the package
-lies where the user cannot write, as in a system-wide install).  Numba
-keys a cached kernel by the modification time of its own file only, so a
-kernel of ``sim/step.py`` that inlines a helper from ``sim/warmstart.py``
-would otherwise keep running the old helper after an edit.
+digest of the kernels' sources (:func:`source_digest` over
+:func:`kernel_sources`), under ``NUMBA_CACHE_DIR`` (default:
+:func:`default_cache_dir`, ``.numba_cache`` beside the package in a
+checkout, the user's cache folder when the package lies where the user
+cannot write, as in a system-wide install).  Numba keys a cached kernel by
+the modification time of its own file only, so a kernel of ``sim/step.py``
+that inlines a helper from ``sim/warmstart.py`` would otherwise keep running
+the old helper after an edit.  Only the modules the kernels are compiled
+from name the folder: editing a protocol, the command line, the bench or
+the numerics (``sim/numerics/``) recompiles nothing.
 """
 
+import ast
 import hashlib
 import os
+import re
 from pathlib import Path
 
 import numba
@@ -23,20 +28,68 @@ import numba
 __version__ = "0.1.0"
 
 
-def source_digest(package_dir=Path(__file__).parent):
-    """A 12-digit digest of the contents of every ``.py`` file of the package.
+_KERNEL = re.compile(r"\bnjit\b|from \.builds import build\b")
+"""What marks a module that defines Numba kernels: it decorates with ``njit``
+or compiles through :func:`sim.builds.build`."""
+
+
+def _relative_imports(path):
+    """The top-level package modules that ``path`` imports relatively (``from .x import``)."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_bytes())):
+        if isinstance(node, ast.ImportFrom) and node.level == 1:
+            names.update([node.module.split(".")[0]] if node.module else [a.name for a in node.names])
+    return names
+
+
+def kernel_sources(package_dir=Path(__file__).parent):
+    """The files the simulator's Numba kernels are compiled from.
+
+    The top-level modules of the package that define kernels (they use
+    ``njit`` or :func:`sim.builds.build`) and, transitively, every module of
+    the package that those import: a kernel may inline a helper from any of
+    them, and this file, which holds the rule.  Subpackages
+    (``sim/numerics/``: the bench and the numerical studies) are not among them; their own kernels are cached by Numba's rule
+    (the modification time of their file).
 
     Parameters
     ----------
     package_dir : pathlib.Path
-        The package's folder (its subpackages included).
+        The package's folder.
+
+    Returns
+    -------
+    list of pathlib.Path
+        Sorted by name.
+    """
+    package_dir = Path(package_dir)
+    todo = ["__init__"] + [p.stem for p in package_dir.glob("*.py")
+                           if _KERNEL.search(p.read_text(encoding="utf-8"))]
+    found = set()
+    while todo:
+        name = todo.pop()
+        path = package_dir / f"{name}.py"
+        if name not in found and path.is_file():
+            found.add(name)
+            todo.extend(_relative_imports(path))
+    return sorted(package_dir / f"{name}.py" for name in found)
+
+
+def source_digest(package_dir=Path(__file__).parent):
+    """A 12-digit digest of the contents of the kernels' source files.
+
+    Parameters
+    ----------
+    package_dir : pathlib.Path
+        The package's folder.
 
     Returns
     -------
     str
+        Over the names and bytes of :func:`kernel_sources`.
     """
     h = hashlib.sha256()
-    for path in sorted(Path(package_dir).rglob("*.py")):
+    for path in kernel_sources(package_dir):
         h.update(path.relative_to(package_dir).as_posix().encode())
         h.update(path.read_bytes())
     return h.hexdigest()[:12]

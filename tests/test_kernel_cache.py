@@ -1,8 +1,10 @@
-"""Numba's kernel cache is kept per version of the simulator's sources.
+"""Numba's kernel cache is kept per version of the kernels' sources.
 
 Numba invalidates a cached kernel only when the kernel's own file changes, not
 when a helper it inlines from another file does; the cache folder is
-therefore named by a digest of every source file (sim/__init__.py).
+therefore named by a digest of the files the kernels are built from
+(sim/__init__.py), and of no other: editing the bench, a protocol or the
+command line must not recompile the kernels.
 """
 
 import os
@@ -18,15 +20,42 @@ def test_cache_folder_is_named_by_the_sources():
     assert numba.config.CACHE_DIR.endswith(f"sim-{sim.source_digest()}")
 
 
-def test_editing_a_helper_file_moves_the_cache(tmp_path):
+def _copy(tmp_path):
     copy = tmp_path / "sim"
-    shutil.copytree(Path(sim.__file__).parent, copy,
-                    ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(Path(sim.__file__).parent, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    assert sim.source_digest(copy) == sim.source_digest()
+    return copy
+
+
+def _edit(path):
+    path.write_text(path.read_text() + "\n# an edit\n")
+
+
+def test_editing_a_helper_file_moves_the_cache(tmp_path):
+    copy = _copy(tmp_path)
+    for helper in ("warmstart.py", "rotation.py", "contact_law.py", "builds.py"):
+        before = sim.source_digest(copy)
+        _edit(copy / helper)
+        assert sim.source_digest(copy) != before, helper
+
+
+def test_editing_what_no_kernel_is_built_from_keeps_the_cache(tmp_path):
+    """The bench, the numerics, a protocol, the command line, the settings."""
+    copy = _copy(tmp_path)
     before = sim.source_digest(copy)
-    assert before == sim.source_digest()
-    helper = copy / "warmstart.py"
-    helper.write_text(helper.read_text() + "\n# an edit\n")
-    assert sim.source_digest(copy) != before
+    for other in ("numerics/bench.py", "numerics/__init__.py", "pour.py", "relax.py", "cli.py", "config.py",
+                  "config.schema.yaml"):
+        _edit(copy / other)
+        assert sim.source_digest(copy) == before, other
+
+
+def test_the_kernel_sources_are_the_kernel_modules_and_what_they_import():
+    names = {p.name for p in sim.kernel_sources()}
+    # the modules whose functions Numba compiles, and those they import
+    assert {"step.py", "broadphase.py", "warmstart.py", "geometry.py", "rotation.py", "contact_law.py",
+            "integrators.py", "builds.py"} <= names
+    assert not names & {"pour.py", "cli.py", "relax.py", "probe.py", "config.py", "io.py"}
+    assert all(p.parent == Path(sim.__file__).parent for p in sim.kernel_sources())
 
 
 def test_the_cache_defaults_to_beside_a_writable_checkout(tmp_path):
