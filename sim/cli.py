@@ -1,13 +1,15 @@
 """Command line: ``python -m sim {pour,relax,probe,warmup,bench,summary,numerics} ...``.
 
-Run parameters come as ``--params`` (JSON text, or ``@file`` with JSON or YAML)
-holding any of the sections ``model``, ``particles``, ``pour``, ``relax``,
+Run parameters come as ``--params`` (JSON or YAML text, or ``@file`` with
+either; given again, each is merged over the ones before, later wins) holding
+any of the sections ``model``, ``particles``, ``pour``, ``relax``,
 ``probe``, ``physics`` (see :mod:`sim.config`; missing settings take their defaults).  A
 setting with a wrong type or value is refused before anything runs, with a
 message naming the setting, the value and what is allowed.  ``--bookkeeping``
 (JSON) carries the settings that change no result (checkpoint and progress
 intervals), which the workflow passes apart so that changing them re-runs
-nothing.
+nothing.  ``relax`` and ``probe`` take ``model.integrator`` and ``model.dt``
+of the state file they read where ``--params`` sets neither.
 """
 
 from __future__ import annotations
@@ -15,48 +17,86 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import re
 import sys
 from pathlib import Path
 
+from . import __version__
 from .config import BOOKKEEPING, ConfigError, SimConfig
-from .io import OutputError
-from .settings_file import SettingsFileError, read_settings_file
+from .io import OutputError, code_version, model_from_attrs, read_state
+from .settings_file import SettingsFileError, merge_settings, read_settings
 
 
-def _load_params(text):
-    """The settings dict of ``--params`` (JSON text, or ``@file`` with JSON or YAML).
+def _load_params(texts):
+    """The settings dict of ``--params``: each one given, merged over those before.
 
-    A file is read by :func:`sim.settings_file.read_settings_file` (one line
-    naming the file and line for an empty file, a list, a repeated key or a
-    syntax error); JSON text must hold an object.  Of a whole workflow
-    configuration only the simulator's sections are kept.
+    Parameters
+    ----------
+    texts : str, list of str or None
+        ``--params`` (a list when the option is repeated): JSON or YAML text,
+        or ``@FILE``, each read by :func:`sim.settings_file.read_settings`
+        (one line naming the option or file, and the line, for an empty file,
+        a list, a repeated key or a syntax error) and laid over the ones
+        before it by :func:`sim.settings_file.merge_settings` (later wins,
+        setting by setting).
+
+    Returns
+    -------
+    dict
+        Of a whole workflow configuration, only the simulator's sections.
     """
-    if text is None:
-        return {}
-    if text.startswith("@"):
+    data = {}
+    for text in [texts] if isinstance(texts, str) else texts or ():
         try:
-            data = read_settings_file(text[1:], "--params file")
+            data = merge_settings(data, read_settings(text, "--params"))
         except SettingsFileError as exc:
             raise ConfigError(str(exc)) from None
-    else:
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ConfigError(f"--params is not valid JSON: {exc}") from None
-        if not isinstance(data, dict):
-            raise ConfigError(f"--params {text!r}: must be a JSON object of sections, "
-                              "e.g. '{\"pour\": {\"n_particles\": 800}}'")
     return {k: v for k, v in data.items()
             if k in ("model", "particles", "pour", "relax", "probe", "physics")}
 
 
-def _params(text, bookkeeping=None):
+#: Settings of ``model`` that relax and probe take from the state file they
+#: read unless ``--params`` sets them: a pile goes on as it was poured.
+INHERITED = ("integrator", "dt")
+
+
+def _inherit(data, input_path):
+    """Fill in the :data:`INHERITED` settings of the state file `input_path`.
+
+    Parameters
+    ----------
+    data : dict
+        The settings of ``--params``; its ``model`` section gets each setting
+        of :data:`INHERITED` it lacks, with the value the file was made with
+        (:func:`sim.io.model_from_attrs`).  One log line names them.
+    input_path : path
+        The state file that relax or probe reads.
+    """
+    model = data.get("model") or {}
+    if not isinstance(model, dict):
+        return  # SimConfig.from_dict names the bad section
+    data["model"] = model
+    taken = [k for k in INHERITED if k not in model]
+    if not taken:
+        return
+    stored = model_from_attrs(read_state(input_path))
+    model.update({k: getattr(stored, k) for k in taken})
+    logging.getLogger("sim").info(
+        "%s taken from the input %s (not set by --params)", ", ".join(
+            f"model.{k} = {model[k]}{' s' if k == 'dt' else ''}" for k in taken), input_path)
+
+
+def _params(text, bookkeeping=None, input_path=None):
     """The run's :class:`SimConfig` from ``--params`` and ``--bookkeeping``.
 
     ``--bookkeeping`` (JSON) holds only settings of :data:`BOOKKEEPING`; they
-    override those of ``--params``.
+    override those of ``--params``.  With `input_path` (the state file of
+    relax and probe) the settings :data:`INHERITED` that ``--params`` leaves
+    out are that file's (:func:`_inherit`).
     """
     data = _load_params(text)
+    if input_path is not None:
+        _inherit(data, input_path)
     if bookkeeping is not None:
         try:
             extra = json.loads(bookkeeping)
@@ -85,16 +125,43 @@ def _int_list(option, text):
     return values
 
 
+_REST = re.compile(r":[a-z]+:`~?([^`]+)`|``([^`]+)``")
+
+
+def plain(text):
+    """`text` without its reST markup, for ``--help``.
+
+    Parameters
+    ----------
+    text : str
+        A docstring: ``code`` and roles such as :func:`name` (``~`` too).
+
+    Returns
+    -------
+    str
+        The same text with each of those replaced by the words inside.
+    """
+    return _REST.sub(lambda m: m.group(1) or m.group(2), text)
+
+
+def version():
+    """The line of ``--version``: the package's version and :func:`sim.io.code_version`."""
+    return (f"polypile sim {__version__}, code_version {code_version()} (the digest of "
+            "sim/*.py that every state file records)")
+
+
 def _parser():
-    ap = argparse.ArgumentParser(prog="python -m sim", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m sim", description=plain(__doc__),
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--version", action="version", version=version())
     sub = ap.add_subparsers(dest="command", required=True)
-    params_help = "run parameters: JSON text, or @FILE (JSON or YAML config)"
+    params_help = ("run parameters: JSON or YAML text, or @FILE (JSON or YAML config); "
+                   "given again, merged over the earlier ones (later wins)")
     bookkeeping_help = ("settings that change no result (checkpoint, progress and "
                         "frame intervals) as JSON, e.g. '{\"pour\": {\"progress_interval\": 5}}'")
 
     p = sub.add_parser("pour", help="pour a pile (wedge: point source, layered: line source)")
-    p.add_argument("--params", help=params_help)
+    p.add_argument("--params", action="append", help=params_help)
     p.add_argument("--bookkeeping", help=bookkeeping_help)
     p.add_argument("--protocol", required=True, choices=["wedge", "layered"])
     p.add_argument("--seed", required=True, type=int)
@@ -109,14 +176,14 @@ def _parser():
                    "once this run holds the pour's lock (a run the lock refuses leaves it as it is)")
 
     p = sub.add_parser("relax", help="relax a pile to rest")
-    p.add_argument("--params", help=params_help)
+    p.add_argument("--params", action="append", help=params_help)
     p.add_argument("--bookkeeping", help=bookkeeping_help)
     p.add_argument("--input", required=True)
     p.add_argument("--out", required=True)
 
     p = sub.add_parser("probe", help="change gravity (lower, tilt or restore it), or stretch the "
                                      "support, and relax again")
-    p.add_argument("--params", help=params_help)
+    p.add_argument("--params", action="append", help=params_help)
     p.add_argument("--bookkeeping", help=bookkeeping_help)
     p.add_argument("--input", required=True, help="relaxed state file (reduced for --restore)")
     change = p.add_mutually_exclusive_group(required=True)
@@ -218,7 +285,8 @@ def main(argv=None):
                                   "code_version": ds.attrs.get("code_version", ""), **row}),
                       flush=True)
             return 0
-        cfg = _params(args.params, args.bookkeeping)
+        cfg = _params(args.params, args.bookkeeping,
+                      args.input if args.command in ("relax", "probe") else None)
         from . import pour, probe, relax
         if args.command == "pour":
             pour.pour(cfg, args.protocol, args.seed, args.out, args.checkpoint,

@@ -1,4 +1,4 @@
-"""Where a kernel's time goes, per instruction: ``python -m sim numerics kernel-profile``.
+"""Where a kernel's time goes, per instruction: python -m sim numerics kernel-profile.
 
 This machine's virtual processors have no hardware performance counters
 (``perf stat`` says: not supported), but clock samples (``perf record -e
