@@ -27,6 +27,11 @@ from .io import OutputError, code_version, model_from_attrs, read_state
 from .settings_file import SettingsFileError, merge_settings, read_settings
 
 
+def _each(texts):
+    """The ``--params`` given, as a list: `texts` itself, ``[texts]`` for one text, none for None."""
+    return [texts] if isinstance(texts, str) else list(texts or ())
+
+
 def _load_params(texts):
     """The settings dict of ``--params``: each one given, merged over those before.
 
@@ -46,7 +51,7 @@ def _load_params(texts):
         Of a whole workflow configuration, only the simulator's sections.
     """
     data = {}
-    for text in [texts] if isinstance(texts, str) else texts or ():
+    for text in _each(texts):
         try:
             data = merge_settings(data, read_settings(text, "--params"))
         except SettingsFileError as exc:
@@ -111,7 +116,11 @@ def _params(text, bookkeeping=None, input_path=None):
                     f"--bookkeeping: {section} = {values!r} holds settings that change the "
                     f"result; only {dict(BOOKKEEPING)} may come here, the rest in --params")
             data.setdefault(section, {}).update(values)
-    return SimConfig.from_dict(data)
+    try:
+        return SimConfig.from_dict(data)
+    except ConfigError as exc:  # name the files the settings came from
+        files = [t for t in _each(text) if t.startswith("@")]
+        raise ConfigError(f"--params {' '.join(files)}: {exc}" if files else str(exc)) from None
 
 
 def _int_list(option, text):

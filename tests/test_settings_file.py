@@ -60,7 +60,7 @@ def test_the_simulator_refuses_them_as_params_files(bad_file):
 
 
 def test_params_text_must_be_an_object():
-    with pytest.raises(ConfigError, match=r"--params '\[1,2\]': must be a JSON object"):
+    with pytest.raises(ConfigError, match=r"--params = '\[1,2\]' holds a list, not a mapping of settings"):
         _load_params("[1,2]")
     assert _load_params('{"pour": {"rate": 50}, "analysis": {}}') == {"pour": {"rate": 50}}
 
