@@ -26,6 +26,8 @@ from typing import Any
 
 import yaml
 
+from sim.settings_file import SettingsDumper, SettingsFileError, read_settings
+
 from .errors import ParamError
 from .solid_fraction import RASTER_BYTES_PER_PIXEL, raster_shape
 
@@ -234,6 +236,10 @@ def resolve_params(user: dict[str, Any] | None) -> dict[str, Any]:
 def settings_from_text(text: str | None, option: str = "--params") -> dict[str, Any]:
     """The mapping of settings in ``text``: JSON, or YAML (such as :func:`params_flow_text`).
 
+    Read by :func:`sim.settings_file.read_settings`, as the project reads
+    every setting: numbers as written (``1e-6``, ``2.5E3``), a key given twice
+    in one mapping refused.
+
     Parameters
     ----------
     text : str or None
@@ -250,32 +256,14 @@ def settings_from_text(text: str | None, option: str = "--params") -> dict[str, 
     Raises
     ------
     ParamError
-        The file cannot be read, the text is neither JSON nor YAML, or it is
-        not a mapping.
+        One line naming the option or file: the file cannot be read or is
+        empty, the text is neither JSON nor YAML, repeats a key, or is not a
+        mapping.
     """
-    if text is None or text.strip() == "":
-        return {}
-    if text.startswith("@"):
-        try:
-            with open(text[1:], encoding="utf-8") as fh:
-                text = fh.read()
-        except OSError as exc:
-            raise ParamError(f"{option}: cannot read the parameter file {text[1:]!r}: {exc}") from exc
     try:
-        user = json.loads(text)   # first: YAML 1.1 would read the JSON number 1e-06 as a string
-    except json.JSONDecodeError as exc:
-        try:
-            user = yaml.safe_load(text)
-        except yaml.YAMLError as yexc:
-            raise ParamError(f"{option} is neither JSON ({exc}) nor YAML ({' '.join(str(yexc).split())}); pass "
-                             "the analysis config section as a mapping, e.g. {\"rve\": {\"size\": 0.08}} "
-                             "or {rve: {size: 0.08}}") from None
-    if user is None:
-        return {}
-    if not isinstance(user, dict):
-        raise ParamError(f"{option} = {text[:80]!r}: must be a mapping of the analysis config sections "
-                         f"(got a {type(user).__name__})")
-    return user
+        return read_settings(text, option, example="{rve: {size: 0.08}}")
+    except SettingsFileError as exc:
+        raise ParamError(str(exc)) from None
 
 
 def parse_params(text: str | None) -> dict[str, Any]:
@@ -293,14 +281,16 @@ def params_flow_text(settings: dict[str, Any]) -> str:
     """``settings`` as one line of YAML flow text, keys sorted: ``{rve: {size: 0.08}}``.
 
     What the workflow passes as ``--params``: :func:`settings_from_text` reads
-    it back to the same values (PyYAML writes every float so that it reads it
-    back as that float, and quotes the strings that would read as something
-    else). Unlike JSON it has no double quotes, which ``snakemake --report``
-    shows backslash-escaped (``{\\"rve\\": ...}``) under *Job parameters*:
-    Snakemake escapes the quotes of the job's params before it stores them as
-    JSON in the page, so they are escaped twice.
+    it back to the same values (:class:`sim.settings_file.SettingsDumper`
+    writes every float so that it reads it back as that float, and quotes the
+    strings that would read as something else, ``'1e7'`` too). Unlike JSON it
+    has no double quotes, which ``snakemake --report`` shows backslash-escaped
+    (``{\\"rve\\": ...}``) under *Job parameters*: Snakemake escapes the
+    quotes of the job's params before it stores them as JSON in the page, so
+    they are escaped twice.
     """
-    return yaml.safe_dump(settings, default_flow_style=True, sort_keys=True, width=math.inf).strip()
+    return yaml.dump(settings, Dumper=SettingsDumper, default_flow_style=True, sort_keys=True,
+                     width=math.inf).strip()
 
 
 def params_json(params: dict[str, Any]) -> str:

@@ -8,14 +8,11 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import sys
-from pathlib import Path
-
-import yaml
 
 from ..config import ConfigError
 from ..io import atomic_text, atomic_write, cf_attributes
+from ..settings_file import SettingsFileError, read_settings
 
 
 def load_section(params, section):
@@ -24,7 +21,8 @@ def load_section(params, section):
     Parameters
     ----------
     params : str
-        ``@FILE`` (YAML or JSON) or JSON text of a whole configuration.
+        ``@FILE`` (YAML or JSON) or JSON or YAML text of a whole configuration,
+        read by :func:`sim.settings_file.read_settings`.
     section : str
         Subsection of ``numerics``, e.g. ``"collisions"``.
 
@@ -33,16 +31,10 @@ def load_section(params, section):
     dict
         The subsection, ``{}`` when absent (every setting takes its default).
     """
-    if params.startswith("@"):
-        path = Path(params[1:])
-        if not path.exists():
-            raise ConfigError(f"--params {params}: no such file")
-        data = yaml.safe_load(path.read_text()) or {}
-    else:
-        try:
-            data = json.loads(params)
-        except json.JSONDecodeError as exc:
-            raise ConfigError(f"--params is not valid JSON: {exc}") from None
+    try:
+        data = read_settings(params, "--params")
+    except SettingsFileError as exc:
+        raise ConfigError(str(exc)) from None
     numerics = data.get("numerics") or {}
     if not isinstance(numerics, dict):
         raise ConfigError(f"numerics = {numerics!r}: must be a mapping of sections")
@@ -70,7 +62,7 @@ def run_numerics_check(section, description, argv, settings_class, compute, titl
     ap = argparse.ArgumentParser(prog=f"python -m sim numerics {section}",
                                  description=description)
     ap.add_argument("--params", required=True,
-                    help=f"@FILE (YAML/JSON) or JSON text with a numerics.{section} section")
+                    help=f"@FILE (YAML/JSON) or JSON/YAML text with a numerics.{section} section")
     ap.add_argument("--nc", required=True, help="netCDF output")
     ap.add_argument("--figure", required=True, help="PNG output")
     ap.add_argument("--table", required=True, help="Markdown output")

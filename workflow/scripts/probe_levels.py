@@ -31,7 +31,6 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
-import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
@@ -39,6 +38,7 @@ from analysis.ensemble import slipped  # noqa: E402
 from analysis.history import mean_sem  # noqa: E402
 from analysis.params import parse_params  # noqa: E402
 from analysis.probes import reversibility  # noqa: E402
+from sim.settings_file import read_settings_file  # noqa: E402
 from workflow.layout import folders  # noqa: E402
 
 LEVELS = {"reduced05": 0.05, "reduced": 0.10, "reduced15": 0.15}
@@ -112,9 +112,9 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if not (args.step or args.ramp):
         ap.error("give --step DIR, --ramp DIR or both")
-    cfg = yaml.safe_load(args.piles.read_text())
+    cfg = read_settings_file(args.piles)
     params = parse_params(json.dumps(cfg.get("analysis", {})))
-    study = yaml.safe_load((Path(__file__).resolve().parents[2] / "config" / "config.yaml").read_text())
+    study = read_settings_file(Path(__file__).resolve().parents[2] / "config" / "config.yaml")
     ramp_time = study["probe"]["ramp_time"]
     tree = cfg.get("results", study["results"])  # the piles' results folder in each working directory
     results = {}

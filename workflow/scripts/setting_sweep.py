@@ -64,6 +64,7 @@ from analysis.history import mean_sem  # noqa: E402
 from analysis.params import parse_params  # noqa: E402
 from analysis.pile_quantities import MODULI, SHAPE, pile_quantities  # noqa: E402
 from analysis.pile_quantities import quantities as pile_quantity_names  # noqa: E402
+from sim.settings_file import SettingsDumper, read_settings_file, yaml_value  # noqa: E402
 from workflow.layout import folders  # noqa: E402
 from workflow.validation import ConfigurationError, validate_config  # noqa: E402
 from workflow.validation import merge_configs as merged  # noqa: E402
@@ -98,8 +99,8 @@ def run_value(name: str, setting: str, value, cores: int, piles: Path) -> Path:
     """Pour, relax, probe and analyse the piles of ``piles`` at one value; their working directory."""
     work = REPO / "results" / "sweeps" / name / label(value)
     work.mkdir(parents=True, exist_ok=True)
-    (work / "setting.yaml").write_text(yaml.safe_dump(overlay(setting, value)))
-    cfg = yaml.safe_load(piles.read_text())
+    (work / "setting.yaml").write_text(yaml.dump(overlay(setting, value), Dumper=SettingsDumper))
+    cfg = read_settings_file(piles)
     tree = results_setting(piles, overlay(setting, value))
     summaries = [f"{tree}/fields/{p}/seed{s}.summary.json" for p, v in cfg["protocols"].items()
                  for s in v["seeds"]]
@@ -114,7 +115,7 @@ def run_value(name: str, setting: str, value, cores: int, piles: Path) -> Path:
 
 def check_values(setting: str, values: list, piles: Path = MEDIUM) -> None:
     """Refuse a setting or value that the workflow would refuse, before any pile is poured."""
-    study = merged(yaml.safe_load((REPO / "config" / "config.yaml").read_text()), yaml.safe_load(piles.read_text()))
+    study = merged(read_settings_file(REPO / "config" / "config.yaml"), read_settings_file(piles))
     for value in values:
         try:
             validate_config(merged(study, overlay(setting, value)))
@@ -188,7 +189,7 @@ def history_table(results: dict, keys: list, quantities: dict, a: str = "wedge",
 
 def _order(key: str) -> tuple:
     """Numbers in increasing order, then the rest as given (``sorted`` is stable)."""
-    value = yaml.safe_load(key)
+    value = yaml_value(key)
     number = isinstance(value, (int, float)) and not isinstance(value, bool)
     return (0, value) if number else (1, 0)
 
@@ -202,7 +203,7 @@ def same_run(spec: str, root: Path) -> tuple:
     if not (value_text and run and (Path(run).is_absolute() or (name and other))):
         raise SystemExit(f"--same {spec!r}: expected VALUE=NAME/VALUE (under the runs' folder) or "
                          "VALUE=/path/to/run, e.g. 0.02=friction/0.5")
-    return yaml.safe_load(value_text), Path(run) if Path(run).is_absolute() else root / name / other
+    return yaml_value(value_text), Path(run) if Path(run).is_absolute() else root / name / other
 
 
 def commit_of(folder: Path) -> str:
@@ -212,15 +213,15 @@ def commit_of(folder: Path) -> str:
 
 
 def _configuration(piles: Path, layer: dict) -> dict:
-    study = merged(yaml.safe_load((REPO / "config" / "config.yaml").read_text()), yaml.safe_load(piles.read_text()))
+    study = merged(read_settings_file(REPO / "config" / "config.yaml"), read_settings_file(piles))
     return merged(study, layer)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--setting", required=True, help="dotted name of the setting, e.g. pour.rate")
-    ap.add_argument("--values", nargs="*", default=[], type=yaml.safe_load,
-                    help="its values, each read as YAML (100, 0.5, false); none with --keep-recorded: "
+    ap.add_argument("--values", nargs="*", default=[], type=yaml_value,
+                    help="its values, each read as YAML (100, 0.5, 1e7, false); none with --keep-recorded: "
                          "only write the table of the recorded ones again")
     ap.add_argument("--name", required=True, help="the study's name: results/sweeps/NAME, docs/reproduction/NAME.md")
     ap.add_argument("--cores", type=int, default=2)
@@ -240,7 +241,7 @@ def main() -> None:
         ap.error("--values: give at least one value (or --keep-recorded to rewrite the table)")
     piles = args.piles.resolve()
     check_values(args.setting, args.values, piles)
-    cfg = yaml.safe_load(piles.read_text())
+    cfg = read_settings_file(piles)
     params = parse_params(json.dumps(cfg["analysis"]))
     out = REPO / "docs" / "reproduction"
     record = out / f"{args.name}.json"
@@ -256,7 +257,7 @@ def main() -> None:
     for spec in args.same:
         value, run = same_run(spec, root)
         if _configuration(piles, overlay(args.setting, value)) != \
-                _configuration(piles, yaml.safe_load((run / "setting.yaml").read_text())):
+                _configuration(piles, read_settings_file(run / "setting.yaml")):
             raise SystemExit(f"--same {spec}: {run} was run with another configuration than "
                              f"{args.setting} = {label(value)}")
         check_values(args.setting, [value], piles)

@@ -43,7 +43,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import yaml
 from scipy.stats import mannwhitneyu, t as student_t
 
 REPO = Path(__file__).resolve().parents[2]
@@ -52,6 +51,7 @@ sys.path.insert(0, str(REPO))
 from analysis.history import detection_factor, mean_sem  # noqa: E402
 from analysis.params import parse_params  # noqa: E402
 from analysis.pile_quantities import MODULI, SHAPE, pile_quantities, quantities  # noqa: E402
+from sim.settings_file import read_settings_file  # noqa: E402
 
 COST = {"pour_cpu_min": "pour CPU (min; separate runs, not compared)"}
 #: A recorded pile's files: ``{protocol}/seed{seed}`` plus these suffixes.
@@ -214,7 +214,7 @@ def main() -> None:
     for option, folder in (("--study", args.study), ("--variant", args.variant)):
         if not folder.is_dir():
             raise SystemExit(f"variant_table.py {option} {folder}: no such folder")
-    layer = yaml.safe_load(args.overlay.read_text()) or {}
+    layer = read_settings_file(args.overlay)
     changed = {k: v for k, v in flat(layer).items() if not k.startswith(("protocols.", "outputs", "threads"))}
     params = parse_params(args.params)
     study = pile_set(args.study, args.protocols, params)
