@@ -4,8 +4,10 @@ configuration's results folder (results/study, issue 29 item 2), at the paths
 of workflow/piles.py."""
 
 import importlib.util
+import math
 import os
 import re
+import socket
 import subprocess
 import sys
 import time
@@ -72,8 +74,22 @@ def finished_pile(root, piles, protocol, seed, cpu, now, stages=STAGES):
         benchmark(root, piles, protocol, seed, stage, cpu_time)
 
 
+def live_lock(root, piles, protocol, seed):
+    """The pour lock of a pile held by this (live) process, as sim.lock.PourLock writes it."""
+    return touch(Path(root) / sp.pour_lock(piles, protocol, seed),
+                 text=f"{socket.gethostname()} {os.getpid()}\n")
+
+
+def dead_pid():
+    """The PID of a process that has ended."""
+    proc = subprocess.Popen([sys.executable, "-c", "pass"])
+    proc.wait()
+    return proc.pid
+
+
 def fake_study(root, now=NOW):
-    """wedge 1, 2 done; wedge 3 pouring (checkpoint, ETA 397 s written 7 s ago);
+    """wedge 1, 2 done; wedge 3 pouring (its lock held by this process, a
+    checkpoint, ETA 397 s written 7 s ago);
     layered 2 relaxing (log written a minute ago, no progress line yet);
     layered 1 not started."""
     write_config(root)
@@ -81,6 +97,7 @@ def fake_study(root, now=NOW):
     for (protocol, seed), cpu in CPU.items():
         finished_pile(root, piles, protocol, seed, cpu, now)
     touch(root / piles.pour_checkpoint("wedge", 3))
+    live_lock(root, piles, "wedge", 3)
     touch(root / piles.stage_log("wedge", 3, "poured"), mtime=now - 7,
           text="2026-12-01 18:30:00,000 INFO pouring 3500 particles (wedge, seed 3)\n" + ETA_LINE)
     touch(root / piles.pile("layered", 2, "poured"))
@@ -111,6 +128,8 @@ def test_the_paths_are_those_of_the_workflow(tmp_path):
     assert piles.all_stages() == STAGES
     assert piles.stage_benchmark("wedge", 3, "poured") == "results/study/benchmarks/pour/wedge/seed3.tsv"
     assert piles.stage_log("layered", 1, "relaxed") == "results/study/logs/relax/layered/seed1.log"
+    # the lock sim.pour.pour takes beside the checkpoint it is given
+    assert sp.pour_lock(piles, "wedge", 3) == "results/study/piles/wedge/seed3/pour.checkpoint.nc.lock"
 
 
 def test_parse_progress_lines():
@@ -161,17 +180,50 @@ def test_counts_and_running_piles(tmp_path):
 
 
 @pytest.mark.parametrize("line", [ETA_LINE, OLD_ETA_LINE])
-def test_killed_pour_keeps_its_eta(tmp_path, line):
-    """A checkpoint whose log is old (a killed pour) is running; its ETA is the
-    work its pour still needs, not reduced by the time since (also from a log
-    in the format before issue 29)."""
+@pytest.mark.parametrize("age", [86400, 7])
+def test_killed_pour_keeps_its_eta(tmp_path, line, age):
+    """A checkpoint without a live lock (a killed pour, its log old or just
+    written) is interrupted, not running; its ETA is the work its pour still
+    needs, not reduced by the time since (also from a log in the format before
+    issue 29)."""
     write_config(tmp_path)
     piles = piles_of(tmp_path)
     touch(tmp_path / piles.pour_checkpoint("wedge", 1))
-    touch(tmp_path / piles.stage_log("wedge", 1, "poured"), mtime=NOW - 86400, text=line)
+    touch(tmp_path / piles.stage_log("wedge", 1, "poured"), mtime=NOW - age, text=line)
     pile = states(tmp_path)["wedge", 1]
-    assert (pile.state, pile.eta) == ("running", 397.0)
+    assert (pile.state, pile.eta) == ("interrupted", 397.0)
     assert pile.fraction == pytest.approx(2743 / 3500)
+    assert sp.describe_running(pile) == "wedge 1: pour 78 %, 0:06:37 to go"
+
+
+def test_a_pour_runs_only_while_a_live_process_holds_its_lock(tmp_path):
+    """sim.lock.PourLock's "host pid": this host's live process, running; a PID
+    that has ended, interrupted (with a checkpoint or without one: the lock of
+    a pour killed before its first checkpoint); another host's lock, running
+    while refreshed within 3 checkpoint intervals and a minute, then
+    interrupted; no lock and no checkpoint, left."""
+    write_config(tmp_path, wedge=(1, 2, 3, 4, 5, 6), layered=())
+    piles = piles_of(tmp_path)
+    interval = config_of(tmp_path)["pour"]["checkpoint_interval"]
+    for seed in (1, 2):
+        touch(tmp_path / piles.pour_checkpoint("wedge", seed))
+    live_lock(tmp_path, piles, "wedge", 1)
+    gone = f"{socket.gethostname()} {dead_pid()}\n"
+    touch(tmp_path / sp.pour_lock(piles, "wedge", 2), text=gone)
+    touch(tmp_path / sp.pour_lock(piles, "wedge", 3), text=gone)
+    now = time.time()
+    touch(tmp_path / sp.pour_lock(piles, "wedge", 4), text="elsewhere.example 12\n",
+          mtime=now - 3 * interval)
+    touch(tmp_path / sp.pour_lock(piles, "wedge", 5), text="elsewhere.example 12\n",
+          mtime=now - 3 * interval - 61)
+    # a pour log written just now does not make a pour without a live lock run
+    touch(tmp_path / piles.stage_log("wedge", 6, "poured"), mtime=now, text=ETA_LINE)
+    assert {seed: p.state for (_, seed), p in states(tmp_path, now=now).items()} == {
+        1: "running", 2: "interrupted", 3: "interrupted", 4: "running", 5: "interrupted", 6: "left"}
+    line = sp.progress_line(tmp_path, config_of(tmp_path), cores=1, now=now)
+    assert line.startswith("study (results/study/): 0 of 6 piles done, 2 running (wedge 1: pour; "
+                           "wedge 4: pour), 3 interrupted (resumable: wedge 2: pour; wedge 3: pour; "
+                           "wedge 5: pour), 1 left; ")
 
 
 def test_reads_the_line_the_simulator_writes():
@@ -249,19 +301,42 @@ def test_progress_line(tmp_path):
     assert "done, about 0:22:55 left at 2 jobs" in sp.progress_line(root, config_of(root), 2, NOW)
 
 
-def test_unknown_before_a_pile_has_finished(tmp_path):
+def test_cost_model_before_a_pile_has_finished(tmp_path):
+    """Before a pile has finished, the CPU seconds of a pile are the cost
+    model's (workflow/resources.py), worked out here from its formula: the
+    default piles (3500 particles at 100/s, Gear at its automatic step of the
+    reference particles, 1.9 us; a relaxation and a gravity probe, step mode,
+    of 2 s simulated each) take (1.5 x 3500 / 100 + 0.1) s / 1.9 us x 1750
+    particles + 2 x 2 s / 1.9 us x 3500 particle-steps, at 500 ns each."""
+    from sim.durations import hms
+
+    empty = tmp_path / "empty"
+    write_config(empty)
+    steps = (1.5 * 3500 / 100 + 0.1) / 1.9e-6 * 1750 + 2 * 2.0 / 1.9e-6 * 3500
+    cpu = steps * 500e-9
+    # 5 piles on 2 cores, one thread each: 2.5 piles' CPU in wall time
+    assert sp.progress_line(empty, config_of(empty), 2, NOW) == (
+        "study (results/study/): 0 of 5 piles done, 0 running, 5 left; 0 % of the simulation done, "
+        f"about {hms(2.5 * cpu)} left at 2 jobs at a time (estimate from the cost model until a pile "
+        f"has finished: {steps:.3g} particle-steps per pile, host-independent, from "
+        "pour.n_particles = 3500, pour.rate = 100/s, automatic time step of gear about 1.9e-06 s "
+        "and 2 relaxing stages of about 2 s simulated, x 500 ns per particle-step measured on the "
+        f"project's machine: {hms(cpu)} of CPU per pile)")
     root = fake_study(tmp_path)
-    for seed in (1, 2):  # the finished piles' last stage gone
+    for seed in (1, 2):  # the finished piles' last stage gone: none has finished
         (root / piles_of(root).pile("wedge", seed, "reduced")).unlink()
     line = sp.progress_line(root, config_of(root), cores=2, now=NOW)
     assert line.startswith("study (results/study/): 0 of 5 piles done, 2 running "
                            "(wedge 3: pour 78 %, ETA 0:06:30;")
-    assert "time left unknown" in line and "about" not in line and "% of the simulation" not in line
-    empty = tmp_path / "empty"
-    write_config(empty)
-    assert sp.progress_line(empty, config_of(empty), 2, NOW) == (
-        "study (results/study/): 0 of 5 piles done, 0 running, 5 left; "
-        "time left unknown until a pile has finished (with benchmark files)")
+    assert "(estimate from the cost model until a pile has finished: " in line
+    # wedge 1, 2: their probe; wedge 3: its pour's ETA (390 s), then a relaxation
+    # and a probe; layered 2: a relaxation and a probe; layered 1: a whole pile.
+    # A relaxation and a probe cost the same here, 2 s / 1.9 us x 3500 x 500 ns.
+    stage = 2.0 / 1.9e-6 * 3500 * 500e-9
+    left = 2 * stage + (390 + 2 * stage) + 2 * stage + cpu
+    assert left / 2 < cpu  # on 2 jobs the study waits for its longest pile, layered 1
+    assert f"% of the simulation done, about {hms(cpu)} left at 2 jobs" in line
+    assert f"{math.floor(100 * (1 - left / (5 * cpu)))} % of the simulation done" in line
 
 
 def test_seed10_is_not_seed1(tmp_path):
@@ -361,7 +436,7 @@ def test_counts_only_the_piles_of_its_own_results_folder(tmp_path):
     for seed in (1, 2):
         finished_pile(tmp_path, Piles(load_config([smoke])), "wedge", seed, (10.0, 1.0, 1.0), NOW)
     assert sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW).startswith(
-        "study (results/study/): 0 of 2 piles done, 0 running, 2 left; time left unknown")
+        "study (results/study/): 0 of 2 piles done, 0 running, 2 left; 0 % of the simulation done")
     line = sp.progress_line(tmp_path, load_config([smoke]), 2, NOW, label="config/smoke.yaml")
     assert line == "config/smoke.yaml (results/smoke/): 2 of 2 piles done, 0 running, 0 left; all piles simulated"
     result = subprocess.run([sys.executable, str(SCRIPT), "--directory", str(tmp_path), "--configfile",
@@ -388,3 +463,20 @@ def test_committed_results_have_nothing_to_simulate(tmp_path):
     assert sp.progress_line(tmp_path, config, 2, NOW, label="config/reproduction.yaml") == (
         "config/reproduction.yaml (results/reproduction/): built from the per-pile results committed "
         "under docs/reproduction/, nothing to simulate")
+
+
+def test_the_first_line_comes_within_a_minute(monkeypatch, capsys):
+    """make run's first estimate comes after FIRST_LINE_S = 60 s, not after
+    the interval of the lines (300 s in the Makefile)."""
+    waits = []
+
+    def sleep(seconds):
+        waits.append(seconds)
+        if len(waits) == 3:
+            raise StopIteration
+
+    monkeypatch.setattr(sp.time, "sleep", sleep)
+    with pytest.raises(StopIteration):
+        sp.watch(300.0, lambda: "the line")
+    assert waits == [60.0, 300.0, 300.0]
+    assert capsys.readouterr().out == "the line\nthe line\n"

@@ -8,7 +8,10 @@ runtime in minutes; docs/cluster.md); locally they only matter with
 
 multiplied by the attempt number, so a job that SLURM killed at its time
 limit asks for twice the time when --retries resubmits it (a pour resumes
-from its checkpoint, so it needs less; relaxations start again).
+from its checkpoint, so it needs less; relaxations start again).  The same
+cost model, without the margin and the start, estimates the CPU seconds of a
+pile before any has finished (:meth:`SimResources.stage_cpu_s`, for
+workflow/scripts/study_progress.py).
 """
 
 import math
@@ -81,39 +84,63 @@ class SimResources:
         )
         return DT_REFERENCE_S[model["integrator"]] * scale * model["dt_safety"] / 0.5
 
-    def sim_runtime_min(self, simulated_s, particles, attempt):
-        """Wall-clock minutes to request for `simulated_s` seconds of simulated
-        time with `particles` particles on average, on the configured threads
-        (the parallel kernels are assumed to scale with 80 % efficiency)."""
+    def relax_simulated_s(self):
+        """Simulated time (s) of a relaxation: RELAX_TYPICAL_S, at most relax.max_time."""
+        return min(RELAX_TYPICAL_S, self.config["relax"]["max_time"])
+
+    def particle_steps(self, stage):
+        """Particle-steps of the job making `stage`, by the cost model.
+
+        Parameters
+        ----------
+        stage : str
+            ``"poured"``: the release time, stretched by POUR_TIME_FACTOR, plus
+            the settling time, with half the particles on average;
+            ``"relaxed"``: :meth:`relax_simulated_s` of the full pile; a probe: that, plus the gravity ramp, if any, or the support
+            stretch.
+
+        Returns
+        -------
+        float
+            Simulated time over :meth:`estimated_dt`, times the particles:
+            what the configuration alone fixes, on any host.
+        """
+        pour = self.config["pour"]
+        if stage == "poured":
+            simulated = POUR_TIME_FACTOR * pour["n_particles"] / pour["rate"] + 0.1
+            return simulated / self.estimated_dt() * pour["n_particles"] / 2
+        probe = self.config["probe"]
+        simulated = self.relax_simulated_s()
+        if stage == STRETCH_STAGE:
+            simulated += probe["stretch_time"]
+        elif stage != "relaxed" and probe["mode"] == "ramp":
+            simulated += probe["ramp_time"]
+        return simulated / self.estimated_dt() * pour["n_particles"]
+
+    def stage_cpu_s(self, stage):
+        """CPU seconds of the job making `stage` by the cost model:
+        :meth:`particle_steps` times PARTICLE_STEP_S (no margin, no start)."""
+        return self.particle_steps(stage) * PARTICLE_STEP_S
+
+    def stage_runtime_min(self, stage, attempt):
+        """Wall-clock minutes to request for the job making `stage`: its
+        :meth:`stage_cpu_s` on the configured threads (the parallel kernels are
+        assumed to scale with 80 % efficiency), with the margin and the start."""
         speedup = 1.0 + 0.8 * (self.threads - 1)
-        seconds = simulated_s / self.estimated_dt() * particles * PARTICLE_STEP_S / speedup
+        seconds = self.stage_cpu_s(stage) / speedup
         return attempt * math.ceil(START_MIN + RUNTIME_MARGIN * seconds / 60.0)
 
     def pour_runtime_min(self, wildcards, attempt):
-        """Runtime (min) of a pour: the release time, stretched by POUR_TIME_FACTOR,
-        plus the settling time, with half the particles on average."""
-        pour = self.config["pour"]
-        simulated = POUR_TIME_FACTOR * pour["n_particles"] / pour["rate"] + 0.1
-        return self.sim_runtime_min(simulated, pour["n_particles"] / 2, attempt)
-
-    def _relax_s(self):
-        """Simulated time of a relaxation: RELAX_TYPICAL_S, at most relax.max_time."""
-        return min(RELAX_TYPICAL_S, self.config["relax"]["max_time"])
+        """Runtime (min) of a pour (:meth:`stage_runtime_min`)."""
+        return self.stage_runtime_min("poured", attempt)
 
     def relax_runtime_min(self, wildcards, attempt):
-        """Runtime (min) of relaxing the full pile."""
-        return self.sim_runtime_min(self._relax_s(), self.config["pour"]["n_particles"], attempt)
+        """Runtime (min) of relaxing the full pile (:meth:`stage_runtime_min`)."""
+        return self.stage_runtime_min("relaxed", attempt)
 
     def probe_runtime_min(self, wildcards, attempt):
-        """Runtime (min) of a probe: the gravity ramp, if any, or the support
-        stretch, and a relaxation."""
-        probe = self.config["probe"]
-        simulated = self._relax_s()
-        if wildcards.stage == STRETCH_STAGE:
-            simulated += probe["stretch_time"]
-        elif probe["mode"] == "ramp":
-            simulated += probe["ramp_time"]
-        return self.sim_runtime_min(simulated, self.config["pour"]["n_particles"], attempt)
+        """Runtime (min) of the probe ``wildcards.stage`` (:meth:`stage_runtime_min`)."""
+        return self.stage_runtime_min(wildcards.stage, attempt)
 
     def sim_mem_mb(self, wildcards, attempt):
         """Memory (MB) of a simulation job, growing with the attempt (a job killed

@@ -15,9 +15,13 @@ configuration files and that folder. A pile is
   or ``relaxed.nc`` when there is none. Before the stages came from ``Piles``
   the scene's probes were left out, so that a pile with only its gravity
   probes counted as done and the time left missed the other probes;
-* **running** when it is not done but its pour checkpoint
-  (``pour.checkpoint.nc``) exists, or one of its logs was written in the last
+* **running** when it is not done and either pours, its pour's lock
+  (``pour.checkpoint.nc.lock``, :class:`sim.lock.PourLock`) held by a live
+  process, or has poured and one of its logs was written in the last
   :data:`RECENT_S` seconds;
+* **interrupted (resumable)** when it has not poured, no live process holds
+  its pour's lock, but a checkpoint or a stale lock is left of a pour that
+  was killed: the next ``make run`` resumes it;
 * **left** otherwise (not started, or waiting between stages).
 
 The time left is the work still to do divided by the cores it can use. The
@@ -30,7 +34,11 @@ can use are the jobs that run side by side, ``cores // threads``, but no more
 than there are unfinished piles; and the study cannot end before its longest
 single pile. The share done is one less the work left over the work of the
 whole study (its piles times the mean CPU seconds of a finished pile). Before
-any pile has finished both are unknown. Only the simulations are counted, not
+any pile has finished (with benchmark files) the CPU seconds of each stage are
+the estimate of the bench's cost model instead
+(``workflow.resources.SimResources.stage_cpu_s``: the particle-steps the
+configuration fixes times the nanoseconds per particle-step measured on the
+project's machine), and the line says so. Only the simulations are counted, not
 the analysis after them. Times are written ``h:mm:ss`` (``sim.durations.hms``).
 
 Usage::
@@ -41,7 +49,8 @@ Usage::
 Several ``--configfile`` files are merged in order, as Snakemake merges them.
 
 ``--every`` prints the line every SECONDS seconds until killed (``make run``
-starts it in the background), or until the process that started it is gone.
+starts it in the background), or until the process that started it is gone;
+the first line comes after at most :data:`FIRST_LINE_S` seconds.
 """
 
 from __future__ import annotations
@@ -60,13 +69,18 @@ REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))  # for workflow/ and sim/durations.py
 
 from sim.durations import hms, parse_hms  # noqa: E402
+from sim.lock import PourLock  # noqa: E402
 from workflow.piles import Piles, stage_rule  # noqa: E402
+from workflow.resources import PARTICLE_STEP_S, SimResources  # noqa: E402
 from workflow.validation import load_config  # noqa: E402
 
 # A pile whose log was written this recently (s) counts as running.
 RECENT_S = 300.0
 # How much of the end of a log (bytes) is searched for its last progress line.
 LOG_TAIL_BYTES = 65536
+# With --every, the first line comes this many seconds after the start (or
+# sooner): make run's first estimate, once Snakemake has started the pours.
+FIRST_LINE_S = 60.0
 
 # Parts of a progress line of sim.progress.Progress, e.g.
 # "pour wedge seed 3: released 2743 of 3500 (78 %), ETA 0:06:37; t = 31.9000 s
@@ -85,7 +99,7 @@ class PileState:
     ----------
     protocol : str
     seed : int
-    state : {"done", "running", "left"}
+    state : {"done", "running", "interrupted", "left"}
     missing : tuple of str
         Its stages without a state file, in order; the first one is the stage
         it is in (or waits for).
@@ -204,6 +218,38 @@ def _age(path, now):
         return None
 
 
+def pour_running(root, study, protocol, seed):
+    """Whether a live process holds the pour lock of a pile.
+
+    Parameters
+    ----------
+    root : path-like
+        The workflow's directory, which the paths of `study` are relative to.
+    study : workflow.piles.Piles
+    protocol : str
+    seed : int
+
+    Returns
+    -------
+    bool
+        False without a lock file, or when its holder ("host pid") is gone as
+        the simulator judges it (:class:`sim.lock.PourLock`: no such process
+        on this host; another host's lock not refreshed for three checkpoint
+        intervals and a minute, the ``stale_after`` of ``sim.pour.pour``).
+    """
+    lock = Path(root) / pour_lock(study, protocol, seed)
+    stale_after = 3 * float(study.config["pour"]["checkpoint_interval"]) + 60.0
+    try:
+        return PourLock(lock, stale_after)._holder_alive(lock.read_text().strip())
+    except OSError:  # no lock (or gone while read)
+        return False
+
+
+def pour_lock(study, protocol, seed):
+    """The pour's lock file: ``<checkpoint>.lock`` beside its checkpoint (``sim.pour.pour``)."""
+    return study.pour_checkpoint(protocol, seed) + ".lock"
+
+
 def pile_state(root, study, protocol, seed, now):
     """Where one pile stands (see the module's docstring for the rules).
 
@@ -223,30 +269,38 @@ def pile_state(root, study, protocol, seed, now):
     -------
     PileState
         The ETA of a running stage is its last progress line's less the time
-        since the log was written while the log is recent; the ETA of a log
-        not written for :data:`RECENT_S` s (a killed pour) is taken as it
-        stands, the work its stage still needs when it resumes.
+        since the log was written while the log is recent; that of an
+        interrupted pour is taken as it stands, the work its stage still
+        needs when it resumes.
     """
     root, stages = Path(root), study.all_stages()
     missing = tuple(s for s in stages if not (root / study.pile(protocol, seed, s)).exists())
     if not set(study.final_stages()) & set(missing):
         return PileState(protocol, seed, "done")
-    ages = [_age(root / study.stage_log(protocol, seed, s), now) for s in stages]
-    recent = any(a is not None and a < RECENT_S for a in ages)
-    if not (recent or (root / study.pour_checkpoint(protocol, seed)).exists()):
-        return PileState(protocol, seed, "left", missing)
     stage = missing[0]
+    if stage != "poured":
+        ages = [_age(root / study.stage_log(protocol, seed, s), now) for s in stages]
+        state = "running" if any(a is not None and a < RECENT_S for a in ages) else "left"
+    elif pour_running(root, study, protocol, seed):
+        state = "running"
+    elif any((root / path).exists() for path in (study.pour_checkpoint(protocol, seed),
+                                                  pour_lock(study, protocol, seed))):
+        state = "interrupted"
+    else:
+        state = "left"
+    if state == "left":
+        return PileState(protocol, seed, "left", missing)
     log = root / study.stage_log(protocol, seed, stage)
     progress = last_progress(log)
     if progress is None:
-        return PileState(protocol, seed, "running", missing)
+        return PileState(protocol, seed, state, missing)
     eta, particles, at_most = progress
     age = _age(log, now)
-    if age is not None and 0 < age < RECENT_S:
+    if state == "running" and age is not None and 0 < age < RECENT_S:
         eta = max(eta - age, 0.0)
     n_particles = int(study.config["pour"]["n_particles"])
     fraction = particles / n_particles if stage == "poured" and particles else None
-    return PileState(protocol, seed, "running", missing, eta, at_most, fraction)
+    return PileState(protocol, seed, state, missing, eta, at_most, fraction)
 
 
 def stage_means(root, study, piles):
@@ -278,9 +332,10 @@ def stage_means(root, study, piles):
 
 def pile_work(pile, means, cores_per_job):
     """CPU seconds a pile still needs: the mean of each missing stage, with
-    the ETA (wall seconds on `cores_per_job` cores) for the stage it runs."""
+    the ETA (wall seconds on `cores_per_job` cores) for the stage it runs or
+    was interrupted in."""
     work = [means[s] for s in pile.missing]
-    if pile.state == "running" and pile.eta is not None:
+    if pile.eta is not None:
         work[0] = pile.eta * cores_per_job
     return sum(work)
 
@@ -345,14 +400,17 @@ def fraction_done(piles, means, cores, threads):
 
 
 def describe_running(pile):
-    """A running pile in words: ``wedge 3: pour 78 %, ETA 0:06:30``."""
+    """A running pile in words: ``wedge 3: pour 78 %, ETA 0:06:30``; an
+    interrupted one: ``wedge 3: pour 78 %, 0:06:37 to go``."""
     stage = pile.missing[0]
     what = stage_rule(stage) if stage in ("poured", "relaxed", "reduced") else f"probe {stage}"
     text = f"{pile.protocol} {pile.seed}: {what}"
     if pile.fraction is not None:
         text += f" {math.floor(100 * pile.fraction)} %"
     if pile.eta is not None:
-        text += f", ETA {'at most ' if pile.at_most else ''}{hms(pile.eta)}"
+        bound = "at most " if pile.at_most else ""
+        text += (f", ETA {bound}{hms(pile.eta)}" if pile.state == "running"
+                 else f", {bound}{hms(pile.eta)} to go")
     return text
 
 
@@ -398,24 +456,60 @@ def _progress(root, study, cores, now):
     piles = [pile_state(root, study, protocol, seed, now) for protocol, seed in study.each()]
     done = [p for p in piles if p.state == "done"]
     running = [p for p in piles if p.state == "running"]
-    left = len(piles) - len(done) - len(running)
+    interrupted = [p for p in piles if p.state == "interrupted"]
+    left = len(piles) - len(done) - len(running) - len(interrupted)
     line = f"{len(done)} of {len(piles)} piles done, {len(running)} running"
     if running:
         line += " (" + "; ".join(describe_running(p) for p in running) + ")"
+    if interrupted:
+        line += (f", {len(interrupted)} interrupted (resumable: "
+                 + "; ".join(describe_running(p) for p in interrupted) + ")")
     line += f", {left} left; "
+    if len(done) == len(piles):
+        return line + "all piles simulated"
     means, counted = stage_means(root, study, piles)
+    if means:
+        basis = (f"mean of {counted} finished pile{'s' * (counted != 1)}: "
+                 f"{hms(sum(means.values()))} of CPU per pile")
+    else:
+        means, basis = cost_model(study)
     threads = study.config["threads"]
     seconds, jobs = time_left(piles, means, cores, threads)
-    if seconds is None:
-        return line + "time left unknown until a pile has finished (with benchmark files)"
-    if not running and not left:
-        return line + "all piles simulated"
-    per_pile = hms(sum(means.values()))
     done_pct = math.floor(100 * fraction_done(piles, means, cores, threads))
     return (line + f"{done_pct} % of the simulation done, about {hms(seconds)} left at "
-            f"{jobs} job{'s' * (jobs != 1)} "
-            f"at a time (mean of {counted} finished pile{'s' * (counted != 1)}: "
-            f"{per_pile} of CPU per pile)")
+            f"{jobs} job{'s' * (jobs != 1)} at a time ({basis})")
+
+
+def cost_model(study):
+    """CPU seconds per stage by the bench's cost model, and the words that say so.
+
+    Parameters
+    ----------
+    study : workflow.piles.Piles
+
+    Returns
+    -------
+    (dict, str)
+        :meth:`workflow.resources.SimResources.stage_cpu_s` of each stage of
+        a pile, and what the estimate rests on: the particle-steps of a pile,
+        which the configuration alone fixes (particles, pour rate, time
+        step), times the ns per particle-step measured on the project's machine.
+    """
+    model = SimResources(study.config)
+    stages = study.all_stages()
+    means = {s: model.stage_cpu_s(s) for s in stages}
+    pour, m = study.config["pour"], study.config["model"]
+    steps = sum(model.particle_steps(s) for s in stages)
+    dt = (f"model.dt = {m['dt']:.3g} s" if m["dt"] is not None
+          else f"automatic time step of {m['integrator']} about {model.estimated_dt():.3g} s")
+    relax_s = model.relax_simulated_s()
+    return means, (f"estimate from the cost model until a pile has finished: "
+                   f"{steps:.3g} particle-steps per pile, host-independent, from "
+                   f"pour.n_particles = {pour['n_particles']}, pour.rate = {pour['rate']:g}/s, "
+                   f"{dt} and {len(stages) - 1} relaxing stage{'s' * (len(stages) != 2)} of "
+                   f"about {relax_s:g} s simulated, x {PARTICLE_STEP_S * 1e9:.0f} ns per "
+                   f"particle-step measured on the project's machine: "
+                   f"{hms(sum(means.values()))} of CPU per pile")
 
 
 def _shown(path, root):
@@ -445,13 +539,16 @@ def watch(every, line):
     Parameters
     ----------
     every : float
-        Seconds between lines; the first comes after `every` seconds.
+        Seconds between lines; the first comes after `every` seconds or
+        :data:`FIRST_LINE_S`, whichever is less.
     line : callable
         Returns the line to print.
     """
     parent = os.getppid()
+    wait = min(every, FIRST_LINE_S)
     while True:
-        time.sleep(every)
+        time.sleep(wait)
+        wait = every
         if os.getppid() != parent:
             return
         print(line(), flush=True)
