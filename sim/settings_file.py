@@ -13,8 +13,8 @@ refused as "'1e7' is not of type 'number'".  :class:`SettingsLoader` reads
 them as the floats they are (as YAML 1.2 and JSON do); what YAML 1.1 reads as
 a number it reads the same (``1_000`` is 1000, ``.inf`` infinity), so a
 file means the same here as in Snakemake, whose own loader reads the
-configuration before the Snakefile runs (the validator turns the strings it
-left, :func:`yaml12_number`, into these numbers).  ``e7``, ``1e``, ``inf``
+configuration before the Snakefile runs (where the schema asks for a number,
+the validator turns the text it left into the number, :func:`number_from_text`).  ``e7``, ``1e``, ``inf``
 and ``1e7x`` stay text, which a numeric setting refuses.
 
 PyYAML reads a mapping that repeats a key by keeping the last value, and
@@ -50,6 +50,10 @@ FLOAT = re.compile(r"""^(?:[-+]?[0-9][0-9_]*\.[0-9_]*(?:[eE][-+]?[0-9]+)?
                     |[-+]?[0-9][0-9_]*(?::[0-5]?[0-9])+\.[0-9_]*
                     |[-+]?\.(?:inf|Inf|INF)
                     |\.(?:nan|NaN|NAN))$""", re.X)
+
+
+# One plain YAML scalar of the characters a number may have.
+_TOKEN = re.compile(r"[-+.0-9A-Za-z_:]+")
 
 
 def _numbers_as_written(cls):
@@ -175,17 +179,19 @@ def yaml_value(text: str) -> Any:
     return yaml.load(text, Loader=SettingsLoader)
 
 
-def yaml12_number(value: Any) -> float | None:
-    """The float that `value` is, when it is a string that :class:`SettingsLoader`
-    reads as a float and YAML 1.1 as text (``'1e7'``, ``'1E-3'``, ``'-.5'``); else None.
+def number_from_text(value: Any) -> int | float | None:
+    """The number that the text `value` is, read as :class:`SettingsLoader` reads it; else None.
 
-    What a reader that follows YAML 1.1 (Snakemake's) left as text where the
-    settings file wrote a number; a string that YAML 1.1 reads as a number too
-    (``'1.0'``) was quoted in its file, and stays text.
+    ``'1e7'``, ``'1E-3'``, ``'-.5'``, ``'800'`` give 1e7, 0.001, -0.5, 800;
+    ``'1e7x'``, ``'fast'``, ``'true'``, ``'{a: 1}'`` and anything not a string
+    give None.  For configurations that a reader outside this module made:
+    Snakemake reads ``--configfile`` after YAML 1.1 (``1e7`` stays text) and
+    the values in a mapping of ``--config`` as text altogether.
     """
-    if not (isinstance(value, str) and FLOAT.match(value)) or not isinstance(yaml.safe_load(value), str):
+    if not (isinstance(value, str) and _TOKEN.fullmatch(value)):
         return None
-    return yaml_value(value)
+    number = yaml_value(value)
+    return number if isinstance(number, (int, float)) and not isinstance(number, bool) else None
 
 
 def read_settings_file(path: str | Path, what: str = "config file") -> dict[str, Any]:

@@ -70,9 +70,10 @@ def with_value(path, value):
 
 
 def bad_values(schema):
-    """Values a numeric setting must refuse: not finite, of the wrong type,
-    below a non-negative minimum, a float for an integer."""
-    values = [st.sampled_from([math.nan, math.inf, -math.inf, "1.0", "many", [1.0], True,
+    """Values a numeric setting must refuse: not finite, of the wrong type (text
+    that is no number: text that is one, as Snakemake's readers leave 1e7, is
+    read as the number), below a non-negative minimum, a float for an integer."""
+    values = [st.sampled_from([math.nan, math.inf, -math.inf, "1.0 m", "many", "1e7x", [1.0], True,
                                {"value": 1}])]
     low = schema.get("minimum", schema.get("exclusiveMinimum"))
     if low is not None and low >= 0:

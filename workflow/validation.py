@@ -1,10 +1,15 @@
 """The one validator of the workflow configuration, run by the Snakefile
 before any job.
 
-It decides in three passes, each naming the setting, its value and what is
-allowed:
+Snakemake reads the configuration files itself, with PyYAML after YAML 1.1,
+which leaves ``1e7``, ``1E-3`` or ``-.5`` as text (and a mapping given to
+``--config`` all as text); :func:`coerce_numbers` first turns such text into
+the number it is where the schema asks for a number, so that a file means what
+:mod:`sim.settings_file` reads everywhere else. Then the validator decides in three passes, each naming the setting,
+its value and what is allowed:
 
-1. :func:`number_problems`: every number is finite, and a setting the schema
+1. :func:`number_problems`: every number is a number (not text such as
+   ``1e7x``) and finite, and a setting the schema
    declares an integer holds an integer, not 3500.0 (JSON schema counts an
    integer-valued float as an integer; the simulator and the analysis do not).
 2. The JSON schema ``workflow/schemas/config.schema.yaml`` (draft 2020-12),
@@ -17,6 +22,8 @@ allowed:
    :func:`analysis.params.resolve_params`): what a schema cannot express,
    such as ``relax.hold_time <= relax.max_time`` or an ordered grid.
 
+Between the last two, :func:`check_results_folder` refuses a ``results``
+folder in the project's own source (sim/, docs/, ..., the repository itself).
 A job therefore never meets a setting that its program would refuse. The
 workflow's own checks (its stage names, scenes and pile numerics:
 ``problems()`` of the classes in workflow/piles.py, scene.py and
@@ -24,9 +31,10 @@ numerics_piles.py) are raised by :func:`check_problems`.
 
 Before them, :func:`check_config_files` reads each ``--configfile`` again
 strictly (:func:`sim.settings_file.read_settings_file`): a key repeated in one
-mapping, which YAML reads as its last value, and an empty section laid over
-another file, which Snakemake's merge ignores, are refused naming the file and
-line. A file Snakemake itself cannot read (empty, a list, bad syntax, missing)
+mapping, which YAML and JSON read as its last value, and an empty section laid
+over another file, which Snakemake's merge ignores, are refused naming the
+file and line, and a number that :func:`number_problems` refuses, naming the
+file. A file Snakemake itself cannot read (empty, a list, bad syntax, missing)
 stops Snakemake before the Snakefile with a message that does not name it;
 ``python -m workflow.validation FILE ...`` checks such files alone, then their
 merged configuration, and names the file and line. :func:`load_config` reads,
@@ -49,7 +57,8 @@ from analysis.params import SCHEMA_FILE as ANALYSIS_SCHEMA
 from analysis.params import check_memory, resolve_params
 from sim.config import SCHEMA_FILE as SIM_SCHEMA
 from sim.config import SimConfig
-from sim.settings_file import SettingsFileError, read_settings_file
+from sim.settings_file import SettingsFileError, number_from_text, read_settings_file
+from sim.settings_file import merge_settings as merge_configs  # the workflow's name for it
 
 SCHEMAS = Path(__file__).resolve().parent / "schemas"
 CONFIG_SCHEMA = SCHEMAS / "config.schema.yaml"
@@ -63,6 +72,11 @@ REFERRED_SCHEMAS = {"../../sim/config.schema.yaml": SIM_SCHEMA,
                     "numerics.schema.yaml": NUMERICS_SCHEMA}
 # The sections of the configuration that the simulator reads.
 SIM_SECTIONS = ("model", "particles", "pour", "relax", "probe", "physics")
+# The repository, and its folders of source (code, configuration, docs,
+# tests, CI, git): the results folder is none of them, nor inside one, nor
+# the repository itself.
+REPO = Path(__file__).resolve().parents[1]
+SOURCE_FOLDERS = ("sim", "analysis", "workflow", "config", "docs", "tests", ".ci", ".git")
 
 
 class ConfigurationError(ValueError):
@@ -149,8 +163,62 @@ def _allowed(schema):
     return " ".join([kind] + [" and ".join(bounds)] if bounds else [kind])
 
 
+def _types(schema):
+    """The ``type`` of a schema as a list (empty when it gives none)."""
+    kinds = schema.get("type", [])
+    return [kinds] if isinstance(kinds, str) else list(kinds)
+
+
+def _number_slots(value, schema, root, key=""):
+    """Each place in `value` that the schema types as a number or an integer.
+
+    Yields ``(holder, name, dotted key, schema)``: ``holder[name]`` is a value
+    other than a mapping or a list at a setting whose schema (``$ref``
+    followed) allows a number or an integer.
+    """
+    schema, root = _resolve(schema, root)
+    if isinstance(value, dict):
+        properties = schema.get("properties", {})
+        children = [(name, properties[name], f"{key}.{name}" if key else str(name))
+                    for name in value if name in properties]
+    elif isinstance(value, list) and isinstance(schema.get("items"), dict):
+        children = [(k, schema["items"], f"{key}[{k}]") for k in range(len(value))]
+    else:
+        return
+    for name, sub, where in children:
+        sub, sub_root = _resolve(sub, root)
+        if not isinstance(value[name], (dict, list)) and {"number", "integer"} & set(_types(sub)):
+            yield value, name, where, sub
+        else:
+            yield from _number_slots(value[name], sub, sub_root, where)
+
+
+def coerce_numbers(value, schema):
+    """Turn into numbers, in place, the numbers of `value` that Snakemake left as text.
+
+    Snakemake reads a ``--configfile`` with PyYAML, after YAML 1.1, which
+    reads ``1e7``, ``1E-3`` or ``-.5`` as text, and the values in a mapping
+    of ``--config`` (``--config 'model={youngs_modulus: 1e7}'``) all as text;
+    where the schema asks for a number, text that is one becomes it
+    (:func:`sim.settings_file.number_from_text`), as the settings files are
+    read everywhere else.  Other text stays (``1e7x``, ``fast``), for
+    :func:`number_problems` to refuse.
+
+    Parameters
+    ----------
+    value : dict
+        A configuration.
+    schema : dict
+        Its JSON schema.
+    """
+    for holder, name, _, _ in _number_slots(value, schema, schema):
+        number = number_from_text(holder[name])
+        if number is not None:
+            holder[name] = number
+
+
 def number_problems(value, schema, root=None, key=""):
-    """Non-finite numbers and floats given for integers in `value`.
+    """Text, non-finite numbers and floats given for integers in `value`.
 
     Parameters
     ----------
@@ -168,28 +236,50 @@ def number_problems(value, schema, root=None, key=""):
     list of str
         One message per bad number, naming its key, value and what is allowed.
     """
-    root = schema if root is None else root
-    schema, root = _resolve(schema, root)
     problems = []
-    if isinstance(value, dict):
-        properties = schema.get("properties", {})
-        for name, sub in value.items():
-            if name in properties:
-                problems += number_problems(sub, properties[name], root,
-                                            f"{key}.{name}" if key else str(name))
-    elif isinstance(value, list) and isinstance(schema.get("items"), dict):
-        for k, item in enumerate(value):
-            problems += number_problems(item, schema["items"], root, f"{key}[{k}]")
-    elif isinstance(value, float):
-        kinds = schema.get("type", [])
-        kinds = [kinds] if isinstance(kinds, str) else kinds
-        if not math.isfinite(value):
-            problems.append(f"{key} = {value!r}: must be finite, {_allowed(schema)}")
-        elif "integer" in kinds and "number" not in kinds:
-            problems.append(f"{key} = {value!r}: must be an integer (write "
-                            f"{int(value) if value.is_integer() else 'a whole number'}), "
-                            f"{_allowed(schema)}")
+    for holder, name, where, sub in _number_slots(value, schema, schema if root is None else root, key):
+        number = holder[name]
+        if isinstance(number, str) and "string" not in _types(sub):
+            problems.append(f"{where} = {number!r}: must be {_allowed(sub)}, not text (numbers are "
+                            "written unquoted: 800, 0.5, 2.5e-3, 1e7)")
+        elif isinstance(number, float) and not math.isfinite(number):
+            problems.append(f"{where} = {number!r}: must be finite, {_allowed(sub)}")
+        elif isinstance(number, float) and "integer" in _types(sub) and "number" not in _types(sub):
+            problems.append(f"{where} = {number!r}: must be an integer (write "
+                            f"{int(number) if number.is_integer() else 'a whole number'}), "
+                            f"{_allowed(sub)}")
     return problems
+
+
+def check_results_folder(results):
+    """Refuse a results folder in the project's own source.
+
+    Parameters
+    ----------
+    results : str
+        The setting ``results``, relative to the working directory.
+
+    Raises
+    ------
+    ConfigurationError
+        One line naming the setting and the folder: it is the repository
+        (:data:`REPO`), or one of its :data:`SOURCE_FOLDERS` or inside one,
+        where the workflow would write its piles and logs among the sources
+        (symbolic links followed).
+    """
+    folder = Path(results).resolve()
+    source = [REPO / name for name in SOURCE_FOLDERS if REPO / name in (folder, *folder.parents)]
+    if folder == REPO:
+        where = f"the repository itself ({REPO})"
+    elif source and folder == source[0]:
+        where = f"the source folder {folder}"
+    elif source:
+        where = f"{folder}, in the source folder {source[0]}"
+    else:
+        return
+    raise ConfigurationError(
+        f"invalid configuration: results = {results!r} is {where}, where the workflow would write its "
+        f"piles and logs among the sources; give a folder under results/ (e.g. results/my_study) or outside {REPO}")
 
 
 def validate_config(config):
@@ -205,12 +295,14 @@ def validate_config(config):
     ConfigurationError
         Naming the setting, its value and what is allowed.
     """
+    coerce_numbers(config, load_schema(CONFIG_SCHEMA))
     problems = number_problems(config, load_schema(CONFIG_SCHEMA))
     if problems:
         raise ConfigurationError("invalid configuration:\n  " + "\n  ".join(problems))
     problem = schema_problem(config, CONFIG_SCHEMA)
     if problem:
         raise ConfigurationError(f"invalid configuration: {problem}")
+    check_results_folder(config["results"])
     for check in (lambda: SimConfig.from_dict({k: config[k] for k in SIM_SECTIONS}),
                   lambda: check_memory(resolve_params(config["analysis"]))):
         try:
@@ -255,9 +347,12 @@ def check_config_files(paths):
     ConfigurationError
         One line naming the file (and line): it cannot be read as a mapping of
         settings (:func:`sim.settings_file.read_settings_file`: empty, a list,
-        a repeated key, bad syntax), or a file after the first gives a section
-        as an empty mapping (``protocols: {}``), which the merge ignores, so
-        the earlier files' settings would run unseen.
+        a repeated key, bad syntax), a numeric setting holds text (which the
+        file quoted: ``'1e7'``), or a number not finite or not whole where it
+        must be (:func:`number_problems`), or
+        a file after the first gives a section as an empty mapping
+        (``protocols: {}``), which the merge ignores, so the earlier files'
+        settings would run unseen.
     """
     layers = []
     for k, path in enumerate(paths):
@@ -265,6 +360,9 @@ def check_config_files(paths):
             layer = read_settings_file(path)
         except SettingsFileError as exc:
             raise ConfigurationError(str(exc)) from None
+        problems = number_problems(layer, load_schema(CONFIG_SCHEMA))  # text here was quoted
+        if problems:
+            raise ConfigurationError(f"{path}: " + "; ".join(problems))
         empty = [key for key, value in layer.items() if value == {}]
         if k > 0 and empty:
             raise ConfigurationError(
@@ -273,14 +371,6 @@ def check_config_files(paths):
                 f"{empty[0]} out")
         layers.append(layer)
     return layers
-
-
-def merge_configs(base, layer):
-    """``base`` updated by ``layer`` key by key into nested mappings, as Snakemake merges config files."""
-    out = dict(base)
-    for key, value in layer.items():
-        out[key] = merge_configs(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
-    return out
 
 
 def load_config(paths):
