@@ -12,7 +12,10 @@ Reads a particle-state file through the contract (docs/formats.md#state-files,
 * optionally the contact-force network: a line between the centres of two
   particles in contact (from the centre to the contact point for the
   support), its width proportional to the magnitude of the contact force;
-* the support, the line y = 0.
+* the support, the line y = 0;
+* framed on the pile (:func:`pile_frame`): a particle flung far away, or
+  one that lost contact, does not shrink the pile to a speck; the picture
+  says which particles lie out of frame.
 
 The picture is written atomically (:func:`analysis.figures.save`), so a
 killed job never leaves half a picture.
@@ -21,6 +24,7 @@ killed job never leaves half a picture.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +35,13 @@ from .states import State, load_state
 from .stress import particle_stress
 
 COLOUR_BY = ("pressure", "none")
+#: Percentiles of the centres of the particles connected to the support that
+#: bound the bulk of a pile, in x and in y (:func:`pile_frame`).
+BULK_PERCENTILES = (1.0, 99.0)
+#: How far beyond those percentiles a particle still counts as part of the
+#: pile: this fraction of the larger extent between them, plus two of the
+#: largest particle's sizes.
+BULK_MARGIN = 0.1
 
 
 def polygons_world(state: State) -> list[np.ndarray]:
@@ -60,6 +71,77 @@ def force_segments(state: State) -> tuple[np.ndarray, np.ndarray]:
     return np.stack((start, end), axis=1), np.hypot(state.force_x, state.force_y)
 
 
+def connected_to_support(state: State) -> np.ndarray:
+    """Boolean mask of the particles that a chain of contacts joins to the
+    support (or a wall): those a pile at rest rests on it through."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = state.n_particles
+    ends = np.where(state.support, n, state.contact_j)  # node n: the support
+    graph = coo_matrix((np.ones(ends.size), (state.contact_i, ends)), shape=(n + 1, n + 1))
+    labels = connected_components(graph, directed=False)[1]
+    return labels[:n] == labels[n]
+
+
+def pile_frame(state: State, polys: list[np.ndarray]) -> tuple[tuple, tuple, np.ndarray]:
+    """The picture's frame: around the bulk of the pile, not a stray particle.
+
+    The bulk is made of the particles connected to the support
+    (:func:`connected_to_support`; every particle when none is) whose
+    centres lie within :data:`BULK_PERCENTILES` of theirs, in x and in y,
+    widened by :data:`BULK_MARGIN`; the frame holds each of them whole, and
+    the support.
+
+    Parameters
+    ----------
+    state : State
+    polys : list of ndarray
+        The particles' corners in the lab frame (:func:`polygons_world`).
+
+    Returns
+    -------
+    xlim, ylim : tuple of float
+        The frame, without padding.
+    out : ndarray of int
+        The particles with a corner out of the frame, in index order.
+    """
+    centres = np.column_stack((state.x, state.y))
+    bulk = connected_to_support(state)
+    if not bulk.any():
+        bulk[:] = True
+    lo, hi = np.percentile(centres[bulk], BULK_PERCENTILES, axis=0)
+    size = max(float(np.max(np.abs(p - c))) for p, c in zip(polys, centres))
+    margin = BULK_MARGIN * float(np.max(hi - lo)) + 2.0 * size
+    bulk &= np.all((centres >= lo - margin) & (centres <= hi + margin), axis=1)
+    corners = np.concatenate([polys[k] for k in np.flatnonzero(bulk)])
+    (xmin, ymin), (xmax, ymax) = corners.min(axis=0), corners.max(axis=0)
+    ymin = min(ymin, 0.0)
+    out = np.array([k for k, p in enumerate(polys)
+                    if p[:, 0].min() < xmin or p[:, 0].max() > xmax
+                    or p[:, 1].min() < ymin or p[:, 1].max() > ymax], dtype=np.int64)
+    return (float(xmin), float(xmax)), (float(ymin), float(ymax)), out
+
+
+def out_of_frame_note(state: State, out: np.ndarray, shown: int = 3) -> str:
+    """The words that name the particles out of the frame (empty for none).
+
+    Parameters
+    ----------
+    state : State
+    out : ndarray of int
+        The particles out of frame (:func:`pile_frame`).
+    shown : int
+        How many of them are named with their centres; the rest are counted.
+    """
+    if not out.size:
+        return ""
+    where = ", ".join(f"#{k} at ({state.x[k]:.3g}, {state.y[k]:.3g}) m" for k in out[:shown])
+    more = f" and {out.size - shown} more" if out.size > shown else ""
+    return (f"{out.size} particle{'s' * (out.size != 1)} out of frame (framed on the pile): "
+            f"{where}{more}")
+
+
 def _pressure_limits(p: np.ndarray) -> tuple[float, float, str]:
     """Colour range: from min(0, lowest) to the highest value, or to the 99th
     percentile in a pile of 100 particles or more, so that a single impact does
@@ -71,7 +153,7 @@ def _pressure_limits(p: np.ndarray) -> tuple[float, float, str]:
 
 
 def draw_state(path_in: str, path_out: str, color_by: str = "pressure", forces: bool = True,
-               dpi: int = 150) -> None:
+               dpi: int = 150) -> str:
     """Draw the particle state in ``path_in`` to ``path_out`` (format from its suffix, e.g. .png).
 
     Parameters
@@ -84,6 +166,12 @@ def draw_state(path_in: str, path_out: str, color_by: str = "pressure", forces: 
         Draw the contact-force network on top.
     dpi : int
         Resolution of raster formats.
+
+    Returns
+    -------
+    str
+        What the picture says of the particles out of its frame
+        (:func:`pile_frame`, :func:`out_of_frame_note`); empty for none.
     """
     from matplotlib.collections import LineCollection, PolyCollection
     from matplotlib.figure import Figure
@@ -94,10 +182,8 @@ def draw_state(path_in: str, path_out: str, color_by: str = "pressure", forces: 
         raise ValueError(f"color_by = {color_by!r}: must be one of {', '.join(COLOUR_BY)}")
     state = load_state(path_in)
     polys = polygons_world(state)
-    corners = np.concatenate(polys)
-    xmin, ymin = corners.min(axis=0)
-    xmax, ymax = corners.max(axis=0)
-    ymin = min(ymin, 0.0)
+    (xmin, xmax), (ymin, ymax), out = pile_frame(state, polys)
+    note = out_of_frame_note(state, out)
     pad = 0.03 * max(xmax - xmin, ymax - ymin, 1e-12)
 
     fig_w = 10.0
@@ -138,11 +224,12 @@ def draw_state(path_in: str, path_out: str, color_by: str = "pressure", forces: 
         title.append(f"t = {float(attrs['time']):.4g} s")
     title.append(f"g = {state.gravity:.4g} m/s²")
     title.append(f"{state.n_particles} particles")
-    ax.set_title(", ".join(title))
+    ax.set_title(", ".join(title) + (f"\n{note}" if note else ""))
     if color_by == "pressure":
         fig.colorbar(coll, ax=ax, orientation="horizontal", shrink=0.5, aspect=40, extend=extend,
                      label="particle pressure −(σxx+σyy)/2 [N/m] (Eq. 2)")
     save(fig, [str(path_out)], dpi)
+    return note
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -179,10 +266,13 @@ def cmd_draw(args: argparse.Namespace, params: dict) -> None:
     A state that breaks the contract raises :class:`~analysis.errors.StateError`
     (from :func:`~analysis.states.load_state`), a picture that cannot be
     written :class:`~analysis.errors.InputError`; ``params`` is not used.
+    Particles out of the frame are named on stderr too.
     """
     picture_format(args.out)
     check_writable(args.out, "--out")
     try:
-        draw_state(args.input, args.out, color_by=args.color_by, forces=args.forces, dpi=args.dpi)
+        note = draw_state(args.input, args.out, color_by=args.color_by, forces=args.forces, dpi=args.dpi)
     except OSError as err:
         raise InputError(f"{args.out}: cannot be written ({err})") from err
+    if note:
+        print(f"[analysis] draw {args.out}: {note}", file=sys.stderr, flush=True)

@@ -127,3 +127,65 @@ def test_a_picture_format_matplotlib_cannot_write_is_refused_first(tmp_path, cap
     err = capsys.readouterr().err
     assert f"--out {out}" in err and all(w in err for w in words) and "not_read.nc" not in err
     assert list(tmp_path.iterdir()) == []
+
+
+def _lattice_and_stray(ncol, nrow, stray, on_support):
+    """Squares of side A on a lattice resting on the support, and one more at
+    `stray` (its centre), touching the support or nothing."""
+    from synthetic_states import make_state, square_lattice, square_nodes
+
+    x, y, c = square_lattice(ncol, nrow, A)
+    k = x.size
+    if on_support:
+        c = {"i": np.append(c["i"], k), "j": np.append(c["j"], -1),
+             "cx": np.append(c["cx"], stray[0]), "cy": np.append(c["cy"], 0.0)}
+    state = make_state(np.append(x, stray[0]), np.append(y, stray[1]), square_nodes(A), c)
+    return state, k
+
+
+def _frame_of(state):
+    from synthetic_states import as_state
+
+    s = as_state(state)
+    return draw.pile_frame(s, draw.polygons_world(s))
+
+
+def test_the_frame_holds_the_pile_not_a_stray_particle():
+    """3 x 2 squares on the support and a seventh 1 m away in mid-air, touching
+    nothing: the frame is the pile's corners (x from -A/2 to 2.5 A, y from the
+    support to 2 A), and the stray one is named as out of it."""
+    state, stray = _lattice_and_stray(3, 2, (1.0, 0.5), on_support=False)
+    xlim, ylim, out = _frame_of(state)
+    assert xlim == pytest.approx((-A / 2, 2.5 * A)) and ylim == pytest.approx((0.0, 2 * A))
+    assert out.tolist() == [stray]
+
+
+def test_a_particle_far_along_the_support_is_out_of_frame_too():
+    """In a pile of 100 squares a particle that rolled 0.5 m away along the
+    support touches it, but lies far beyond the 99th percentile of x (the
+    pile's last column, 9 A) and the margin (0.1 x 9 A + 2 x A/2 = 1.9 A)."""
+    state, stray = _lattice_and_stray(10, 10, (0.5, A / 2), on_support=True)
+    xlim, ylim, out = _frame_of(state)
+    assert xlim == pytest.approx((-A / 2, 9.5 * A)) and ylim == pytest.approx((0.0, 10 * A))
+    assert out.tolist() == [stray]
+
+
+def test_a_pile_without_strays_is_framed_whole(tmp_path):
+    """B, T and L (L alone on the support 3 A away, part of the picture):
+    every corner is in the frame, nothing is out."""
+    state = load_state(write_state(tmp_path / "s.nc"))
+    xlim, ylim, out = draw.pile_frame(state, draw.polygons_world(state))
+    assert xlim == pytest.approx((-A / 2, 3.5 * A)) and ylim == pytest.approx((0.0, 2 * A))
+    assert out.size == 0
+
+
+def test_the_picture_names_the_particle_out_of_frame(tmp_path, capsys):
+    from synthetic_states import write_state as write_synthetic
+
+    state, stray = _lattice_and_stray(3, 2, (1.0, 0.5), on_support=False)
+    path = write_synthetic(tmp_path / "relaxed.nc", state)
+    out = tmp_path / "relaxed.png"
+    assert analysis_main(["draw", "--input", path, "--out", str(out)]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert capsys.readouterr().err == (f"[analysis] draw {out}: 1 particle out of frame (framed on the "
+                                       f"pile): #{stray} at (1, 0.5) m\n")
