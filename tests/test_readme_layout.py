@@ -1,11 +1,19 @@
-"""The README's layout names every rule file, script and workflow module by its
-file name, and every folder of the two packages, so that a newcomer finds each
-one there."""
+"""The README and the pages of docs/ stay usable: the README's layout names every
+rule file, script and workflow module by its file name, and every folder of the
+two packages, so that a newcomer finds each one there; the README keeps the two
+commands on its first screen and stays short, as does docs/performance.md (its
+measurements live in docs/performance/); and every relative link of these pages
+points at a file that exists and, with a #fragment, at a heading of that page."""
 
 import re
 from pathlib import Path
+from urllib.parse import unquote
 
 REPO = Path(__file__).resolve().parents[1]
+
+README_MAX_LINES = 220
+README_FIRST_SCREEN = 40
+PERFORMANCE_MAX_LINES = 150
 
 
 def layout_block():
@@ -23,3 +31,76 @@ def test_the_layout_names_every_rule_file_script_and_package_folder():
     missing = [n for n in names if not re.search(rf"\b{re.escape(n)}\b", block)]
     missing += [f for f in folders if not re.search(rf"^{re.escape(f)} ", block, re.M)]
     assert missing == []
+
+
+def test_the_readme_is_short_and_starts_with_the_two_commands():
+    lines = (REPO / "README.md").read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= README_MAX_LINES, f"README.md has {len(lines)} lines"
+    first_screen = "\n".join(lines[:README_FIRST_SCREEN])
+    for command in ("make run", "make test"):
+        assert re.search(rf"^{command}\b", first_screen, re.M), \
+            f"`{command}` is not a command line within the README's first {README_FIRST_SCREEN} lines"
+
+
+def test_the_performance_page_is_short():
+    lines = (REPO / "docs" / "performance.md").read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= PERFORMANCE_MAX_LINES, f"docs/performance.md has {len(lines)} lines"
+
+
+def _without_fences(text):
+    """The text without fenced code blocks (a `# comment` there is no heading)."""
+    return re.sub(r"^(```|~~~).*?^\1[ \t]*$", "", text, flags=re.S | re.M)
+
+
+def _without_code(text):
+    """The text without fenced code blocks and inline code, where `](...)` is no link."""
+    return re.sub(r"`[^`\n]*`", "", _without_fences(text))
+
+
+def anchors(page):
+    """The fragments GitHub gives the headings of a Markdown page (lower case, punctuation
+    and code marks dropped, spaces to hyphens, -1, -2, ... for repeats), and <a id/name>."""
+    text = _without_fences(page.read_text(encoding="utf-8"))
+    found, seen = set(), {}
+    for heading in re.findall(r"^#{1,6}[ \t]+(.+?)[ \t#]*$", text, re.M):
+        heading = re.sub(r"!?\[([^\]]*)\]\([^)]*\)", r"\1", heading)  # a link: its text
+        slug = re.sub(r"[^\w\- ]", "", heading.lower()).replace(" ", "-")
+        count = seen.get(slug, 0)
+        seen[slug] = count + 1
+        found.add(slug if count == 0 else f"{slug}-{count}")
+    found.update(re.findall(r"<a\s+(?:id|name)=\"([^\"]+)\"", text))
+    return found
+
+
+def _pages():
+    docs = REPO / "docs"
+    return [REPO / "README.md", *sorted(docs.glob("*.md")), *sorted((docs / "performance").glob("*.md"))]
+
+
+def test_every_relative_link_points_at_an_existing_file_and_heading():
+    broken = []
+    for page in _pages():
+        for target in re.findall(r"\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)", _without_code(page.read_text(encoding="utf-8"))):
+            if re.match(r"[A-Za-z][A-Za-z0-9+.-]*:", target):  # http:, https:, mailto:
+                continue
+            path, _, fragment = target.partition("#")
+            linked = (page.parent / unquote(path)).resolve() if path else page
+            where = f"{page.relative_to(REPO)}: {target}"
+            if not linked.exists():
+                broken.append(f"{where} (no such file)")
+            elif fragment and linked.suffix == ".md" and unquote(fragment) not in anchors(linked):
+                broken.append(f"{where} (no such heading)")
+    assert broken == []
+
+
+def test_the_link_check_finds_what_it_must():
+    """The anchors and links of the check above, on known cases: a heading with code and
+    punctuation, a repeated heading, and links in and out of code."""
+    page = REPO / "docs" / "performance" / "log-2026-12.md"
+    found = anchors(page)
+    assert "against-lammps-in-the-same-run---peer-lammps" in found
+    assert "witnesses-of-one-byte-where-the-pair-passs-time-goes" in found
+    assert "issue-26s-targets-against-what-is-measured" in found
+    assert "no-such-heading" not in found
+    assert re.findall(r"\]\(([^)\s]+)\)", _without_code("a `[x](nowhere.md)` and [y](here.md)\n"
+                                                         "```\n[z](code.md)\n```\n")) == ["here.md"]
