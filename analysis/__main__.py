@@ -264,6 +264,61 @@ def cmd_convergence(args, params) -> None:
     _log(f"convergence -> {args.out}")
 
 
+#: The figures drawn at analysis.figures.heights, and the variable whose values show where each
+#: input's pile is (a row of the grid without one draws nothing).
+HEIGHT_FIGURES = {"vertical-strain": "strain_increment", "fabric": "fabric_trace",
+                  "moduli": "bulk_modulus", "general": "explained_general"}
+
+
+def check_heights(name: str, data: dict, inputs: dict, heights: list[float]) -> list[str]:
+    """Refuse heights that miss the pile in every layer a figure would draw.
+
+    Each height is drawn at the nearest row of the grid (as
+    :mod:`analysis.figures` draws it); a row where the figure's variable (:data:`HEIGHT_FIGURES`) holds no finite
+    value lies off the pile.
+
+    Parameters
+    ----------
+    name : str
+        The figure (``python -m analysis figure NAME``).
+    data, inputs : dict
+        The inputs by label: datasets and paths (one panel each; the first
+        only for a figure of one protocol).
+    heights : list of float
+        ``analysis.figures.heights``, m.
+
+    Returns
+    -------
+    list of str
+        A line for each input where some heights miss the pile (left out of
+        the figure).
+
+    Raises
+    ------
+    InputError
+        When every height misses the pile of an input (the figure would be
+        empty), naming the setting, its value and the heights of the pile.
+    """
+    import numpy as np
+
+    variable = HEIGHT_FIGURES[name]
+    notes = []
+    for lab, ds in data.items() if name in ("vertical-strain", "general") else list(data.items())[:1]:
+        values = ds[variable]
+        finite = np.isfinite(values).any(dim=[d for d in values.dims if d != "y"]).values
+        on_pile = ds["y"].values[finite]
+        where = (f"its {variable} has values at y = {on_pile.min():.4g}..{on_pile.max():.4g} m"
+                 if on_pile.size else f"its {variable} has no value at all")
+        missed = [h for h in heights if not finite[int(np.argmin(np.abs(ds["y"].values - h)))]]
+        if len(missed) == len(heights):
+            raise InputError(f"analysis.figures.heights = {list(heights)} m: every height misses the pile of "
+                             f"{lab} ({inputs[lab]}), the figure {name} would be empty; {where}: give "
+                             "heights within that range")
+        if missed:
+            notes.append(f"figure {name}: heights {missed} m miss the pile of {lab} ({where}), left out")
+    return notes
+
+
 def cmd_figure(args, params) -> None:
     from . import figures
 
@@ -273,6 +328,7 @@ def cmd_figure(args, params) -> None:
     f = params["figures"]
     dpi = f["dpi"]
     name = args.name
+    notes = []
     if name == "convergence":
         for lab, ds in data.items():
             _require(ds, inputs[lab], ("stress", "strain_increment", "n_particles"))
@@ -280,12 +336,15 @@ def cmd_figure(args, params) -> None:
     elif name == "vertical-strain":
         for lab, ds in data.items():
             _require(ds, inputs[lab], ("strain_increment",))
+        notes = check_heights(name, data, inputs, f["heights"])
         figures.fig_vertical_strain(data, f["heights"], args.out, dpi)
     elif name == "fabric":
         _require(first, inputs[first_lab], ("fabric_trace", "fabric_orientation", "stress_orientation"))
+        notes = check_heights(name, data, inputs, f["heights"])
         figures.fig_fabric(first, f["heights"], args.out, dpi, protocol=first_lab)
     elif name == "moduli":
         _require(first, inputs[first_lab], ("bulk_modulus", "E_av", "G_av"))
+        notes = check_heights(name, data, inputs, f["heights"])
         figures.fig_moduli(first, f["heights"], args.out, dpi, protocol=first_lab)
     elif name == "invariants":
         _require(first, inputs[first_lab], ("trace_stress_increment", "differential_bulk_modulus"))
@@ -297,7 +356,10 @@ def cmd_figure(args, params) -> None:
     elif name == "general":
         for lab, ds in data.items():
             _require(ds, inputs[lab], ("axis_deg", "reversibility", "explained_general"))
+        notes = check_heights(name, data, inputs, f["heights"])
         figures.fig_general(data, f["heights"], args.out, dpi)
+    for note in notes:
+        _log(note)
     _log(f"figure {name} -> {', '.join(args.out)}")
 
 
