@@ -1,4 +1,5 @@
-"""Command line: ``python -m sim {pour,relax,probe,warmup,bench,summary,numerics} ...``.
+"""Command line: ``python -m sim COMMAND [options]``, COMMAND one of pour, relax, probe,
+warmup, bench, summary and numerics.
 
 Run parameters come as ``--params`` (JSON or YAML text, or ``@file`` with
 either; given again, each is merged over the ones before, later wins) holding
