@@ -140,6 +140,17 @@ def test_the_command_line_refuses_text_in_one_line(tmp_path):
         f"ERROR --params @{path}: model.youngs_modulus = '1e7x': must be a number"), proc.stderr
 
 
+def test_the_numerical_checks_read_their_params_alike(tmp_path):
+    from sim.numerics.command import load_section
+
+    path = tmp_path / "n.yaml"
+    path.write_text("numerics:\n  collisions:\n    overlap: 1E-3\n")
+    assert load_section(f"@{path}", "collisions") == {"overlap": 0.001}
+    assert load_section("{numerics: {collisions: {overlap: 2e-3}}}", "collisions") == {"overlap": 0.002}
+    with pytest.raises(ConfigError, match=r"^--params:1:18: key 'numerics' given twice \(first at line 1\)$"):
+        load_section('{"numerics": {}, "numerics": {}}', "collisions")
+
+
 # --- a second --params (issue 43, item 8) ------------------------------------------------
 
 @pytest.fixture
