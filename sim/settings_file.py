@@ -14,8 +14,9 @@ them as the floats they are (as YAML 1.2 and JSON do); what YAML 1.1 reads as
 a number it reads the same (``1_000`` is 1000, ``.inf`` infinity), so a
 file means the same here as in Snakemake, whose own loader reads the
 configuration before the Snakefile runs (where the schema asks for a number,
-the validator turns the text it left into the number, :func:`number_from_text`).  ``e7``, ``1e``, ``inf``
-and ``1e7x`` stay text, which a numeric setting refuses.
+the validator turns the text it left into the number,
+:func:`number_from_text`).  ``e7``, ``1e``, ``inf`` and ``1e7x`` stay text,
+which a numeric setting refuses; JSON's own numbers are JSON's.
 
 PyYAML reads a mapping that repeats a key by keeping the last value, and
 Python's JSON reader likewise; an empty file is ``None``, a list or a number
@@ -50,7 +51,6 @@ FLOAT = re.compile(r"""^(?:[-+]?[0-9][0-9_]*\.[0-9_]*(?:[eE][-+]?[0-9]+)?
                     |[-+]?[0-9][0-9_]*(?::[0-5]?[0-9])+\.[0-9_]*
                     |[-+]?\.(?:inf|Inf|INF)
                     |\.(?:nan|NaN|NAN))$""", re.X)
-
 
 # One plain YAML scalar of the characters a number may have.
 _TOKEN = re.compile(r"[-+.0-9A-Za-z_:]+")

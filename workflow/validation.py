@@ -211,9 +211,9 @@ def coerce_numbers(value, schema):
     schema : dict
         Its JSON schema.
     """
-    for holder, name, _, _ in _number_slots(value, schema, schema):
+    for holder, name, _, sub in _number_slots(value, schema, schema):
         number = number_from_text(holder[name])
-        if number is not None:
+        if number is not None and "string" not in _types(sub):
             holder[name] = number
 
 
