@@ -274,10 +274,14 @@ def test_the_snakefile_passes_1e7_to_the_jobs_and_refuses_1e7x(tmp_path):
     proc = subprocess.run(run + [str(good)], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert '"youngs_modulus": 10000000.0' in proc.stdout
+    proc = subprocess.run(run + ["--config", "model={youngs_modulus: 2e7, damping: 0.5}"],
+                          capture_output=True, text=True, timeout=300)   # --config gives a mapping as text
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert '"youngs_modulus": 20000000.0' in proc.stdout and '"damping": 0.5' in proc.stdout
     proc = subprocess.run(run + [str(bad)], capture_output=True, text=True, timeout=300)
     assert proc.returncode != 0
-    assert (f"{bad}: model.youngs_modulus = '1e7x': must be a number > 0, not text (numbers are written "
-            "unquoted: 800, 0.5, 2.5e-3, 1e7)\n") in proc.stdout + proc.stderr
+    assert proc.stdout + proc.stderr == (f"{bad}: model.youngs_modulus = '1e7x': must be a number > 0, not text "
+                                         "(numbers are written unquoted: 800, 0.5, 2.5e-3, 1e7)\n")
 
 
 # --- the analysis' --params --------------------------------------------------------------
@@ -351,5 +355,5 @@ def test_the_snakefile_refuses_results_in_the_sources_in_one_line(tmp_path):
     line = (f"invalid configuration: results = 'sim/piles' is {REPO}/sim/piles, in the source folder {REPO}/sim, "
             "where the workflow would write its piles and logs among the sources; give a folder under results/ "
             f"(e.g. results/my_study) or outside {REPO}\n")
-    assert line in proc.stdout + proc.stderr
+    assert proc.stdout + proc.stderr == line
     assert not (REPO / "sim" / "piles").exists()

@@ -32,9 +32,12 @@ from workflow.validation import check_config_files, check_problems, validate_con
 # the merge ignores, are refused naming the file and line. Then the one
 # validator (schemas, finite numbers, integers, the simulator's and the
 # analysis' own checks); it fills in every default of the schemas, so the
-# rules see a complete config.
-check_config_files(workflow.overwrite_configfiles)
-validate_config(config)
+# rules see a complete config. A refusal is the user's: its line, not a traceback.
+try:
+    check_config_files(workflow.overwrite_configfiles)
+    validate_config(config)
+except ValueError as exc:
+    sys.exit(str(exc))
 
 REPO = Path(workflow.basedir).resolve()
 
