@@ -82,6 +82,35 @@ def target_pile(shapes, slope_deg):
     return half, half * slope
 
 
+#: Solid fraction below which no pile of polygons packs (:func:`pile_height_bound`);
+#: the study's piles pack at about 0.8.
+LOOSEST_PACKING = 0.5
+
+#: Slope in degrees above which no flank of a poured pile stands
+#: (:func:`pile_height_bound`); the study's angles of repose are 20 to 30°.
+STEEPEST_FLANK = 45.0
+
+
+def pile_height_bound(shapes, walls=None):
+    """A height (m) that no pile of these particles reaches.
+
+    The taller of a triangular pile of all the particles at
+    :data:`LOOSEST_PACKING` with flanks at :data:`STEEPEST_FLANK` and, between
+    side walls, a column as wide as they are apart at that packing.
+
+    Parameters
+    ----------
+    shapes : sim.shapes.Shapes
+    walls : tuple of float, optional
+        ``(x_left, x_right)``, m.
+    """
+    area = float(np.sum(shapes.area)) / LOOSEST_PACKING
+    height = math.sqrt(area * math.tan(math.radians(STEEPEST_FLANK)))
+    if walls is not None:
+        height = max(height, area / (walls[1] - walls[0]))
+    return height
+
+
 def release_point(sim, cfg: SimConfig, protocol, seed, k):
     """Where particle k would be released now, as ``(x, y)``.
 

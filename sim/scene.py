@@ -94,7 +94,8 @@ def make_scene(shapes, model: ModelParams, support=True, walls=None, rotate=True
         ids += [BODY_LEFT, BODY_RIGHT]
     b = np.array(bodies, float).reshape(-1, 4)
     bound = stability_bound(model.youngs_modulus, model.damping, model.integrator, shapes.mass,
-                            shapes.inertia, shapes.radius, shapes.inradius, _max_edge(shapes))
+                            shapes.inertia, shapes.radius, shapes.inradius, _max_edge(shapes),
+                            model.density)
     size = float(np.mean(shapes.radius))
     return Scene(shapes=shapes, model=model, capacity=len(shapes.mass),
                  coeffs=corrector_coefficients(model.integrator), bound=bound,
