@@ -62,6 +62,7 @@ measures:
 
 import argparse
 import json
+import math
 import sys
 
 from pathlib import Path
@@ -72,8 +73,9 @@ import xarray as xr
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from analysis.elastic import mask_counts  # noqa: E402
-from analysis.history import (UNITS, bonferroni_z, compare, detection_factor, pile_history,  # noqa: E402
-                              primary_names, windows)
+from analysis.ensemble import leave_out_slips  # noqa: E402
+from analysis.history import (UNITS, compare, holm, pile_history, piles_for_power,  # noqa: E402
+                              mean_sem, primary_names, row_contrast, t_threshold, uniform_pile_pressure, welch, windows)
 from analysis.params import parse_params  # noqa: E402
 from analysis.probes import reversibility  # noqa: E402
 
@@ -408,49 +410,352 @@ def history_values(fields, bases, params, heights):
     return out
 
 
+#: The family-wise level of the primary tests and the power asked of a study.
+LEVEL, POWER = 0.05, 0.8
+
+
+def _piles_cell(n):
+    if np.isinf(n):
+        return "> 100000"
+    return "n/a" if not np.isfinite(n) else f"{n:.0f}"
+
+
+def primary_tests(values, params, a="wedge", b="layered"):
+    """The decision on the primary statistics: per statistic Welch's t of
+    ``a - b``, its degrees of freedom and two-sided p (Student's t,
+    :func:`analysis.history.welch`), the |t| that Bonferroni over the family
+    asks at those degrees of freedom, the Holm-adjusted p and the verdict at a
+    family-wise :data:`LEVEL`; then the per-pile scatter of each protocol and
+    the piles per protocol that find a difference of 5 % (2° for the angle),
+    and one of the measured size, with :data:`POWER` at the family-wise level
+    (:func:`analysis.history.piles_for_power`).  Returns a list of dicts."""
+    names = primary_names(params["history"])
+    tests = []
+    for name in names:
+        va = [v.get(name, np.nan) for v in values.get(a, [])]
+        vb = [v.get(name, np.nan) for v in values.get(b, [])]
+        w = welch(va, vb)
+        c = compare(va, vb)
+        tests.append({"name": name, **w, "diff": c["diff"], "se": c["se"], "n": (c["a"][3], c["b"][3]),
+                      "sd": (c["a"][2], c["b"][2])})
+    adjusted, rejected = holm([t["p"] for t in tests], LEVEL)
+    for t, adj, rej in zip(tests, adjusted, rejected):
+        sd_a, sd_b = t["sd"]
+        delta = DELTAS[UNITS.get(t["name"], "")][0]
+        t.update(holm_p=adj, rejected=rej, t_bonferroni=t_threshold(t["df"], len(tests), LEVEL),
+                 delta=delta,
+                 n_delta=piles_for_power(sd_a, sd_b, delta, POWER, len(tests), LEVEL),
+                 n_delta_single=piles_for_power(sd_a, sd_b, delta, POWER, 1, LEVEL),
+                 n_measured=piles_for_power(sd_a, sd_b, t["diff"], POWER, len(tests), LEVEL))
+    return tests
+
+
+def _scaled(name, v, spec=".1f"):
+    return f"{v:{spec}}°" if UNITS.get(name) == "deg" else f"{100 * v:{spec}} %"
+
+
+def primary_lines(tests, a="wedge", b="layered"):
+    """Markdown of :func:`primary_tests`."""
+    k = len(tests)
+    out = [f"Decision on the {k} primary statistics, {a} − {b}: Welch's t (difference over its standard error), "
+           "its degrees of freedom (Welch–Satterthwaite) and two-sided p from Student's t; the |t| that a "
+           f"family-wise {100 * LEVEL:g} % over the {k} asks at those degrees of freedom (Bonferroni, Holm's first "
+           f"step); the Holm-adjusted p and the verdict at a family-wise {100 * LEVEL:g} %.",
+           "", "| statistic | difference | t | df | p | Bonferroni \\|t\\| | Holm p | verdict |",
+           "|---|---|---|---|---|---|---|---|"]
+    for t in tests:
+        verdict = "different" if t["rejected"] else "not resolved"
+        out.append(f"| {t['name']} | {_history_cell(t['name'], t['diff'], t['se'])} | {t['t']:+.2f} | {t['df']:.1f} | "
+                   f"{t['p']:.4f} | {t['t_bonferroni']:.2f} | {t['holm_p']:.3f} | {verdict} |")
+    out += ["", f"Power: per-pile scatter (SD over piles, {a} / {b}) and the piles per protocol with which Welch's "
+            f"test finds a difference of 5 % (2° for the angle) with {100 * POWER:g} % probability, at a family-wise "
+            f"{100 * LEVEL:g} % over the {k} (Bonferroni, a bound for Holm) and for one test alone; and the piles that "
+            "find a difference of the measured size at the family-wise level (noncentral t at Welch's degrees of "
+            "freedom, the scatter taken as measured).", "",
+            "| statistic | SD per pile | piles: 5 % (2°), family-wise | 5 % (2°), one test | measured difference, family-wise |",
+            "|---|---|---|---|---|"]
+    for t in tests:
+        sd = " / ".join(_scaled(t["name"], v) for v in t["sd"])
+        out.append(f"| {t['name']} | {sd} | {_piles_cell(t['n_delta'])} | {_piles_cell(t['n_delta_single'])} | "
+                   f"{_piles_cell(t['n_measured'])} |")
+    return out
+
+
 def history(values, params, heights, a="wedge", b="layered"):
-    """Lines of the pre-registered history statistics: ``a`` against ``b``."""
+    """Lines of the history statistics: ``a`` against ``b``."""
     h = params["history"]
     primary = primary_names(h)
     names = list(dict.fromkeys(k for piles in values.values() for v in piles for k in v))
     rows = []
     for name in primary + [n for n in names if n not in primary]:
-        c = compare([v.get(name, np.nan) for v in values.get(a, [])], [v.get(name, np.nan) for v in values.get(b, [])],
-                    deltas=DELTAS[UNITS.get(name, "")])
+        va = [v.get(name, np.nan) for v in values.get(a, [])]
+        vb = [v.get(name, np.nan) for v in values.get(b, [])]
+        c = compare(va, vb, deltas=DELTAS[UNITS.get(name, "")])
         if c["a"][3] + c["b"][3] == 0:
             continue
+        w = welch(va, vb)
         unit = UNITS.get(name, "")
-        scale = 1.0 if unit else 100.0
         d1, d2 = DELTAS[unit]
-        need = "n/a" if not np.isfinite(c["n_2se"][d1]) else \
-            f"{c['n_2se'][d1]:.0f} / {c['n_2se'][d2]:.0f} ({c['n_power'][d1]:.0f} / {c['n_power'][d2]:.0f})"
+        need = " / ".join(_piles_cell(piles_for_power(c["a"][2], c["b"][2], d, POWER, 1, LEVEL)) for d in (d1, d2))
+        df = "n/a" if not np.isfinite(w["df"]) else f"{w['df']:.1f}"
         rows.append(f"| {'**' + name + '**' if name in primary else name} | {_history_cell(name, *c['a'][:2])} "
                     f"({c['a'][3]}; {c['z_a']:+.1f}) | {_history_cell(name, *c['b'][:2])} ({c['b'][3]}; {c['z_b']:+.1f}) | "
-                    f"{_history_cell(name, c['diff'], c['se'])} | {c['z']:+.1f} | "
-                    f"{scale * c['mdd_2se']:.2g} / {scale * c['mdd_power']:.2g} | {need} |")
-    k = detection_factor()
+                    f"{_history_cell(name, c['diff'], c['se'])} | {c['z']:+.1f} | {df} | {need} |")
     return [
-        f"Windows (analysis.history, fixed before the piles they decide): centre |x| <= {100 * h['centre']:g} cm, "
+        f"Windows (analysis.history): centre |x| <= {100 * h['centre']:g} cm, "
         f"shoulders {100 * h['shoulder_inner']:g}–{100 * h['shoulder_outer']:g} cm; core |x| <= "
         f"{100 * h['shoulder_outer']:g} cm, y <= {100 * h['core_height']:g} cm; flanks "
         f"{100 * h['flank_inner']:g}–{100 * h['flank_outer']:g} cm, y <= {100 * h['flank_height']:g} cm. "
+        "They were committed (8fb4149, 2026-12-03) after these piles were recorded and read (2026-12-01/02): "
+        "not pre-registered for them. "
         "Per pile (analysis/history.py), then the mean ± standard error over piles, "
-        "(piles; mean in SE from 0), the difference {a} − {b} with its standard error and z = difference / SE.".format(a=a, b=b),
+        "(piles; mean in SE from 0), the difference {a} − {b} with its standard error and Welch's "
+        "t = difference / SE with its degrees of freedom.".format(a=a, b=b),
         "",
-        f"Power: the minimum detectable difference with these piles, 2 SE (a difference that size stands at "
-        f"2 SE) / {k:.2f} SE (seen at two-sided 5 % with 80 % probability), in % (degrees for the angle); "
-        "piles per protocol that put a difference of 5 / 10 % (2 / 5 degrees for the angle) at 2 SE "
-        "(in brackets: that see it with 80 % probability), from the measured scatter.",
+        f"Piles per protocol that find a difference of 5 / 10 % (2 / 5 degrees for the angle) with "
+        f"{100 * POWER:g} % probability in one two-sided test at {100 * LEVEL:g} % (Welch, noncentral t), "
+        "from the measured scatter; the primary statistics at the family-wise level are below.",
         "",
-        f"| statistic | {a} | {b} | {a} − {b} | z | detectable | piles for 5 / 10 % |",
+        f"| statistic | {a} | {b} | {a} − {b} | t | df | piles for 5 / 10 % |",
         "|---|---|---|---|---|---|---|",
         *rows,
         "",
         f"{len(rows)} statistics, each compared three ways ({a} and {b} against 0, {a} − {b}): {3 * len(rows)} "
-        f"comparisons. The {len(primary)} in bold are the primary ones, one per question; over them a "
-        f"family-wise 5 % asks |z| > {bonferroni_z(len(primary)):.2f} "
-        "(Bonferroni) for each difference.",
+        f"comparisons. The {len(primary)} in bold are the primary ones, one per question.",
+        "",
+        *primary_lines(primary_tests(values, params, a, b), a, b),
     ]
+
+
+# ---------------------------------------------------------------------------
+# Checks of the report's verdicts (docs/reproduction.md), from the per-pile
+# files: each function returns numbers, and :func:`checks_lines` the text.
+
+def _pile_items(items):
+    """``PROTOCOL=FILE`` items as ``{protocol: [path, ...]}``."""
+    out = {}
+    for item in items:
+        p, path = item.split("=", 1)
+        out.setdefault(p, []).append(path)
+    return out
+
+
+def lowest_row(fields, params):
+    """Index of the lowest grid row whose centre and shoulder windows both hold a valid RVE."""
+    centre, shoulders = windows(fields["x"].values, params["history"])
+    ok = fields["mask_reason"].transpose("y", "x").values == 0
+    return int(np.flatnonzero(ok[:, centre].any(axis=1) & ok[:, shoulders].any(axis=1))[0])
+
+
+def pile_stress_contrasts(fields, params):
+    """One pile's centre-over-shoulders contrasts behind the strain contrast, in the
+    windows of ``analysis.history`` (slipped RVEs left out, as there):
+
+    * ``stress_increment``: of ``Δσ_yy`` at the primary height;
+    * ``vertical_stiffness``: of the secant ``Δσ_yy / u_yy`` there (so that
+      ``1 + strain = (1 + stress_increment) / (1 + vertical_stiffness)`` up
+      to the windows' averaging);
+    * ``stress_column``: of ``σ_yy / p_u`` in the lowest grid row with valid
+      RVEs, ``p_u`` the pressure of a uniform-density pile of the pile's own
+      surface (:func:`analysis.history.uniform_pile_pressure`): the column
+      contrast of the base pressure, read from the RVE stress instead of 2 cm
+      bins of contact forces.
+    """
+    h = params["history"]
+    (fields,), _ = leave_out_slips([fields], params["ensemble"]["slip_strain_ratio"])
+    x, y = fields["x"].values, fields["y"].values
+    k = int(np.argmin(np.abs(y - h["primary_height"])))
+    ok = fields["mask_reason"].transpose("y", "x").values == 0
+    d = fields["stress_increment"].sel(i="y", j="y").transpose("y", "x").values
+    u = fields["strain_increment"].sel(i="y", j="y").transpose("y", "x").values
+    s = np.where(ok, fields["stress"].sel(i="y", j="y").transpose("y", "x").values, np.nan)
+    low = lowest_row(fields, params)
+    pu = uniform_pile_pressure(x, x, fields["surface_height"].values, 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return {"stress_increment": row_contrast(d[k], x, h), "vertical_stiffness": row_contrast(d[k] / u[k], x, h),
+                "stress_column": row_contrast(s[low] / pu, x, h), "lowest_row_y": float(y[low])}
+
+
+def convergence_reference(paths):
+    """Fig. 1 against a reference RVE that lies wholly above the support at every point.
+
+    The reference side is the largest ``s`` with ``s / 2 <= y`` at every fixed
+    point (12 cm for points at 6 and 9 cm).  Returns the sizes, the reference,
+    the particle counts (size × pile-point), the median and largest deviations
+    of ``σ_yy`` and ``Δσ_yy`` from the reference (%), and the median of
+    ``σ_yy`` in the largest RVE over that in the reference at the points whose
+    largest RVE reaches below the support."""
+    sets = [xr.open_dataset(path).load() for path in paths]
+    sizes = sets[0]["rve_size"].values
+    py = np.concatenate([ds["point_y"].values for ds in sets])
+    ref = int(np.flatnonzero(sizes / 2 <= py.min() + 1e-9)[-1])
+    out = {"sizes": sizes, "ref": ref, "n": np.concatenate([ds["n_particles"].values for ds in sets], axis=1)}
+    for name in ("stress", "stress_increment"):
+        v = np.concatenate([ds[name].sel(i="y", j="y").values for ds in sets], axis=1)
+        dev = 100 * np.abs(v / v[ref] - 1.0)
+        out[name] = (np.median(dev, axis=1), dev.max(axis=1))
+        cut = sizes[-1] / 2 > py + 1e-9
+        out[f"{name}_largest_cut"] = float(np.median(v[-1, cut] / v[ref, cut])) if cut.any() else math.nan
+    out["cut_points"] = sorted({float(v) for v in py[sizes[-1] / 2 > py + 1e-9]})
+    return out
+
+
+def secant_deciles(ts, te, parts=10):
+    """The secant of ``tr Δσ`` over ``tr ε`` (2K in two dimensions) in each of
+    ``parts`` quantile bins of ``tr ε``: the bin's mean ``tr Δσ`` over its mean
+    ``tr ε``.  Returns the secants and the bins' mean strains (the latter
+    bounds the conditioning: a bin whose mean strain neared 0 would blow up)."""
+    ok = np.isfinite(ts) & np.isfinite(te)
+    ts, te = ts[ok], te[ok]
+    bins = np.array_split(np.argsort(te, kind="stable"), parts)
+    return np.array([ts[b].mean() / te[b].mean() for b in bins]), np.array([te[b].mean() for b in bins])
+
+
+def pile_secants(fields, params):
+    """One pile's secant 2K in its lowest and highest strain decile (valid RVEs, slips left out),
+    and the lowest decile's mean tr ε (its conditioning)."""
+    (fields,), _ = leave_out_slips([fields], params["ensemble"]["slip_strain_ratio"])
+    ok = fields["mask_reason"].transpose("y", "x").values == 0
+    tr = lambda v: (v.sel(i="x", j="x") + v.sel(i="y", j="y")).transpose("y", "x").values  # noqa: E731
+    sec, strain = secant_deciles(np.where(ok, tr(fields["stress_increment"]), np.nan),
+                                 np.where(ok, tr(fields["strain_increment"]), np.nan))
+    return sec[0], sec[-1], strain[0]
+
+
+def end_state(fields_items, surface_half_width=0.20):
+    """How alike the two protocols' relaxed piles end: per protocol the flanks of
+    the relaxed summaries (mean ± SE over flanks), and per pile over the flank
+    RVEs of ``analysis.history`` the mean deviatoric fraction of the fabric and
+    the mirrored orientation of its major axis (mean ± SE over piles), and the
+    mean surface; the largest gap between the protocols' mean surfaces over
+    ``|x| <= surface_half_width``."""
+    out, surfaces, x = {}, {}, None
+    for p, paths in _pile_items(fields_items).items():
+        flanks, dev, axis, surf = [], [], [], []
+        for path in paths:
+            with xr.open_dataset(path) as ds:
+                x, y = ds["x"].values, ds["y"].values
+                ax = np.abs(x)
+                flank = ((ax >= 0.10 - 1e-9) & (ax <= 0.30 + 1e-9))[None, :] & (y[:, None] <= 0.09 + 1e-9)
+                flank &= ds["mask_reason"].transpose("y", "x").values == 0
+                dev.append(float(np.nanmean(np.where(flank, ds["fabric_deviatoric_fraction"].transpose("y", "x").values,
+                                                     np.nan))))
+                axis.append(float(np.nanmean(np.where(flank, ds["fabric_orientation"].transpose("y", "x").values
+                                                      * np.sign(x)[None, :], np.nan))))
+                surf.append(ds["surface_height"].values)
+            summary = Path(path.replace(".fields.nc", ".summary.json"))
+            if summary.exists():
+                relaxed = [json.loads(line) for line in summary.read_text().splitlines() if line.strip()]
+                relaxed = [r for r in relaxed if r["stage"] == "relaxed"][0]
+                flanks += [relaxed["flank_left_deg"], relaxed["flank_right_deg"]]
+        out[p] = {"flanks": mean_sem(flanks), "fabric_deviator": mean_sem(dev), "fabric_axis": mean_sem(axis)}
+        surfaces[p] = np.nanmean(np.array(surf), axis=0)
+    a, b = list(surfaces)[:2]
+    sel = np.abs(x) <= surface_half_width + 1e-9
+    gap = np.abs(surfaces[a][sel] - surfaces[b][sel])
+    out["surface_gap"] = (float(gap.max()), float(x[sel][np.argmax(gap)]))
+    return out
+
+
+def line_source_cap(bases_items, fields_items, density, slope_deg, gravity):
+    """The height H of the layered source's target pile (:func:`sim.release.target_pile`:
+    the particles' area at a solid fraction of 0.8 in a triangle of flanks
+    ``slope_deg``), the particles' area from each pile's weight ``W = ρ A g``;
+    above a top of H the line is one circumradius long (a point source).
+    Returns the range of H over the piles and the range of the layered piles'
+    relaxed heights."""
+    heights = []
+    for p, paths in _pile_items(bases_items).items():
+        for path in paths:
+            with xr.open_dataset(path) as bp:
+                area = float(bp["weight"].values[0]) / (density * gravity) / 0.8
+            heights.append(math.sqrt(area * math.tan(math.radians(slope_deg))))
+    tops = []
+    for path in _pile_items(fields_items).get("layered", []):
+        summary = Path(path.replace(".fields.nc", ".summary.json"))
+        if summary.exists():
+            tops += [json.loads(line)["height"] for line in summary.read_text().splitlines()
+                     if line.strip() and json.loads(line)["stage"] == "relaxed"]
+    return (min(heights), max(heights)), (min(tops), max(tops)) if tops else (math.nan, math.nan)
+
+
+def report_checks(fields_items, bases_items, convergence_paths, invariants, params, study):
+    """Every number of the report's verdict table that numbers.md does not print elsewhere,
+    as ``{key: text}``: the text docs/reproduction.md quotes (tests/test_reproduction_report.py
+    recomputes them from the committed files and finds them in the report)."""
+    h = params["history"]
+    piles = _pile_items(fields_items)
+    t = {}
+    contrasts = {}
+    for p, paths in piles.items():
+        for path in paths:
+            with xr.open_dataset(path) as ds:
+                c = pile_stress_contrasts(ds.load(), params)
+                c["secant_low"], c["secant_high"], c["secant_low_strain"] = pile_secants(ds, params)
+            contrasts.setdefault(p, []).append(c)
+    values = history_values(fields_items, bases_items, params, [h["primary_height"]])
+    for p, cs in contrasts.items():
+        for key in ("stress_increment", "vertical_stiffness", "stress_column"):
+            m, se, sd, n = mean_sem([c[key] for c in cs])
+            t[f"{p}.{key}"] = f"{100 * m:+.1f} ± {100 * se:.1f} %"
+            t[f"{p}.{key}.sd"] = f"{100 * sd:.1f} %"
+        m, se, sd, n = mean_sem([v.get("base_pressure_column", np.nan) for v in values[p]])
+        t[f"{p}.base_pressure_column.sd"] = f"{100 * sd:.1f} %"
+        lo, hi = mean_sem([c["secant_low"] for c in cs]), mean_sem([c["secant_high"] for c in cs])
+        ratio = mean_sem([c["secant_high"] / c["secant_low"] for c in cs])
+        t[f"{p}.secant_piles"] = (f"{lo[0]:.2g} ± {lo[1]:.1g} to {hi[0]:.2g} ± {hi[1]:.1g} N/m, "
+                                  f"ratio {ratio[0]:.2f} ± {ratio[1]:.2f}")
+        t[f"{p}.secant_ratio_se_from_1"] = f"{(ratio[0] - 1) / ratio[1]:.1f}"
+        t[f"{p}.secant_piles_strain_min"] = f"{min(c['secant_low_strain'] for c in cs):.1e}"
+        t[f"{p}.lowest_row"] = f"{100 * cs[0]['lowest_row_y']:g} cm"
+    a, b = list(contrasts)[:2]
+    sd_col = [mean_sem([c["stress_column"] for c in contrasts[p]])[2] for p in (a, b)]
+    sd_bp = [mean_sem([v.get("base_pressure_column", np.nan) for v in values[p]])[2] for p in (a, b)]
+    t["stress_column.sd_ratio"] = f"{math.hypot(*sd_col) / math.hypot(*sd_bp):.2f}"
+    w = welch([c["stress_column"] for c in contrasts[a]], [c["stress_column"] for c in contrasts[b]])
+    diff = mean_sem([c["stress_column"] for c in contrasts[a]])[0] - mean_sem([c["stress_column"] for c in contrasts[b]])[0]
+    t["stress_column.diff"] = f"{100 * diff:+.1f} %, t = {w['t']:+.2f} ({w['df']:.1f} df)"
+    t["stress_column.piles"] = f"{piles_for_power(*sd_col, 0.05, POWER, 5, LEVEL):.0f}"
+    t["base_pressure_column.piles"] = f"{piles_for_power(*sd_bp, 0.05, POWER, 5, LEVEL):.0f}"
+    for p, inv in invariants.items():
+        sec, strain = secant_deciles(inv["trace_stress_increment"].values.ravel(),
+                                     inv["trace_strain_increment"].values.ravel())
+        t[f"{p}.secant_deciles"] = ", ".join(f"{v:.2g}" for v in sec)
+        t[f"{p}.secant_range"] = f"{sec[0]:.2g} to {sec[-1]:.2g} N/m"
+        t[f"{p}.decile_strain_min"] = f"{strain.min():.1e}"
+        t[f"{p}.secant_factor"] = f"{sec[-1] / sec[0]:.1f}"
+        t[f"{p}.secant_rises"] = f"{int(np.sum(np.diff(sec) > 0))} of {sec.size - 1}"
+        t[f"{p}.trace_strain_max"] = f"{np.nanmax(inv['trace_strain_increment'].values):.1e}"
+    conv = convergence_reference(convergence_paths)
+    sizes, ref = conv["sizes"], conv["ref"]
+    t["fig1.reference"] = f"{100 * sizes[ref]:g} cm"
+    t["fig1.cut_points"] = ", ".join(f"{100 * v:g}" for v in conv["cut_points"]) + " cm"
+    t["fig1.largest_cut"] = f"{100 * (conv['stress_largest_cut'] - 1):+.1f} %"
+    for k, size in enumerate(sizes[:ref]):
+        n = conv["n"][k]
+        t[f"fig1.{100 * size:g}"] = (f"{int(n.min())}–{int(n.max())} particles: σ_yy {conv['stress'][0][k]:.1f} % "
+                                     f"(largest {conv['stress'][1][k]:.1f} %), Δσ_yy {conv['stress_increment'][0][k]:.1f} % "
+                                     f"(largest {conv['stress_increment'][1][k]:.1f} %)")
+    end = end_state(fields_items)
+    for p in (a, b):
+        e = end[p]
+        t[f"{p}.flanks"] = f"{e['flanks'][0]:.1f}° ± {e['flanks'][1]:.1f}°"
+        t[f"{p}.fabric_deviator"] = f"{e['fabric_deviator'][0]:.3f} ± {e['fabric_deviator'][1]:.3f}"
+        t[f"{p}.fabric_axis"] = f"{e['fabric_axis'][0]:.1f}° ± {e['fabric_axis'][1]:.1f}°"
+    t["surface_gap"] = f"{1000 * end['surface_gap'][0]:.1f} mm (at x = {100 * end['surface_gap'][1]:.1f} cm)"
+    (h_lo, h_hi), (top_lo, top_hi) = line_source_cap(bases_items, fields_items, study["density"],
+                                                     study["layered_slope_deg"], study["gravity"])
+    t["line_source.H"] = f"{100 * h_lo:.1f}–{100 * h_hi:.1f} cm"
+    t["line_source.tops"] = f"{100 * top_lo:.1f}–{100 * top_hi:.1f} cm"
+    return t
+
+
+def checks_lines(t):
+    return ["## Checks of the report's verdicts", "",
+            "Made from the per-pile files by `report_checks`; docs/reproduction.md quotes them "
+            "(tests/test_reproduction_report.py recomputes them). Contrasts are centre over shoulders − 1 in the "
+            "windows of analysis.history, per pile, then mean ± standard error over piles.", "",
+            *[f"- `{k}`: {v}" for k, v in t.items()], ""]
 
 
 def main(argv=None):
@@ -469,6 +774,8 @@ def main(argv=None):
     ap.add_argument("--base-pressure", nargs="*", default=[], metavar="PROTOCOL=FILE",
                     help="every pile's base_pressure.nc")
     ap.add_argument("--params", default=None, help="the analysis section as JSON (the history windows)")
+    ap.add_argument("--study-config", default=str(Path(__file__).resolve().parents[2] / "config" / "config.yaml"),
+                    help="the study's configuration (model.density, pour.layered_slope_deg): the line source's cap")
     args = ap.parse_args(argv)
     params = parse_params(args.params)
     out = ["# Numbers of the reproduction", "",
@@ -492,6 +799,17 @@ def main(argv=None):
         out += ["## Construction history: centre against shoulders, pre-registered", "",
                 *history(history_values(args.fields, args.base_pressure, params, args.heights), params, args.heights),
                 ""]
+    if args.fields:
+        import yaml
+        study = yaml.safe_load(open(args.study_config))
+        inv_sets = {}
+        for p in args.protocols:
+            with xr.open_dataset(f"{args.ensemble}/{p}/invariants.nc") as inv:
+                inv_sets[p] = inv.load()
+        out += checks_lines(report_checks(args.fields, args.base_pressure, args.convergence, inv_sets, params,
+                                          {"density": study["model"]["density"],
+                                           "layered_slope_deg": study["pour"]["layered_slope_deg"],
+                                           "gravity": float(xr.open_dataset(args.fields[0].split("=", 1)[1]).attrs["gravity_relaxed"])}))
     rows, points = convergence(args.convergence)
     out += [f"## RVE convergence (Fig. 1; {len(args.convergence)} piles, {points} points in all)", "",
             "Deviation from the value in the largest RVE, %: median / largest over the piles and points.", "",
