@@ -323,3 +323,5 @@ def main(argv=None):
     except RuntimeError as exc:
         log.error("%s", exc)
         return 1
+    except KeyboardInterrupt as exc:   # the run logged what it saved (sim.run_loop.Interrupted)
+        return getattr(exc, "status", 130)

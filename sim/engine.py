@@ -95,6 +95,9 @@ class Simulation:
         pouring, 0 otherwise.
     full_law : bool
         Compute every term of the contact law, also those that are zero.
+    heartbeat : callable or None
+        ``heartbeat(sim)``, called between the chunks of steps of a run
+        (:func:`sim.run_loop.run`): a run's progress lines; None: nothing.
     check_every : int
         Steps between blow-up checks (1 ms of simulated time, at least 50).
     parallel_threshold : int
@@ -123,6 +126,7 @@ class Simulation:
         self.threads = numba.get_num_threads()
         self.drag = 0.0
         self.spin_drag = 0.0
+        self.heartbeat = None
         self._energy = blowup.EnergyReference()
 
     # ------------------------------------------------------------------ state

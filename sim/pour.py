@@ -29,8 +29,11 @@ from .frames import FrameRecorder, partial_path
 from .io import save_state
 from .lock import PourLock, appended_log
 from .progress import Progress, pour_remaining, summary
-from .release import pile_top, release_point, spot_clear
+from .release import pile_height_bound, pile_top, release_point, spot_clear
+from .run_loop import Interrupted, stop_on_signals
+from .scene import make_scene
 from .shapes import make_shapes
+from .timestep import check_run, dt_source
 
 log = logging.getLogger("sim")
 
@@ -94,10 +97,17 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
 
     Raises
     ------
+    sim.config.ConfigError
+        If the time step cannot carry the pour (:func:`check_pour`), before
+        anything runs.
     PourLockedError
         If a live process holds the lock.
     LandingError
         If particles are still in flight :data:`LANDING_TIME` after the last release.
+    sim.run_loop.Interrupted
+        On SIGTERM or SIGINT (:func:`sim.run_loop.stop_on_signals`), after
+        writing the checkpoint and logging one line that says what it holds
+        and how to resume (:func:`_stopped`); the lock is released.
     """
     if protocol not in ("wedge", "layered"):
         raise ValueError(f"protocol = {protocol!r}: must be 'wedge' or 'layered'")
@@ -106,15 +116,51 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
     if not cfg.physics.support:
         raise ConfigError("physics.support = false: a pile is poured onto the support; "
                           "without it the particles fall for ever (allowed: true)")
+    shapes = pile_shapes(cfg, seed)
+    check_pour(cfg, protocol, seed, shapes, settle_time)
     checkpoint = Path(checkpoint) if checkpoint else None
     with contextlib.ExitStack() as held:
+        held.enter_context(stop_on_signals())
         lock = None if checkpoint is None else held.enter_context(
             PourLock(checkpoint.with_name(checkpoint.name + ".lock"),
                      stale_after=3 * cfg.pour.checkpoint_interval + 60.0))
         held.enter_context(appended_log(run_log))
         log.info("pour %s seed %d: started by process %s %d", protocol, seed,
                  socket.gethostname(), os.getpid())
-        return _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock, frames)
+        return _pour(cfg, protocol, seed, shapes, out, checkpoint, settle_time, lock, frames)
+
+
+def check_pour(cfg: SimConfig, protocol, seed, shapes, settle_time=0.1):
+    """Refuse a pour whose time step cannot carry it (:func:`sim.timestep.check_run`).
+
+    Its simulated time is at most the releases, ``n_particles / rate``, plus
+    ``settle_time`` and :data:`LANDING_TIME`; its fastest particle one
+    released at ``release_speed`` that falls from ``release_height`` (plus
+    its circumradius) above the top of the pile to the support
+    (:func:`sim.release.pile_height_bound`), ``sqrt(v0² + 2 g h)``: the
+    contacts only dissipate; its drag ``spin_drag``.
+
+    Raises
+    ------
+    sim.config.ConfigError
+        In one line naming the settings, before anything runs.
+    """
+    p = cfg.pour
+    scene = make_scene(shapes, cfg.model, cfg.physics.support, cfg.physics.walls,
+                       cfg.physics.rotation)
+    height = pile_height_bound(shapes, cfg.physics.walls)
+    fall = p.release_height + float(np.max(shapes.radius)) + height
+    check_run(scene, f"pour {protocol} seed {seed}",
+              duration=p.n_particles / p.rate + settle_time + LANDING_TIME,
+              speed=math.sqrt(p.release_speed ** 2 + 2.0 * GRAVITY * fall),
+              drag=p.spin_drag, sources={
+                  "duration": f"pour.n_particles = {p.n_particles} at pour.rate = {p.rate!r}/s "
+                              f"(and {settle_time + LANDING_TIME} s to settle and land)",
+                  "speed": f"pour.release_speed = {p.release_speed!r} m/s and a fall from "
+                           f"pour.release_height = {p.release_height!r} m above a pile up to "
+                           f"{height:.3g} m high",
+                  "drag": f"pour.spin_drag = {p.spin_drag!r} 1/s",
+                  "dt": dt_source(cfg.model)})
 
 
 
@@ -135,10 +181,15 @@ def _start(cfg, protocol, seed, checkpoint, shapes, outputs):
     return sim, 0.0, False
 
 
-def _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock, frames):
-    """The pour itself (see :func:`pour`); ``lock`` is refreshed at each checkpoint."""
+def _pour(cfg, protocol, seed, shapes, out, checkpoint, settle_time, lock, frames):
+    """The pour itself (see :func:`pour`); ``lock`` is refreshed at each checkpoint.
+
+    On a signal (:func:`sim.run_loop.stop_on_signals`) it writes the state
+    of the last pass of its release loop as the checkpoint (where the
+    periodic ones are written, so a resume retraces the uninterrupted pour),
+    logs one line (:func:`_stopped`) and raises :class:`sim.run_loop.Interrupted`.
+    """
     p = cfg.pour
-    shapes = pile_shapes(cfg, seed)
     interval = 1.0 / p.rate
     sim, next_release, resumed = _start(cfg, protocol, seed, checkpoint, shapes, (out, frames))
     recorder = FrameRecorder(shapes, p.n_particles, p.frame_interval) if frames else None
@@ -148,27 +199,38 @@ def _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock, frames):
     log.info("pouring %d particles (%s, seed %d), dt = %.3g s (%s; limit %.3g s)",
              p.n_particles, protocol, seed, sim.dt, cfg.model.integrator,
              sim.bound.dt_limit)
+    what = f"pour {protocol} seed {seed}"
     progress = Progress(p.progress_interval, pour_remaining(p.n_particles, interval, settle_time),
                         total=p.n_particles)
+    sim.heartbeat = progress.heartbeat(what)
     t_wall = _time.monotonic()
     last_ckpt = t_wall
     attrs = {"protocol": protocol, "seed": seed}
+    # the state at the end of the release loop's last pass, or as resumed
+    # (None: no checkpoint to write, or a fresh start with nothing to save)
+    passed = (sim.snapshot(), next_release) if resumed else None
     try:
         while sim.n < p.n_particles:
             if sim.time >= next_release:
                 next_release = _release(sim, cfg, protocol, seed, next_release, interval)
             sim.run(duration=max(next_release - sim.time, sim.dt))
-            progress(sim, f"pour {protocol} seed {seed}")
             if recorder is not None:
                 recorder(sim)
             if checkpoint is not None and _time.monotonic() - last_ckpt > p.checkpoint_interval:
                 save_checkpoint(sim, checkpoint, cfg, next_release, recorder, lock, **attrs)
                 last_ckpt = _time.monotonic()
+            if checkpoint is not None:
+                passed = (sim.snapshot(), next_release)
         sim.run(duration=settle_time)
-        _land(sim, cfg, f"pour {protocol} seed {seed}")
+        _land(sim, cfg, what)
     except BlowUpError as exc:
         keep_last_good(sim, out, cfg, exc, **attrs)
         raise
+    except Interrupted as exc:
+        _stopped(sim, cfg, what, exc, checkpoint, passed, recorder, lock, attrs)
+        raise
+    finally:
+        sim.heartbeat = None
     if recorder is not None:
         recorder.finish(sim)
         recorder.save(frames, cfg.to_dict(), **attrs)
@@ -177,6 +239,27 @@ def _pour(cfg, protocol, seed, out, checkpoint, settle_time, lock, frames):
         remove_checkpoint(checkpoint)
     summary(sim, f"pour {protocol} seed {seed}", _time.monotonic() - t_wall)
     return sim
+
+
+def _stopped(sim, cfg, what, exc, checkpoint, passed, recorder, lock, attrs):
+    """A pour ended by a signal: write the checkpoint of the state ``passed``
+    (``(snapshot, next release)`` of the release loop's last pass, or None)
+    and log the one line that says what it holds and how to resume."""
+    p = cfg.pour
+    if checkpoint is None:
+        log.error("%s: stopped by %s at t = %.4f s simulated, %d of %d particles released; "
+                  "nothing saved (no --checkpoint): run the command again to pour afresh",
+                  what, exc.name, sim.time, sim.n, p.n_particles)
+        return
+    if passed is None:
+        log.error("%s: stopped by %s before the first pass of its release loop; nothing saved: "
+                  "run the command again to pour afresh", what, exc.name)
+        return
+    sim.restore(passed[0])
+    save_checkpoint(sim, checkpoint, cfg, passed[1], recorder, lock, **attrs)
+    log.error("%s: stopped by %s; checkpoint %s holds t = %.4f s simulated, %d of %d particles "
+              "released; to resume, run the same command again (with --checkpoint %s)",
+              what, exc.name, checkpoint, sim.time, sim.n, p.n_particles, checkpoint)
 
 
 def _release(sim, cfg, protocol, seed, next_release, interval):

@@ -61,18 +61,22 @@ def change_gravity(cfg: SimConfig, input_path, target, out, stage, what, **attrs
     g_start = np.array(sim.gravity, float)
     g_end = np.array(target(g_start), float)
 
-    def work():
+    ramp = cfg.probe.mode == "ramp"
+
+    def work(progress):
         sim.drag = cfg.relax.drag
-        if cfg.probe.mode == "ramp":
+        if ramp:
             for s in range(1, 51):
                 sim.set_gravity(*(g_start + (g_end - g_start) * s / 50.0))
                 sim.run(duration=cfg.probe.ramp_time / 50.0)
         sim.set_gravity(*g_end)
         mass = float(np.sum(sim.shapes.mass[:sim.n]))
-        relax(sim, cfg, what, load=mass * float(np.hypot(*(g_end - g_start))))
+        relax(sim, cfg, what, load=mass * float(np.hypot(*(g_end - g_start))), progress=progress)
         return attrs
 
-    return run_stage(cfg, sim, ds, out, stage, what, work)
+    return run_stage(cfg, sim, ds, out, stage, what, work,
+                     extra_time=cfg.probe.ramp_time if ramp else 0.0,
+                     gravity=float(np.hypot(*g_end)))
 
 
 def probe_file(cfg: SimConfig, input_path, level, out, stage="reduced"):
@@ -165,7 +169,7 @@ def stretch_file(cfg: SimConfig, input_path, strain, out, stage="stretched"):
     moment_before = float(np.sum(ds["contact_x"].values[on] * before["fx"]))
     what = f"stretch {strain:+g}"
 
-    def work():
+    def work(progress):
         sim.drag = cfg.relax.drag
         chunk = cfg.probe.stretch_time / STRETCH_INCREMENTS
         for _ in range(STRETCH_INCREMENTS):
@@ -173,11 +177,12 @@ def stretch_file(cfg: SimConfig, input_path, strain, out, stage="stretched"):
             # the last force evaluation, which a state read from a file has not had
             sim.run(duration=chunk)
             sim.stretch_body(BODY_SUPPORT, strain / STRETCH_INCREMENTS)
-        relax(sim, cfg, what, load=_support_force_change(before, sim.contacts()))
+        relax(sim, cfg, what, load=_support_force_change(before, sim.contacts()),
+              progress=progress)
         return {"support_stretch": strain, "support_reaction_moment_before": moment_before,
                 "support_reaction_moment": support_reaction_moment(sim)}
 
-    return run_stage(cfg, sim, ds, out, stage, what, work)
+    return run_stage(cfg, sim, ds, out, stage, what, work, extra_time=cfg.probe.stretch_time)
 
 
 def _support_force_change(before, after):

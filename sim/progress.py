@@ -38,6 +38,8 @@ class Progress:
     far too late an end (a 150-particle pour of 4 min wall time, which
     its particle-steps put at 10 to 40 min over its first third).
 
+    A run calls it after each chunk of steps through :meth:`heartbeat`.
+
     Parameters
     ----------
     interval : float
@@ -55,6 +57,12 @@ class Progress:
         once all are) instead of the particle count.
     clock : callable
         Wall clock, s, read at every call (default :func:`time.monotonic`).
+
+    Attributes
+    ----------
+    detail : str
+        What the lines of :meth:`heartbeat` end with (a relaxation's rest
+        measures); empty at first.
     """
 
     def __init__(self, interval, remaining, at_most=False, total=None, clock=_time.monotonic):
@@ -63,6 +71,7 @@ class Progress:
         self.at_most = at_most
         self.total = total
         self.clock = clock
+        self.detail = ""    # what :meth:`heartbeat`'s lines end with
         self.last = None   # wall time of the previous line (or the start)
         self.before = None  # (wall time, step) of the previous call
         # Sums over the chunks since the start, chunk c with s steps of n
@@ -89,6 +98,14 @@ class Progress:
             return
         self.last = now
         log.info("%s", self.line(sim, what, detail))
+
+    def heartbeat(self, what):
+        """A ``sim.heartbeat`` (:func:`sim.run_loop.run`) that calls this
+        object after every chunk of steps, with `what` and the current
+        :attr:`detail`: a line at least every ``interval`` of wall time
+        however long one ``sim.run`` lasts (beyond that, by at most one chunk
+        of steps: 1 ms of simulated time)."""
+        return lambda sim: self(sim, what, self.detail)
 
     def rates(self):
         """Wall seconds per step and per particle-step of the chunks since the start.

@@ -1,9 +1,85 @@
-"""The run loop: steps in chunks between pair-list rebuilds and blow-up checks."""
+"""The run loop: steps in chunks between pair-list rebuilds and blow-up checks,
+and a run's stop on SIGTERM or SIGINT (:func:`stop_on_signals`).
+
+Between two chunks the loop calls the simulation's ``heartbeat`` (a run's
+progress lines, :class:`sim.progress.Progress`) and ends the run with
+:class:`Interrupted` once a signal came: a chunk is at most
+``check_every`` steps (1 ms of simulated time), so neither waits for the end
+of a long ``run``.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
+import threading
+
 from .blowup import BlowUpError
 from .rebuild import rebuild_distance_sq
+
+#: The signals that end a run cleanly (:func:`stop_on_signals`).
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+#: The signals received while :func:`stop_on_signals` holds, first first.
+_received = []
+
+
+class Interrupted(KeyboardInterrupt):
+    """A run ended by a signal between two chunks of steps.
+
+    A KeyboardInterrupt (for SIGTERM too), so that no handler of errors
+    takes it for a failure of the run, and the command line ends with its
+    :attr:`status` as with Ctrl-C.
+
+    Attributes
+    ----------
+    name : str
+        The signal, e.g. ``"SIGTERM"``.
+    status : int
+        The conventional exit status, 128 + the signal's number (130 for
+        SIGINT, 143 for SIGTERM).
+    """
+
+    def __init__(self, signum):
+        self.name = signal.Signals(signum).name
+        self.status = 128 + int(signum)
+        super().__init__(f"stopped by {self.name}")
+
+
+def _handler(signum, frame):
+    """Note the signal for the loop; a second one ends the process at once,
+    as it would without this handler."""
+    if _received:
+        signal.signal(signum, signal.SIG_DFL)
+        os.kill(os.getpid(), signum)
+    _received.append(signum)
+
+
+@contextlib.contextmanager
+def stop_on_signals():
+    """While in the block, SIGTERM and SIGINT end the run at the loop's next
+    chunk with :class:`Interrupted` (:func:`stop_if_signalled`) instead of
+    killing the process where it stands; the handlers before are restored
+    after.  Nothing changes outside the main thread (where Python runs no
+    signal handler) or inside another such block."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGTERM) is _handler):
+        yield
+        return
+    before = {s: signal.signal(s, _handler) for s in SIGNALS}
+    try:
+        yield
+    finally:
+        for s, handler in before.items():
+            signal.signal(s, handler)
+        _received.clear()
+
+
+def stop_if_signalled():
+    """Raise :class:`Interrupted` if a signal came within :func:`stop_on_signals`."""
+    if _received:
+        raise Interrupted(_received[0])
 
 
 def run(sim, steps, step, rebuild):
@@ -12,7 +88,9 @@ def run(sim, steps, step, rebuild):
     A chunk of steps ends at the next check or when the pair list needs a
     rebuild (:mod:`sim.rebuild`).  A scene's first step is checked at once,
     with :meth:`sim.engine.Simulation.check`'s ``start``.  On a failed check
-    the simulation returns to the last state that passed.
+    the simulation returns to the last state that passed.  After each chunk
+    ``sim.heartbeat(sim)`` is called (unless None); before each, a signal
+    caught by :func:`stop_on_signals` ends the run.
 
     Parameters
     ----------
@@ -32,6 +110,8 @@ def run(sim, steps, step, rebuild):
     ------
     BlowUpError
         On a failed check, carrying the last good snapshot.
+    Interrupted
+        On a signal (:func:`stop_on_signals`), with the state after the last chunk.
     """
     if sim.n == 0:
         sim.time += steps * sim.dt
@@ -53,9 +133,12 @@ def run(sim, steps, step, rebuild):
             # seen before their forces have thrown the particles apart (a start
             # inside the support or a wall is resolved: it pushes them out)
             chunk = 1
+        stop_if_signalled()
         parallel = sim.parallel_kernels()
         done += step(sim.state, chunk, sim.kernel_state(), parallel, rebuild_sq)
         sim.time = start_time + done * sim.dt
+        if sim.heartbeat is not None:
+            sim.heartbeat(sim)
         if sim.step % sim.check_every == 0 or done == steps or sim.step == 1:
             problem = sim.check(start=sim.step == 1)
             if problem:
