@@ -1,11 +1,11 @@
-"""Does the construction history show in a pile?  Statistics fixed before the data.
+"""Does the construction history show in a pile?  One number per pile, in fixed windows.
 
 The paper's central finding is that a point-source (wedge) pile carries its
 history: a pressure minimum, a density maximum and a dip of the vertical
 strain increment near the centre, none of which a line-source (layered) pile
 shows.  This module turns that into numbers that can decide it: each
-statistic is one number per pile, computed in windows fixed beforehand
-(``analysis.history``), and the protocols are compared by the mean over
+statistic is one number per pile, computed in windows fixed once
+(``analysis.history``; after the study's piles, see below), and the protocols are compared by the mean over
 their piles with its standard error (:func:`compare`), with the smallest
 difference the comparison could have seen (its power).
 
