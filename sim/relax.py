@@ -227,21 +227,22 @@ def run_stage(cfg: SimConfig, sim, ds, out, stage, what, work, extra_time=0.0, g
     progress = Progress(cfg.pour.progress_interval,
                         fixed_remaining(sim.time + extra_time + cfg.relax.max_time), at_most=True)
     sim.heartbeat = progress.heartbeat(what)
-    try:
-        with stop_on_signals():
+    # a signal that comes while the state is written lets it finish: it ends no run then
+    with stop_on_signals():
+        try:
             attrs = work(progress) or {}
-    except BlowUpError as exc:
-        keep_last_good(sim, out, cfg, exc)
-        raise
-    except Interrupted as exc:
-        log.error("%s: stopped by %s at t = %.4f s simulated; nothing saved (%s is written only "
-                  "at the end of the stage); to resume, run the same command again: it starts "
-                  "the stage afresh from its input", what, exc.name, sim.time, out)
-        raise
-    finally:
-        sim.heartbeat = None
-    save_state(sim, out, cfg.to_dict(), stage=stage, protocol=ds.attrs.get("protocol", ""),
-               seed=int(ds.attrs.get("seed", -1)), **attrs)
+        except BlowUpError as exc:
+            keep_last_good(sim, out, cfg, exc)
+            raise
+        except Interrupted as exc:
+            log.error("%s: stopped by %s at t = %.4f s simulated; nothing saved (%s is written "
+                      "only at the end of the stage); to resume, run the same command again: it "
+                      "starts the stage afresh from its input", what, exc.name, sim.time, out)
+            raise
+        finally:
+            sim.heartbeat = None
+        save_state(sim, out, cfg.to_dict(), stage=stage, protocol=ds.attrs.get("protocol", ""),
+                   seed=int(ds.attrs.get("seed", -1)), **attrs)
     summary(sim, what, _time.monotonic() - t)
     return sim
 
