@@ -140,6 +140,8 @@ def test_primary_tests_as_the_report_quotes_them(tests, report):
     for t in (s, d, b):
         assert f"({t['t_bonferroni']:.2f} needed)" in report or f"{t['t_bonferroni']:.2f} its" in report \
             or t is b, t["name"]
+    dfs = [t["df"] for t in tests.values()]
+    assert f"freedom ({min(dfs):.1f}–{max(dfs):.1f} with" in report
     low = min(t["t_bonferroni"] for t in tests.values())
     high = max(t["t_bonferroni"] for t in tests.values())
     assert f"{low:.2f}–{high:.2f}" in report
@@ -150,6 +152,7 @@ def test_primary_tests_as_the_report_quotes_them(tests, report):
     assert f"{g['n_delta']:.0f} in the gravity gap" in report and f"difference by {f['n_delta']:.0f}" in report
     assert f"for the measured 7 % {b['n_measured']:.0f}" in report
     assert f"{d['n_measured']:.0f} are needed" in report
+    assert f"needs {b['n_delta_single']:.0f} piles per protocol in a single test and {b['n_delta']:.0f} at" in report
     assert f"({b['n_delta_single']:.0f} for one test)" in report and f"{s['n_delta_single']:.0f} for a single" in report
 
 
@@ -160,7 +163,8 @@ def test_verdict_numbers_are_the_committed_piles(checks, report):
                 "layered.secant_range", "line_source.H", "line_source.tops", "stress_column.sd_ratio",
                 "fig1.reference", "fig1.largest_cut", "wedge.secant_ratio_se_from_1",
                 "layered.secant_ratio_se_from_1", "wedge.secant_factor", "layered.secant_factor",
-                "wedge.secant_piles_strain_min", "layered.secant_piles_strain_min", "wedge.decile_strain_min"):
+                "wedge.secant_piles_strain_min", "layered.secant_piles_strain_min", "wedge.decile_strain_min",
+                "wedge.stiffness_strain_min", "layered.stiffness_strain_min"):
         assert checks[key] in report, (key, checks[key])
     for p in ("wedge", "layered"):
         assert checks[f"{p}.stress_column.sd"] in report and checks[f"{p}.base_pressure_column.sd"] in report

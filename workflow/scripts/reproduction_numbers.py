@@ -579,8 +579,10 @@ def pile_stress_contrasts(fields, params):
     s = np.where(ok, fields["stress"].sel(i="y", j="y").transpose("y", "x").values, np.nan)
     low = lowest_row(fields, params)
     pu = uniform_pile_pressure(x, x, fields["surface_height"].values, 1.0)
+    centre, shoulders = windows(x, h)
     with np.errstate(divide="ignore", invalid="ignore"):
         return {"stress_increment": row_contrast(d[k], x, h), "vertical_stiffness": row_contrast(d[k] / u[k], x, h),
+                "strain_min": float(np.nanmin(u[k][centre | shoulders])),
                 "stress_column": row_contrast(s[low] / pu, x, h), "lowest_row_y": float(y[low])}
 
 
@@ -714,6 +716,7 @@ def report_checks(fields_items, bases_items, convergence_paths, invariants, para
         t[f"{p}.secant_piles"] = (f"{lo[0]:.2g} ± {lo[1]:.1g} to {hi[0]:.2g} ± {hi[1]:.1g} N/m, "
                                   f"ratio {ratio[0]:.2f} ± {ratio[1]:.2f}")
         t[f"{p}.secant_ratio_se_from_1"] = f"{(ratio[0] - 1) / ratio[1]:.1f}"
+        t[f"{p}.stiffness_strain_min"] = f"{min(c['strain_min'] for c in cs):.1e}"
         t[f"{p}.secant_piles_strain_min"] = f"{min(c['secant_low_strain'] for c in cs):.1e}"
         t[f"{p}.lowest_row"] = f"{100 * cs[0]['lowest_row_y']:g} cm"
     a, b = list(contrasts)[:2]
