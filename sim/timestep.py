@@ -120,13 +120,13 @@ def stability_bound(youngs_modulus, damping, integrator, mass, inertia, radius,
     Raises
     ------
     sim.config.ConfigError
-        For a modulus and masses whose frequencies would leave double
-        precision (masses and ``Y/m`` within ``1e±290``), in one line.
+        For a modulus and particles whose frequencies would leave double
+        precision (masses and ``Y/m*`` outside ``1e±290``), in one line.
     """
     mass = np.asarray(mass, float)
-    _check_range(youngs_modulus, mass, density)
     inertia = np.asarray(inertia, float)
     radius = np.asarray(radius, float)
+    _check_range(youngs_modulus, mass, inertia, radius, density)
     inradius = np.asarray(inradius, float)
     inv_mass = 2.0 * float(np.max(1.0 / mass + radius ** 2 / inertia))
     l_min = 0.5 * float(np.min(inradius))
@@ -146,13 +146,13 @@ def stability_bound(youngs_modulus, damping, integrator, mass, inertia, radius,
                          float(zeta_n), zeta_t, mode)
 
 
-def _check_range(youngs_modulus, mass, density):
-    """Refuse a modulus and masses whose frequencies would leave double precision.
+def _check_range(youngs_modulus, mass, inertia, radius, density):
+    """Refuse a modulus and particles whose frequencies would leave double precision.
 
-    The squared contact frequency is ``Y/m`` times a shape factor (the edge
-    ratio and the rotational inertia, :func:`stability_bound`) of about 1 to
-    10³ for the shapes the particle settings allow, and the time step about
-    its inverse square root: with the masses and ``Y/m`` within ``1e±290``
+    The squared contact frequency is ``Y/m*``, with ``1/m* = 1/m + R²/I``
+    the inverse mass at a contact point, times the edge ratio (about 1 to
+    10³ for the shapes the particle settings allow), and the time step about
+    its inverse square root: with the masses and ``Y/m*`` within ``1e±290``
     every product of the rule stays a finite positive double, with 10¹⁸ to
     spare.
 
@@ -161,16 +161,19 @@ def _check_range(youngs_modulus, mass, density):
     sim.config.ConfigError
         One line naming ``model.youngs_modulus`` and ``model.density``.
     """
+    with np.errstate(all="ignore"):     # an inertia that underflowed to 0 is refused below
+        reach = 1.0 / mass + radius ** 2 / inertia
+        low, high = youngs_modulus * float(np.min(reach)), youngs_modulus * float(np.max(reach))
     light, heavy = float(np.min(mass)), float(np.max(mass))
-    low, high = (youngs_modulus / heavy, youngs_modulus / light) if light > 0 else (0.0, math.inf)
     if all(1e-290 <= x <= 1e290 for x in (light, heavy, low, high)):
         return
     raise ConfigError(
-        f"model.youngs_modulus = {youngs_modulus!r} N/m over particle masses of {light:.3g} to "
-        f"{heavy:.3g} kg (model.density = {density!r} kg/m^2 times their areas) makes Y/m "
-        f"{low:.3g} to {high:.3g} 1/s^2; allowed: masses and Y/m within 1e-290 to 1e290, "
-        "where the time-step rule's products stay finite doubles (the study's: Y = 1e7 N/m, "
-        "density 2500 kg/m^2, Y/m about 1e8 to 2e8 1/s^2)")
+        f"model.youngs_modulus = {youngs_modulus!r} N/m over particles of {light:.3g} to "
+        f"{heavy:.3g} kg (model.density = {density!r} kg/m^2 times their areas) makes Y/m* "
+        f"{low:.3g} to {high:.3g} 1/s^2 (1/m* = 1/m + R^2/I, the inverse mass at a contact "
+        "point); allowed: masses and Y/m* within 1e-290 to 1e290, where the time-step rule's "
+        "products stay finite doubles (the study's: Y = 1e7 N/m, density 2500 kg/m^2, Y/m* "
+        "about 2e8 to 1e9 1/s^2)")
 
 
 def choose_dt(bound: TimeStepBound, dt: float | None, dt_safety: float,

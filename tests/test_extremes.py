@@ -44,6 +44,9 @@ POUR_EXTREMES = [
     ({"model": {"dt": 5.0e-324}}, "model.dt = 5e-324"),
     ({"pour": {"rate": 1.0e-308}}, "pour.rate = 1e-308"),
     ({"pour": {"spin_drag": 1.0e4}, "model": {"dt_safety": 1.0}}, "pour.spin_drag = 10000.0"),
+    ({"pour": {"spin_drag": 1.0e9}}, "pour.spin_drag = 1000000000.0"),           # the schema
+    ({"particles": {"semi_axis_mean": 1.0e-120}}, "particles.semi_axis_mean = 1e-120"),
+    ({"pour": {"jitter": 1.0e308}}, "pour.jitter = 1e+308"),
 ]
 
 
@@ -67,7 +70,7 @@ def test_a_pour_at_an_extreme_is_refused_in_one_line_before_it_starts(tmp_path, 
                                   str(tmp_path / "ck.nc")], caplog)
     assert status == 2
     assert len(errors) == 1 and "\n" not in errors[0]
-    assert named in errors[0] and "allowed" in errors[0], errors[0]
+    assert named in errors[0] and ("allowed" in errors[0] or "must be" in errors[0]), errors[0]
     # before the pour started: no log line of it, no lock, nothing written
     assert not any("started by process" in line for line in lines)
     assert list(tmp_path.iterdir()) == []
