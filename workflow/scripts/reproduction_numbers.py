@@ -72,6 +72,7 @@ import argparse
 import json
 import math
 import sys
+import warnings
 
 from pathlib import Path
 
@@ -549,10 +550,11 @@ def _pile_items(items):
 
 
 def lowest_row(fields, params):
-    """Index of the lowest grid row whose centre and shoulder windows both hold a valid RVE."""
+    """Index of the lowest grid row whose centre and shoulder windows both hold a valid RVE (None: no such row)."""
     centre, shoulders = windows(fields["x"].values, params["history"])
     ok = fields["mask_reason"].transpose("y", "x").values == 0
-    return int(np.flatnonzero(ok[:, centre].any(axis=1) & ok[:, shoulders].any(axis=1))[0])
+    rows = np.flatnonzero(ok[:, centre].any(axis=1) & ok[:, shoulders].any(axis=1))
+    return int(rows[0]) if rows.size else None
 
 
 def pile_stress_contrasts(fields, params):
@@ -580,10 +582,12 @@ def pile_stress_contrasts(fields, params):
     low = lowest_row(fields, params)
     pu = uniform_pile_pressure(x, x, fields["surface_height"].values, 1.0)
     centre, shoulders = windows(x, h)
+    window = u[k][centre | shoulders]
     with np.errstate(divide="ignore", invalid="ignore"):
         return {"stress_increment": row_contrast(d[k], x, h), "vertical_stiffness": row_contrast(d[k] / u[k], x, h),
-                "strain_min": float(np.nanmin(u[k][centre | shoulders])),
-                "stress_column": row_contrast(s[low] / pu, x, h), "lowest_row_y": float(y[low])}
+                "strain_min": float(np.min(window[np.isfinite(window)])) if np.isfinite(window).any() else math.nan,
+                "stress_column": math.nan if low is None else row_contrast(s[low] / pu, x, h),
+                "lowest_row_y": math.nan if low is None else float(y[low])}
 
 
 def convergence_reference(paths):
@@ -598,7 +602,8 @@ def convergence_reference(paths):
     sets = [xr.open_dataset(path).load() for path in paths]
     sizes = sets[0]["rve_size"].values
     py = np.concatenate([ds["point_y"].values for ds in sets])
-    ref = int(np.flatnonzero(sizes / 2 <= py.min() + 1e-9)[-1])
+    inside = np.flatnonzero(sizes / 2 <= py.min() + 1e-9)
+    ref = int(inside[-1]) if inside.size else sizes.size - 1
     out = {"sizes": sizes, "ref": ref, "n": np.concatenate([ds["n_particles"].values for ds in sets], axis=1)}
     for name in ("stress", "stress_increment"):
         v = np.concatenate([ds[name].sel(i="y", j="y").values for ds in sets], axis=1)
@@ -617,6 +622,8 @@ def secant_deciles(ts, te, parts=10):
     bounds the conditioning: a bin whose mean strain neared 0 would blow up)."""
     ok = np.isfinite(ts) & np.isfinite(te)
     ts, te = ts[ok], te[ok]
+    if te.size < parts:
+        return np.full(parts, math.nan), np.full(parts, math.nan)
     bins = np.array_split(np.argsort(te, kind="stable"), parts)
     return np.array([ts[b].mean() / te[b].mean() for b in bins]), np.array([te[b].mean() for b in bins])
 
@@ -632,7 +639,7 @@ def pile_secants(fields, params):
     return sec[0], sec[-1], strain[0]
 
 
-def end_state(fields_items, surface_half_width=0.20):
+def end_state(fields_items, history, surface_half_width=0.20):
     """How alike the two protocols' relaxed piles end: per protocol the flanks of
     the relaxed summaries (mean ± SE over flanks), and per pile over the flank
     RVEs of ``analysis.history`` the mean deviatoric fraction of the fabric and
@@ -646,7 +653,8 @@ def end_state(fields_items, surface_half_width=0.20):
             with xr.open_dataset(path) as ds:
                 x, y = ds["x"].values, ds["y"].values
                 ax = np.abs(x)
-                flank = ((ax >= 0.10 - 1e-9) & (ax <= 0.30 + 1e-9))[None, :] & (y[:, None] <= 0.09 + 1e-9)
+                flank = ((ax >= history["flank_inner"] - 1e-9) & (ax <= history["flank_outer"] + 1e-9))[None, :] \
+                    & (y[:, None] <= history["flank_height"] + 1e-9)
                 flank &= ds["mask_reason"].transpose("y", "x").values == 0
                 dev.append(float(np.nanmean(np.where(flank, ds["fabric_deviatoric_fraction"].transpose("y", "x").values,
                                                      np.nan))))
@@ -659,7 +667,9 @@ def end_state(fields_items, surface_half_width=0.20):
                 relaxed = [r for r in relaxed if r["stage"] == "relaxed"][0]
                 flanks += [relaxed["flank_left_deg"], relaxed["flank_right_deg"]]
         out[p] = {"flanks": mean_sem(flanks), "fabric_deviator": mean_sem(dev), "fabric_axis": mean_sem(axis)}
-        surfaces[p] = np.nanmean(np.array(surf), axis=0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)          # columns off every pile
+            surfaces[p] = np.nanmean(np.array(surf), axis=0)
     a, b = list(surfaces)[:2]
     sel = np.abs(x) <= surface_half_width + 1e-9
     gap = np.abs(surfaces[a][sel] - surfaces[b][sel])
@@ -686,7 +696,8 @@ def line_source_cap(bases_items, fields_items, density, slope_deg, gravity):
         if summary.exists():
             tops += [json.loads(line)["height"] for line in summary.read_text().splitlines()
                      if line.strip() and json.loads(line)["stage"] == "relaxed"]
-    return (min(heights), max(heights)), (min(tops), max(tops)) if tops else (math.nan, math.nan)
+    span = (min(heights), max(heights)) if heights else (math.nan, math.nan)
+    return span, (min(tops), max(tops)) if tops else (math.nan, math.nan)
 
 
 def report_checks(fields_items, bases_items, convergence_paths, invariants, params, study):
@@ -741,13 +752,13 @@ def report_checks(fields_items, bases_items, convergence_paths, invariants, para
     sizes, ref = conv["sizes"], conv["ref"]
     t["fig1.reference"] = f"{100 * sizes[ref]:g} cm"
     t["fig1.cut_points"] = ", ".join(f"{100 * v:g}" for v in conv["cut_points"]) + " cm"
-    t["fig1.largest_cut"] = f"{100 * (conv['stress_largest_cut'] - 1):+.1f} %"
+    t["fig1.largest_cut"] = f"{100 * (conv['stress_largest_cut'] - 1):+.1f} %"  # nan: no point cut
     for k, size in enumerate(sizes[:ref]):
         n = conv["n"][k]
         t[f"fig1.{100 * size:g}"] = (f"{int(n.min())}–{int(n.max())} particles: σ_yy {conv['stress'][0][k]:.1f} % "
                                      f"(largest {conv['stress'][1][k]:.1f} %), Δσ_yy {conv['stress_increment'][0][k]:.1f} % "
                                      f"(largest {conv['stress_increment'][1][k]:.1f} %)")
-    end = end_state(fields_items)
+    end = end_state(fields_items, h)
     for p in (a, b):
         e = end[p]
         t[f"{p}.flanks"] = f"{e['flanks'][0]:.1f}° ± {e['flanks'][1]:.1f}°"
