@@ -481,7 +481,8 @@ def primary_lines(tests, a="wedge", b="layered"):
             f"{100 * LEVEL:g} % over the {k} (Bonferroni, a bound for Holm) and for one test alone; and the piles that "
             "find a difference of the measured size at the family-wise level (noncentral t at Welch's degrees of "
             "freedom, the scatter taken as measured).", "",
-            "| statistic | SD per pile | piles: 5 % (2°), family-wise | 5 % (2°), one test | measured difference, family-wise |",
+            "| statistic | SD per pile | piles: 5 % (2°), family-wise | 5 % (2°), one test "
+            "| measured difference, family-wise |",
             "|---|---|---|---|---|"]
     for t in tests:
         sd = " / ".join(_scaled(t["name"], v) for v in t["sd"])
@@ -735,7 +736,8 @@ def report_checks(fields_items, bases_items, convergence_paths, invariants, para
     sd_bp = [mean_sem([v.get("base_pressure_column", np.nan) for v in values[p]])[2] for p in (a, b)]
     t["stress_column.sd_ratio"] = f"{math.hypot(*sd_col) / math.hypot(*sd_bp):.2f}"
     w = welch([c["stress_column"] for c in contrasts[a]], [c["stress_column"] for c in contrasts[b]])
-    diff = mean_sem([c["stress_column"] for c in contrasts[a]])[0] - mean_sem([c["stress_column"] for c in contrasts[b]])[0]
+    col = {p: [c["stress_column"] for c in contrasts[p]] for p in (a, b)}
+    diff = mean_sem(col[a])[0] - mean_sem(col[b])[0]
     t["stress_column.diff"] = f"{100 * diff:+.1f} %, t = {w['t']:+.2f} ({w['df']:.1f} df)"
     t["stress_column.piles"] = f"{piles_for_power(*sd_col, 0.05, POWER, 5, LEVEL):.0f}"
     t["base_pressure_column.piles"] = f"{piles_for_power(*sd_bp, 0.05, POWER, 5, LEVEL):.0f}"
@@ -824,6 +826,8 @@ def main(argv=None):
     if args.fields:
         import yaml
         study = yaml.safe_load(open(args.study_config))
+        with xr.open_dataset(args.fields[0].split("=", 1)[1]) as first:
+            gravity = float(first.attrs["gravity_relaxed"])
         inv_sets = {}
         for p in args.protocols:
             with xr.open_dataset(f"{args.ensemble}/{p}/invariants.nc") as inv:
@@ -831,7 +835,7 @@ def main(argv=None):
         out += checks_lines(report_checks(args.fields, args.base_pressure, args.convergence, inv_sets, params,
                                           {"density": study["model"]["density"],
                                            "layered_slope_deg": study["pour"]["layered_slope_deg"],
-                                           "gravity": float(xr.open_dataset(args.fields[0].split("=", 1)[1]).attrs["gravity_relaxed"])}))
+                                           "gravity": gravity}))
     rows, points = convergence(args.convergence)
     out += [f"## RVE convergence (Fig. 1; {len(args.convergence)} piles, {points} points in all)", "",
             "Deviation from the value in the largest RVE, %: median / largest over the piles and points.", "",
