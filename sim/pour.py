@@ -152,7 +152,7 @@ def check_pour(cfg: SimConfig, protocol, seed, shapes, settle_time=0.1):
     fall = p.release_height + float(np.max(shapes.radius)) + height
     check_run(scene, f"pour {protocol} seed {seed}",
               duration=p.n_particles / p.rate + settle_time + LANDING_TIME,
-              speed=math.sqrt(p.release_speed ** 2 + 2.0 * GRAVITY * fall),
+              speed=math.hypot(p.release_speed, math.sqrt(2.0 * GRAVITY * fall)),
               drag=p.spin_drag, sources={
                   "duration": f"pour.n_particles = {p.n_particles} at pour.rate = {p.rate!r}/s "
                               f"(and {settle_time + LANDING_TIME} s to settle and land)",

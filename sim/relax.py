@@ -178,7 +178,7 @@ def check_stage(cfg: SimConfig, sim, what, extra_time=0.0, gravity=None):
     else:
         v0 = top = 0.0
     check_run(sim.scene, what, duration=extra_time + r.max_time,
-              speed=math.sqrt(v0 ** 2 + 2.0 * g * top), drag=max(r.drag, r.rocking_drag),
+              speed=math.hypot(v0, math.sqrt(2.0 * g * top)), drag=max(r.drag, r.rocking_drag),
               sources={
                   "duration": f"relax.max_time = {r.max_time!r} s"
                               + (f" after {extra_time!r} s of the probe" if extra_time else ""),

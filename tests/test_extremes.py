@@ -47,6 +47,8 @@ POUR_EXTREMES = [
     ({"pour": {"spin_drag": 1.0e9}}, "pour.spin_drag = 1000000000.0"),           # the schema
     ({"particles": {"semi_axis_mean": 1.0e-120}}, "particles.semi_axis_mean = 1e-120"),
     ({"pour": {"jitter": 1.0e308}}, "pour.jitter = 1e+308"),
+    ({"pour": {"release_speed": 1.0e308}}, "pour.release_speed = 1e+308"),
+    ({"pour": {"layered_slope_deg": 1.0e-300}}, "pour.layered_slope_deg = 1e-300"),
 ]
 
 
