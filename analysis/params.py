@@ -169,13 +169,16 @@ def check_memory(params: dict[str, Any]) -> None:
              f"{g['y_max']}", (g["x_min"], g["x_max"], g["y_max"]), rve["size"]),
             (f"analysis.convergence.sizes up to {max(conv['sizes'])} at its points",
              (min(xs), max(xs), max(ys)), max(conv["sizes"]))):
-        nx, ny = raster_shape(x_lo, x_hi, y_hi, size / 2, h)
+        try:
+            nx, ny = raster_shape(x_lo, x_hi, y_hi, size / 2, h)
+        except OverflowError:        # more pixels than a float counts: a pixel of 1e-300 m
+            nx = ny = math.inf
         need = float(nx) * ny * RASTER_BYTES_PER_PIXEL
         if need > MAX_RASTER_BYTES:
             raise ParamError(
-                f"{what} needs a solid-fraction raster of {nx} x {ny} pixels of analysis.rve.raster_pixel = "
-                f"{h} m, about {need / 2**30:.1f} GiB, more than the {MAX_RASTER_BYTES / 2**30:g} GiB allowed; "
-                "shrink the RVE or the grid, or coarsen raster_pixel")
+                f"{what} needs a solid-fraction raster of {nx:.4g} x {ny:.4g} pixels of "
+                f"analysis.rve.raster_pixel = {h:.4g} m, about {need / 2**30:.4g} GiB, more than the "
+                f"{MAX_RASTER_BYTES / 2**30:g} GiB allowed; shrink the RVE or the grid, or coarsen raster_pixel")
 
 
 def resolve_params(user: dict[str, Any] | None) -> dict[str, Any]:
@@ -209,10 +212,13 @@ def resolve_params(user: dict[str, Any] | None) -> dict[str, Any]:
         raise ParamError(f"analysis.grid.x_min = {g['x_min']} must be <= analysis.grid.x_max = {g['x_max']}")
     if not g["y_min"] <= g["y_max"]:
         raise ParamError(f"analysis.grid.y_min = {g['y_min']} must be <= analysis.grid.y_max = {g['y_max']}")
-    n = (math.floor((g["x_max"] - g["x_min"]) / g["spacing"] + 1e-9) + 1) * (
-        math.floor((g["y_max"] - g["y_min"]) / g["spacing"] + 1e-9) + 1)
+    # counted in floats first: a spacing of 1e-300 m gives more points than an integer holds
+    n = ((g["x_max"] - g["x_min"]) / g["spacing"] + 1) * ((g["y_max"] - g["y_min"]) / g["spacing"] + 1)
+    if n <= 2_000_000:
+        n = (math.floor((g["x_max"] - g["x_min"]) / g["spacing"] + 1e-9) + 1) * (
+            math.floor((g["y_max"] - g["y_min"]) / g["spacing"] + 1e-9) + 1)
     if n > 1_000_000:
-        raise ParamError(f"analysis.grid.spacing = {g['spacing']} gives {n} grid points (more than 10^6); "
+        raise ParamError(f"analysis.grid.spacing = {g['spacing']:.4g} gives {n:.4g} grid points (more than 10^6); "
                          "increase the spacing or shrink the grid")
     if out["rve"]["raster_pixel"] > out["rve"]["size"] / 4:
         raise ParamError(f"analysis.rve.raster_pixel = {out['rve']['raster_pixel']} must be <= rve.size/4 = "
