@@ -199,19 +199,31 @@ def test_a_pile_too_large_for_the_memory_is_refused_naming_the_limit():
                                          r"--resources mem_mb \(1000 MB\); pour fewer particles"):
         resources.check_size(1000, True, print)
     with pytest.raises(ValueError, match="the memory of this machine"):
-        SimResources(configuration({"pour": {"n_particles": 10**10}})).check_size(None, True, print)
+        SimResources(configuration({"pour": {"n_particles": 10**6}})).check_size(None, True, print)   # 100 GB
     resources.check_size(SimpleNamespace(value=2000), True, print)   # a Snakemake resource
     resources.check_size(None, False, print)                         # a cluster node is large
 
 
 def test_a_pour_estimated_to_take_more_than_a_week_is_warned_about():
     warnings = []
-    slow = SimResources(configuration({"pour": {"n_particles": 3500, "rate": 0.01}}, base="config/config.yaml"))
+    # 7.6e9 steps at 6.9e-6 s: within the simulator's 1e10, but months of CPU
+    slow = SimResources(configuration({"pour": {"n_particles": 3500, "rate": 0.1}}, base="config/config.yaml"))
     assert slow.pour_runtime_min(None, 1) > ABSURD_RUNTIME_MIN
     slow.check_size(None, False, warnings.append)
-    assert len(warnings) == 1 and "pour.n_particles = 3500, pour.rate = 0.01" in warnings[0]
+    assert len(warnings) == 1 and "pour.n_particles = 3500, pour.rate = 0.1" in warnings[0]
     SimResources(configuration(base="config/config.yaml")).check_size(None, False, warnings.append)
     assert len(warnings) == 1
+
+
+def test_a_pour_beyond_the_simulators_step_count_is_refused_before_any_job():
+    """3500 particles at 0.01/s: 1.5 x 3500 / 0.01 + 0.1 = 525 000 s over the study's
+    Verlet step of about 6.9e-6 s is 7.6e10 steps, past sim.timestep.MAX_STEPS (1e10),
+    which the simulator would refuse when the job starts."""
+    slow = SimResources(configuration({"pour": {"n_particles": 3500, "rate": 0.01}}, base="config/config.yaml"))
+    with pytest.raises(ValueError, match=r"^pour.n_particles = 3500 at pour.rate = 0.01/s with an automatic step "
+                                         r"of about 6.9e-06 s .* needs about 7.609e\+10 steps, more than the "
+                                         r"simulator's 1e\+10"):
+        slow.check_size(None, False, print)
 
 
 def test_the_workflows_modules_import_without_snakemake():

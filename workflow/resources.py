@@ -17,6 +17,7 @@ workflow/scripts/study_progress.py).
 import math
 import os
 
+from sim.timestep import MAX_STEPS
 from workflow.piles import STRETCH_STAGE
 
 # Measured on this project's 2-core machine: the full-size layered pour of the
@@ -79,10 +80,16 @@ class SimResources:
         model, particles = self.config["model"], self.config["particles"]
         if model["dt"] is not None:
             return float(model["dt"])
+        # the ratios in this order neither overflow nor underflow to 0 / 0 for the schema's ranges
         scale = (particles["semi_axis_mean"] / 3.4e-3) * math.sqrt(
-            (model["density"] / 2500.0) / (model["youngs_modulus"] / 1e7)
-        )
+            model["density"] / model["youngs_modulus"] * (1e7 / 2500.0))
         return DT_REFERENCE_S[model["integrator"]] * scale * model["dt_safety"] / 0.5
+
+    def steps(self, stage):
+        """Time steps of the job making `stage` by the cost model
+        (:meth:`particle_steps` over the particles); ``inf`` for a step of 0."""
+        n = self.config["pour"]["n_particles"]
+        return self.particle_steps(stage) / (n / 2 if stage == "poured" else n)
 
     def relax_simulated_s(self):
         """Simulated time (s) of a relaxation: RELAX_TYPICAL_S, at most relax.max_time."""
@@ -105,17 +112,17 @@ class SimResources:
             Simulated time over :meth:`estimated_dt`, times the particles:
             what the configuration alone fixes, on any host.
         """
-        pour = self.config["pour"]
+        pour, dt = self.config["pour"], self.estimated_dt()
         if stage == "poured":
             simulated = POUR_TIME_FACTOR * pour["n_particles"] / pour["rate"] + 0.1
-            return simulated / self.estimated_dt() * pour["n_particles"] / 2
+            return (simulated / dt if dt > 0 else math.inf) * pour["n_particles"] / 2
         probe = self.config["probe"]
         simulated = self.relax_simulated_s()
         if stage == STRETCH_STAGE:
             simulated += probe["stretch_time"]
         elif stage != "relaxed" and probe["mode"] == "ramp":
             simulated += probe["ramp_time"]
-        return simulated / self.estimated_dt() * pour["n_particles"]
+        return (simulated / dt if dt > 0 else math.inf) * pour["n_particles"]
 
     def stage_cpu_s(self, stage):
         """CPU seconds of the job making `stage` by the cost model:
@@ -166,7 +173,10 @@ class SimResources:
         Raises
         ------
         ValueError
-            Naming pour.n_particles, the memory a job needs and the limit.
+            Naming pour.n_particles, the memory a job needs and the limit; or
+            naming the settings of a job that the cost model puts above the
+            simulator's :data:`sim.timestep.MAX_STEPS` steps (the simulator
+            refuses it when it starts; the workflow before any job).
         """
         need, where = self.sim_mem_mb(None, 1), "--resources mem_mb"
         mem_mb = getattr(mem_mb, "value", mem_mb)
@@ -181,6 +191,18 @@ class SimResources:
                 f"pour.n_particles = {n}: a simulation job would need about {need:.0f} MB "
                 f"({SIM_MEM_BASE_MB} MB + {SIM_MEM_PER_PARTICLE_MB} MB per particle), more than "
                 f"{where} ({mem_mb:.0f} MB); pour fewer particles")
+        pour, model = self.config["pour"], self.config["model"]
+        for stage in ("poured", "relaxed"):
+            steps = self.steps(stage)
+            if not steps <= MAX_STEPS:
+                step = (f"model.dt = {model['dt']:.4g} s" if model["dt"] is not None else
+                        f"an automatic step of about {self.estimated_dt():.4g} s (model.youngs_modulus = "
+                        f"{model['youngs_modulus']:.4g}, model.density = {model['density']:.4g}, "
+                        f"particles.semi_axis_mean = {self.config['particles']['semi_axis_mean']:.4g})")
+                what = (f"pour.n_particles = {pour['n_particles']} at pour.rate = {pour['rate']:.4g}/s"
+                        if stage == "poured" else f"relaxing for about {self.relax_simulated_s():.4g} s")
+                raise ValueError(f"{what} with {step} needs about {steps:.4g} steps, more than the "
+                                 f"simulator's {MAX_STEPS:.0e}; give a larger step or a shorter run")
         minutes = self.pour_runtime_min(None, 1)
         if minutes > ABSURD_RUNTIME_MIN:
             warn(f"pour.n_particles = {n}, pour.rate = {self.config['pour']['rate']}: each pour is "
