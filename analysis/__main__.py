@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import os
+import re
 import sys
 import time
 from pathlib import Path
@@ -76,6 +77,49 @@ def _labelled(items: list[str]) -> dict[str, str]:
     return out
 
 
+def _relaxed_and_probes(relaxed_path: str, probes: dict[str, str], option: str) -> tuple:
+    """The states of ``--relaxed`` and of probes of that pile, each checked to be what its argument means
+    (:func:`analysis.states.check_identity`) before anything is computed.
+
+    Parameters
+    ----------
+    relaxed_path : str
+        The file of ``--relaxed``: a relaxed state.
+    probes : dict
+        Label to file.  With ``option`` ``--reduced`` (the label ``reduced``):
+        a gravity reduction; with ``--probes``: the probe of the stage the
+        label names, or of any probe stage where the label names none.
+    option : str
+        The argument that names the probes.
+
+    Returns
+    -------
+    relaxed : analysis.states.State
+    probes : dict
+        Each label to its :class:`analysis.states.State`.
+    """
+    from .states import PROBE_STAGES, REDUCTION_STAGES, check_identity, load_state
+
+    relaxed = load_state(relaxed_path)
+    check_identity(relaxed.path, relaxed.attrs, "--relaxed", "relaxed",
+                   "a relaxed state (stage 'relaxed', written by python -m sim relax)")
+    states = {}
+    pile = f"of the pile of --relaxed {relaxed_path}"
+    for label, path in probes.items():
+        state = load_state(path)
+        if option == "--reduced":
+            argument, stages = option, REDUCTION_STAGES
+            takes = f"a gravity reduction (stage 'reduced' or 'reducedNN', python -m sim probe --level) {pile}"
+        elif re.fullmatch(PROBE_STAGES, label):
+            argument, stages, takes = f"{option} {label}=", re.escape(label), f"the probe of stage {label!r} {pile}"
+        else:
+            argument, stages = f"{option} {label}=", PROBE_STAGES
+            takes = f"a probe (stage reducedNN, tiltpNN, tiltmNN, restored or stretched) {pile}"
+        check_identity(state.path, state.attrs, argument, stages, takes, relaxed=(relaxed.path, relaxed.attrs))
+        states[label] = state
+    return relaxed, states
+
+
 # ------------------------------------------------------------------ commands
 def cmd_run_times(args, params) -> None:
     from .netcdf import atomic_path
@@ -104,13 +148,14 @@ def cmd_fields(args, params) -> None:
     from .balance import balance_report, enforce, increment_report
     from .fields import check_quantities, compute_fields
     from .netcdf import write_dataset, write_json
-    from .states import check_same_particles, load_state
+    from .states import check_same_particles
 
     t0 = time.perf_counter()
     quantities = check_quantities(args.quantities, args.reduced is not None)
-    states = {"relaxed": load_state(args.relaxed)}
+    relaxed, probes = _relaxed_and_probes(args.relaxed, {"reduced": args.reduced} if args.reduced else {},
+                                          "--reduced")
+    states = {"relaxed": relaxed, **probes}
     if args.reduced:
-        states["reduced"] = load_state(args.reduced)
         check_same_particles(states["relaxed"], states["reduced"])
     reports = {stage: balance_report(state, params["checks"]) for stage, state in states.items()}
     increment = ({"increment": increment_report(states["relaxed"], states["reduced"], params["checks"])}
@@ -120,6 +165,9 @@ def cmd_fields(args, params) -> None:
         write_json({"passed": passed, "tolerances": params["checks"], "stages": reports, **increment,
                     "source": f"analysis {__version__}"}, args.checks)
     for stage, r in {**reports, **increment}.items():
+        if "skipped" in r:
+            _log(f"checks {stage}: not checked ({r['skipped']})")
+            continue
         _log(f"checks {stage}: support reaction rel. error {r.get('support_reaction_rel_error', float('nan')):.3g}, "
              f"Love yy rel. error {r.get('love_rel_error_yy', float('nan')):.3g}"
              + (f", max net force / weight {r['net_force_ratio_max']:.3g}" if "net_force_ratio_max" in r else ""))
@@ -141,11 +189,9 @@ def cmd_fields(args, params) -> None:
 def cmd_probes(args, params) -> None:
     from .netcdf import write_dataset
     from .probes import probe_increments
-    from .states import load_state
 
     t0 = time.perf_counter()
-    relaxed = load_state(args.relaxed)
-    probes = {stage: load_state(path) for stage, path in _labelled(args.probes).items()}
+    relaxed, probes = _relaxed_and_probes(args.relaxed, _labelled(args.probes), "--probes")
     ds = probe_increments(relaxed, probes, params)
     write_dataset(ds, args.out, title=f"Probe increments of pile {os.path.basename(args.relaxed)} "
                   f"({ds.attrs.get('protocol', '')}, seed {ds.attrs.get('seed', '')})", params=params)
@@ -172,12 +218,14 @@ def cmd_general_fit(args, params) -> None:
 def cmd_ensemble(args, params) -> None:
     from .ensemble import ensemble_fields
     from .netcdf import write_dataset
+    from .states import check_distinct_piles
 
     dss = []
     for p in args.fields:
         ds = _read(p)
         _require(ds, p, ("stress", "n_particles", "solid_fraction"))
         dss.append(ds)
+    check_distinct_piles([(p, ds.attrs) for p, ds in zip(args.fields, dss)], "--fields")
     out = ensemble_fields(dss, list(args.fields), params["ensemble"]["slip_strain_ratio"])
     write_dataset(out, args.out, title=f"ensemble fields, protocol {out.attrs.get('protocol', '')}, "
                   f"{len(dss)} piles", params=params)
@@ -228,10 +276,15 @@ def cmd_voigt(args, params) -> None:
 def cmd_base_pressure(args, params) -> None:
     from .base_pressure import base_pressure_dataset, combine_base_pressure
     from .netcdf import write_dataset
-    from .states import load_state
+    from .states import PROBE_STAGES, check_distinct_piles, check_identity, load_state
 
     if args.states:
-        out = base_pressure_dataset([load_state(p) for p in args.states], params)
+        states = [load_state(p) for p in args.states]
+        for state in states:
+            check_identity(state.path, state.attrs, "--states", f"poured|relaxed|{PROBE_STAGES}",
+                           "the state of a finished stage (poured, relaxed or a probe's)")
+        check_distinct_piles([(s.path, s.attrs) for s in states], "--states")
+        out = base_pressure_dataset(states, params)
     else:
         out = combine_base_pressure([_read(p) for p in args.piles], list(args.piles), params)
     n = out.attrs["n_seeds"]
@@ -255,9 +308,10 @@ def cmd_invariants(args, params) -> None:
 def cmd_convergence(args, params) -> None:
     from .convergence import convergence_dataset
     from .netcdf import write_dataset
-    from .states import check_same_particles, load_state
+    from .states import check_same_particles
 
-    relaxed, reduced = load_state(args.relaxed), load_state(args.reduced)
+    relaxed, probes = _relaxed_and_probes(args.relaxed, {"reduced": args.reduced}, "--reduced")
+    reduced = probes["reduced"]
     check_same_particles(relaxed, reduced)
     out = convergence_dataset(relaxed, reduced, params)
     write_dataset(out, args.out, title="RVE-size convergence", params=params)

@@ -89,8 +89,7 @@ def balance_report(state: State, checks: dict[str, Any]) -> dict[str, Any]:
                            "n_support_contacts": int(s.sum())}
     if weight <= 0:
         rep["skipped"] = "gravity is zero: weight-relative checks are undefined"
-        rep["passed"] = True
-        return rep
+        return _not_checked(rep)
     ry = float(state.force_y[s].sum())
     rx = float(state.force_x[s].sum())
     rep["support_reaction_y"] = ry
@@ -146,8 +145,7 @@ def increment_report(relaxed: State, reduced: State, checks: dict[str, Any]) -> 
     rep["weight_change"] = dweight
     if dweight == 0.0:
         rep["skipped"] = "gravity is the same in both states: the increment carries no load"
-        rep["failures"], rep["passed"] = [], True
-        return rep
+        return _not_checked(rep)
     dry = float(reduced.force_y[reduced.support].sum() - relaxed.force_y[relaxed.support].sum())
     rep["support_reaction_change"] = dry
     rep["support_reaction_rel_error"] = (dry - dweight) / abs(dweight)
@@ -170,9 +168,16 @@ def increment_report(relaxed: State, reduced: State, checks: dict[str, Any]) -> 
     return rep
 
 
+def _not_checked(rep: dict[str, Any]) -> dict[str, Any]:
+    """A report whose checks could not be made (``skipped`` says why): failed, since nothing was shown."""
+    rep["failures"] = [f"not checked: {rep['skipped']}"]
+    rep["passed"] = False
+    return rep
+
+
 def enforce(reports: list[dict[str, Any]]) -> None:
-    """Raise :class:`BalanceError` listing every failed check of ``reports``."""
+    """Raise :class:`BalanceError` naming, in one line, every failed check of ``reports``."""
     lines = [f"{r['file']}: {msg}" for r in reports for msg in r.get("failures", [])]
     if lines:
-        raise BalanceError("balance-law check(s) failed (set analysis.checks.enforce: false to only report):\n  "
-                           + "\n  ".join(lines))
+        raise BalanceError("balance-law check(s) failed (set analysis.checks.enforce: false to only report): "
+                           + "; ".join(lines))

@@ -48,13 +48,28 @@ def support_force_density(state: State, edges: np.ndarray) -> tuple[np.ndarray, 
 
 
 def base_pressure_dataset(states: list[State], params: dict[str, Any]) -> xr.Dataset:
-    """Mean and standard error over seeds of the support force densities."""
+    """Mean and standard error over seeds of the support force densities.
+
+    The file's ``stage`` is that of the states (``analysis.base_pressure.stage``
+    where they carry none).
+
+    Raises
+    ------
+    InputError
+        If the states are of different stages.
+    """
+    stages = {str(s.attrs["stage"]): s.path for s in states if "stage" in s.attrs}
+    if len(stages) > 1:
+        (a, path_a), (b, path_b) = list(stages.items())[:2]
+        raise InputError(f"--states {path_b}: its stage is {b!r}, but {path_a} is of stage {a!r}; the base "
+                         "pressure of several piles is of one stage: give states of one")
     edges = bin_edges(params["base_pressure"])
     per = [support_force_density(s, edges) for s in states]
     return _dataset(edges, np.stack([p[0] for p in per]), np.stack([p[1] for p in per]),
                     [str(s.attrs.get("seed", k)) for k, s in enumerate(states)],
                     np.array([s.mass.sum() * s.gravity for s in states]),
-                    str(states[0].attrs.get("protocol", "")) if states else "", params)
+                    str(states[0].attrs.get("protocol", "")) if states else "",
+                    next(iter(stages), params["base_pressure"]["stage"]), params)
 
 
 def combine_base_pressure(datasets: list[xr.Dataset], names: list[str], params: dict[str, Any]) -> xr.Dataset:
@@ -81,10 +96,11 @@ def combine_base_pressure(datasets: list[xr.Dataset], names: list[str], params: 
                      for ds in datasets], dim="seed")
     return _dataset(edges, cat["normal_force_density_per_seed"].values, cat["shear_force_density_per_seed"].values,
                     [str(v) for v in cat["seed"].values], cat["weight"].values,
-                    str(datasets[0].attrs.get("protocol", "")) if datasets else "", params)
+                    str(datasets[0].attrs.get("protocol", "")) if datasets else "", params["base_pressure"]["stage"],
+                    params)
 
 
-def _dataset(edges, normal, shear, seeds, weight, protocol, params) -> xr.Dataset:
+def _dataset(edges, normal, shear, seeds, weight, protocol, stage, params) -> xr.Dataset:
     mn, sn, _ = nan_mean_sem(normal)
     ms, ssh, _ = nan_mean_sem(shear)
     centres = 0.5 * (edges[:-1] + edges[1:])
@@ -104,7 +120,7 @@ def _dataset(edges, normal, shear, seeds, weight, protocol, params) -> xr.Datase
     ds["shear_force_density_per_seed"] = var(("seed", "x"), shear, "shear_force_density of each pile", "N m-1")
     ds["weight"] = var("seed", np.asarray(weight, dtype=float), "weight M g of each pile", "N")
     ds.attrs["n_seeds"] = len(seeds)
-    ds.attrs["stage"] = params["base_pressure"]["stage"]
+    ds.attrs["stage"] = stage
     ds.attrs["protocol"] = protocol
     ds.attrs["bin_width"] = params["base_pressure"]["bin_width"]
     return ds

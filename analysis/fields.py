@@ -26,7 +26,7 @@ from .fabric import deviatoric_fraction, fabric_trace, particle_fabric, rve_fabr
 from .netcdf import tensor_coords, var
 from .orientation import axis_angle_difference, axis_angle_from_vertical
 from .solid_fraction import solid_fraction as _solid_fraction
-from .states import State, check_same_particles
+from .states import State, check_same_particles, pile_attributes
 from .strain import STRAIN_FLAGS, best_fit_strain
 from .stress import antisymmetric_component, particle_stress_moment, rve_stress, symmetric_part
 from .surface import surface_height
@@ -294,15 +294,15 @@ def compute_fields(relaxed: State, reduced: State | None, params: dict[str, Any]
         "membership": ("particles: centre inside the RVE (relaxed positions, both stages); stress and fabric: all "
                        "contacts of member particles incl. the support; strain: particle-particle contacts with "
                        "both particles inside; RVE clipped to y >= 0"),
-        "protocol": str(relaxed.attrs.get("protocol", "")),
-        "seed": str(relaxed.attrs.get("seed", "")),
+        **pile_attributes(relaxed),
         "gravity_relaxed": relaxed.gravity,
         "relaxed_file": relaxed.path,
         "n_particles_total": relaxed.n_particles,
         "quantities": " ".join(("stress",) + check_quantities(quantities, reduced is not None)),
     })
     if reduced is not None:
-        ds.attrs.update({"gravity_reduced": reduced.gravity, "reduced_file": reduced.path})
+        ds.attrs.update({"gravity_reduced": reduced.gravity, "reduced_file": reduced.path,
+                         **({"reduced_stage": str(reduced.attrs["stage"])} if "stage" in reduced.attrs else {})})
     if stiffness is not None:
         ds["voigt_stiffness"].attrs["comment"] = (
             "every particle moved by x . eps, none turned, every contact sticking: k_n = Y L / l (L the contact "

@@ -63,7 +63,7 @@ from .fields import rve_quantities
 from .netcdf import tensor_coords, var
 from .orientation import axis_angle_difference
 from .rve import Grid
-from .states import State, check_same_particles
+from .states import State, check_same_particles, pile_attributes
 
 #: The probe whose increment, compared with the reduction's, measures reversibility.
 RESTORED = "restored"
@@ -122,8 +122,7 @@ def probe_increments(relaxed: State, probes: dict[str, State], params: dict[str,
                                 "1"),
     }, coords=coords)
     ds.attrs.update({"rve_shape": rp["shape"], "rve_size": rp["size"], "grid_spacing": params["grid"]["spacing"],
-                     "protocol": str(relaxed.attrs.get("protocol", "")),
-                     "seed": str(relaxed.attrs.get("seed", "")), "relaxed_file": relaxed.path})
+                     **pile_attributes(relaxed), "relaxed_file": relaxed.path})
     return ds
 
 

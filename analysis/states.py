@@ -9,13 +9,15 @@ variable and first offending index, before any computation starts.
 from __future__ import annotations
 
 import hashlib
+import os
+import re
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import xarray as xr
 
-from .errors import StateError
+from .errors import InputError, StateError
 
 PARTICLE_VARS = ("x", "y", "theta", "vx", "vy", "omega", "mass", "inertia", "area", "node_count")
 NODE_VARS = ("node_x", "node_y")
@@ -218,3 +220,137 @@ def check_same_particles(a: State, b: State) -> None:
     if not (np.allclose(a.mass, b.mass, rtol=1e-9, atol=0) and np.allclose(a.area, b.area, rtol=1e-9, atol=0)):
         raise StateError(f"{b.path}: particle masses/areas differ from {a.path}; "
                          "the two stages of one pile must hold the same particles in the same order")
+
+
+#: Stages of a gravity reduction of a relaxed pile (docs/formats.md#stages), a regular expression.
+REDUCTION_STAGES = r"reduced(\d\d)?"
+#: Stages of every probe of a relaxed pile, a regular expression.
+PROBE_STAGES = r"reduced(\d\d)?|tilt[pm]\d\d|restored|stretched"
+#: The global attributes that say which pile a file is of and where it comes
+#: from (docs/formats.md#state-files): its identity.
+IDENTITY = ("protocol", "seed", "stage", "pour_digest", "relaxed_digest", "data_digest")
+
+
+def identity(attrs: dict[str, Any]) -> dict[str, str]:
+    """The identity attributes (:data:`IDENTITY`) a state or fields file has, as text.
+
+    An attribute the file lacks or holds empty (files written before it
+    existed, hand-made ones) is left out: unknown, so nothing is checked
+    against it.
+    """
+    return {k: str(attrs[k]) for k in IDENTITY if str(attrs.get(k, "")) != ""}
+
+
+def pile_name(ident: dict[str, str]) -> str:
+    """``wedge seed 1 (pour digest 0123abcd4567ef89)``: a pile as far as its identity names it."""
+    name = f"{ident.get('protocol', '(protocol unknown)')} seed {ident.get('seed', '(unknown)')}"
+    return name + (f" (pour digest {ident['pour_digest']})" if "pour_digest" in ident else "")
+
+
+def pile_attributes(relaxed: State) -> dict[str, str]:
+    """The identity a file computed from the relaxed state ``relaxed`` carries (fields, probe increments).
+
+    ``protocol`` and ``seed`` (empty where unknown), and where ``relaxed``
+    has them ``pour_digest`` and ``relaxed_digest``: its ``data_digest``,
+    which names the very state the file was computed from.
+    """
+    ident = identity(relaxed.attrs)
+    out = {"protocol": ident.get("protocol", ""), "seed": ident.get("seed", "")}
+    if "pour_digest" in ident:
+        out["pour_digest"] = ident["pour_digest"]
+    if "data_digest" in ident:
+        out["relaxed_digest"] = ident["data_digest"]
+    return out
+
+
+def check_identity(path: str, attrs: dict[str, Any], argument: str, stages: str, takes: str,
+                   relaxed: tuple[str, dict[str, Any]] | None = None) -> None:
+    """Refuse a file that is not what the command-line argument naming it means.
+
+    Every reader of state files checks each input with this before it
+    computes anything.  Only what the file carries is checked
+    (:func:`identity`): a file without a ``stage`` passes the stage check.
+
+    Parameters
+    ----------
+    path : str
+    attrs : dict
+        The file's global attributes.
+    argument : str
+        The argument that named it (``--reduced``), in the error.
+    stages : str
+        A regular expression that the whole of the file's ``stage`` must match
+        (:data:`REDUCTION_STAGES`, :data:`PROBE_STAGES`, ``"relaxed"``).
+    takes : str
+        What ``argument`` takes, in words, for the error.
+    relaxed : (str, dict), optional
+        Path and attributes of the relaxed state (``--relaxed``) the file must
+        be a later stage of: another file with another ``data_digest``, of the
+        same pile (``protocol``, ``seed``, ``pour_digest``), and descending
+        from that very state (its ``relaxed_digest`` that state's
+        ``data_digest``).
+
+    Raises
+    ------
+    StateError
+        In one line naming the argument, the file, what it is and what was expected.
+    """
+    ident = identity(attrs)
+    stage = ident.get("stage")
+    if stage is not None and not re.fullmatch(stages, stage):
+        raise StateError(f"{argument} {path}: its stage is {stage!r}; {argument} takes {takes}")
+    if relaxed is None:
+        return
+    relaxed_path, parent = relaxed[0], identity(relaxed[1])
+    same_file = os.path.exists(path) and os.path.exists(relaxed_path) and os.path.samefile(path, relaxed_path)
+    if same_file or ident.get("data_digest", "-") == parent.get("data_digest"):
+        raise StateError(f"{argument} {path}: the same state as --relaxed {relaxed_path}; {argument} takes {takes}")
+    differ = [k for k in ("protocol", "seed", "pour_digest") if _known_and_differ(ident, parent, k)]
+    if differ:
+        raise StateError(f"{argument} {path}: a state of pile {pile_name(ident)}, but --relaxed {relaxed_path} is "
+                         f"of pile {pile_name(parent)} (their {' and '.join(differ)} differ); {argument} takes "
+                         f"{takes}")
+    if "relaxed_digest" in ident and "data_digest" in parent and ident["relaxed_digest"] != parent["data_digest"]:
+        raise StateError(f"{argument} {path}: it descends from the relaxed state with data_digest "
+                         f"{ident['relaxed_digest'][:16]}..., not from --relaxed {relaxed_path} (data_digest "
+                         f"{parent['data_digest'][:16]}...); {argument} takes {takes}")
+
+
+def check_distinct_piles(files: list[tuple[str, dict[str, Any]]], argument: str) -> None:
+    """Refuse an ensemble whose files mix protocols or hold one pile twice.
+
+    Two files are of the same pile when they descend from the same relaxed
+    state (``relaxed_digest``), or when their ``protocol`` and ``seed`` agree
+    and their ``pour_digest`` does too or is unknown in either (a pile's
+    shapes and pour follow from its seed and settings alone).
+
+    Parameters
+    ----------
+    files : list of (str, dict)
+        Each file's path and global attributes (state, fields or probe files).
+    argument : str
+        The argument that named them (``--fields``), in the error.
+
+    Raises
+    ------
+    InputError
+        In one line naming both files and their piles.
+    """
+    seen: list[tuple[str, dict[str, str]]] = []
+    for path, attrs in files:
+        ident = identity(attrs)
+        for other_path, other in seen:
+            if _known_and_differ(ident, other, "protocol"):
+                raise InputError(f"{argument} {path}: pile {pile_name(ident)}, but {other_path} is pile "
+                                 f"{pile_name(other)}; an ensemble is of one protocol: give the files of one")
+            same_pile = (all(k in ident and ident[k] == other.get(k) for k in ("protocol", "seed"))
+                         and not _known_and_differ(ident, other, "pour_digest"))
+            if same_pile or ("relaxed_digest" in ident and ident["relaxed_digest"] == other.get("relaxed_digest")):
+                raise InputError(f"{argument} {path}: pile {pile_name(ident)}, the same pile as {other_path}; an "
+                                 "ensemble counts each pile once: give each pile's file once")
+        seen.append((path, ident))
+
+
+def _known_and_differ(a: dict[str, str], b: dict[str, str], key: str) -> bool:
+    """Whether both identities name ``key`` and name it differently."""
+    return key in a and key in b and a[key] != b[key]

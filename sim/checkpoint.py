@@ -17,13 +17,9 @@ from pathlib import Path
 
 from .config import result_settings
 from .frames import partial_path
-from .io import StateFileError, code_version, load_simulation, save_state
+from .io import POUR_SECTIONS, StateFileError, code_version, load_simulation, save_state
 
 log = logging.getLogger("sim")
-
-#: The configuration sections a pour reads; a checkpoint is resumed only under
-#: the same result-relevant settings of these.
-POUR_SECTIONS = ("model", "particles", "pour", "physics")
 
 
 def keep_last_good(sim, out, cfg, exc, **attrs):

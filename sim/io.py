@@ -32,7 +32,7 @@ import numpy as np
 import xarray as xr
 
 from . import __version__
-from .config import ModelParams
+from .config import ModelParams, result_settings
 from .engine import Simulation
 from .scene import BODY_SUPPORT
 from .shapes import shapes_from_nodes
@@ -64,6 +64,100 @@ CONTACT_VARS = {
 
 class StateFileError(ValueError):
     """A state file cannot be read, is missing a variable or holds invalid values."""
+
+
+#: The configuration sections a pour reads: their result-relevant settings
+#: (:func:`sim.config.result_settings`) decide a pour's result, so they make
+#: its :func:`pour_digest` and a checkpoint is resumed only under the same.
+POUR_SECTIONS = ("model", "particles", "pour", "physics")
+
+#: Stages written by a pour itself; a state of any other stage descends from a
+#: file and carries that file's identity on (:func:`lineage`).
+POUR_STAGES = ("poured", "checkpoint")
+
+
+def pour_digest(config: dict | None) -> str:
+    """The settings digest of a pour: which settings made the pile.
+
+    Parameters
+    ----------
+    config : dict or None
+        The pour's effective configuration (:meth:`sim.config.SimConfig.to_dict`).
+
+    Returns
+    -------
+    str
+        The first 16 hex digits of the SHA-256 of the sorted JSON text of its
+        result-relevant settings of :data:`POUR_SECTIONS`.
+    """
+    text = json.dumps(result_settings(config or {}, POUR_SECTIONS), sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+#: What a state file of each stage that no stage may start from is (docs/formats.md#stages).
+STAGE_MEANING = {
+    "poured": "a state not at rest (the pile as poured)",
+    "checkpoint": "a state not at rest (a pour's checkpoint: the pour was stopped before its end)",
+    "lastgood": "the last good state of a run stopped by the blow-up detector",
+    "bench": "a pile of python -m sim bench",
+    "relaxed": "the pile at rest under full gravity",
+}
+
+
+def check_input_stage(path, ds: xr.Dataset, accepted, command: str, takes: str) -> None:
+    """Refuse a state file whose stage is not one that ``command`` starts from.
+
+    A file without the attribute ``stage`` (not written by ``sim``) is taken
+    as it is: its stage is unknown.
+
+    Parameters
+    ----------
+    path : path
+        The input file (named in the error).
+    ds : xarray.Dataset
+        It, as read (:func:`read_state`).
+    accepted : callable
+        ``accepted(stage)`` is true for a stage ``command`` starts from.
+    command, takes : str
+        The command (``python -m sim relax``) and what it takes, in words.
+
+    Raises
+    ------
+    StateFileError
+        In one line naming the file, its stage and what ``command`` takes.
+    """
+    stage = ds.attrs.get("stage")
+    if stage is not None and not accepted(str(stage)):
+        meaning = STAGE_MEANING.get(str(stage), "a probe's state")
+        raise StateFileError(f"{path}: its stage is {str(stage)!r}, {meaning}; {command} takes {takes}")
+
+
+def lineage(ds: xr.Dataset) -> dict:
+    """The identity a stage run on the state file ``ds`` carries on into its own file.
+
+    ``protocol``, ``seed`` and ``pour_digest`` of the pile (those the file
+    has), and ``relaxed_digest``: the ``data_digest`` of the relaxed state the
+    new stage descends from, the file's own when it is that relaxed state, else
+    the one it carries (none when it has none: a poured pile).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The input state file, as read (:func:`read_state`).
+
+    Returns
+    -------
+    dict
+        Global attributes for :func:`save_state`.
+    """
+    a = ds.attrs
+    out = {"protocol": a.get("protocol", ""), "seed": int(a.get("seed", -1))}
+    if "pour_digest" in a:
+        out["pour_digest"] = a["pour_digest"]
+    relaxed = a.get("data_digest") if a.get("stage") == "relaxed" else a.get("relaxed_digest")
+    if relaxed:
+        out["relaxed_digest"] = relaxed
+    return out
 
 
 @functools.lru_cache(maxsize=1)
@@ -237,7 +331,10 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
     config : dict, optional
         Effective configuration of the run (stored as JSON text).
     **attrs
-        Further global attributes (``protocol``, ``seed``, ...).
+        Further global attributes (``stage``, ``protocol``, ``seed``, ...).  A
+        pour's own stages (:data:`POUR_STAGES`) get ``pour_digest`` of
+        ``config`` (:func:`pour_digest`) unless given; later stages carry their
+        input's (:func:`lineage`).
 
     Returns
     -------
@@ -305,6 +402,8 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
         "rotate": int(sim.rotate),
     }
     ds.attrs.update(attrs)
+    if attrs.get("stage") in POUR_STAGES and "pour_digest" not in attrs:
+        ds.attrs["pour_digest"] = pour_digest(config)
     return ds
 
 

@@ -4,29 +4,41 @@ each relaxes the pile again (:func:`sim.relax.relax`) and saves it."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from .config import SimConfig
-from .io import load_simulation
+from .io import check_input_stage, load_simulation
 from .pour import GRAVITY
 from .relax import relax, run_stage
 from .scene import BODY_SUPPORT
 
-#: Stages of state files that are not at rest, so that no probe starts from them.
-NOT_AT_REST = ("poured", "checkpoint")
+#: What every probe but the restoring one starts from.
+RELAXED = "a relaxed state (stage 'relaxed', written by python -m sim relax)"
+#: What the restoring probe starts from (:func:`restore_file`).
+REDUCED = ("a gravity reduction of a relaxed state (stage 'reduced' or 'reducedNN', written by "
+           "python -m sim probe --level)")
 
 
-def _load_at_rest(cfg, input_path, needs):
-    """The simulation and dataset of a state file at rest; a ValueError saying
-    what the probe `needs` for one not at rest (:data:`NOT_AT_REST`)."""
+def is_reduction(stage: str) -> bool:
+    """Whether ``stage`` names a gravity reduction (``reduced``, ``reducedNN``)."""
+    return re.fullmatch(r"reduced(\d\d)?", stage) is not None
+
+
+def _load_input(cfg, input_path, command, restore=False):
+    """The simulation and dataset of a probe's input: a relaxed state, or for
+    the restoring probe a reduced one (:func:`sim.io.check_input_stage`)."""
     sim, ds = load_simulation(input_path, cfg.model)
-    if ds.attrs.get("stage") in NOT_AT_REST:
-        raise ValueError(f"{input_path}: its stage is {ds.attrs['stage']!r}, a state not at rest; "
-                         f"{needs}")
+    if restore:
+        check_input_stage(input_path, ds, is_reduction, f"python -m sim probe {command}", REDUCED)
+    else:
+        check_input_stage(input_path, ds, lambda stage: stage == "relaxed",
+                          f"python -m sim probe {command}", RELAXED)
     return sim, ds
 
 
-def change_gravity(cfg: SimConfig, input_path, target, out, stage, what, **attrs):
+def change_gravity(cfg: SimConfig, input_path, target, out, stage, what, command, **attrs):
     """Change gravity of a state at rest to ``target(g)``, relax again and save.
 
     With ``probe.mode = "ramp"`` gravity goes linearly to `target` over
@@ -38,7 +50,7 @@ def change_gravity(cfg: SimConfig, input_path, target, out, stage, what, **attrs
     ----------
     cfg : SimConfig
     input_path : path
-        A state at rest (``relaxed``, or ``reduced`` for the restoring probe).
+        A relaxed state, or a reduced one for the restoring probe.
     target : callable
         The new gravity vector (m/s²) from the state's gravity vector ``g``.
     out : path
@@ -47,17 +59,19 @@ def change_gravity(cfg: SimConfig, input_path, target, out, stage, what, **attrs
         Its stage name.
     what : str
         Name of the probe in log lines.
+    command : str
+        The option of ``python -m sim probe`` that asks for it (``--level``,
+        ``--tilt``, ``--restore``: only ``--restore`` starts from a reduced state).
     **attrs
         Further global attributes of the state file.
 
     Raises
     ------
-    ValueError
-        If the input's stage is one of :data:`NOT_AT_REST` (a poured pile or a
-        pour's checkpoint), before anything runs.
+    sim.io.StateFileError
+        If the input's stage is not :data:`RELAXED` (:data:`REDUCED` for
+        ``--restore``), before anything runs.
     """
-    sim, ds = _load_at_rest(cfg, input_path, "a probe changes gravity of a state at rest: a relaxed "
-                            "state (python -m sim relax) or a probe's state")
+    sim, ds = _load_input(cfg, input_path, command, restore=command == "--restore")
     g_start = np.array(sim.gravity, float)
     g_end = np.array(target(g_start), float)
 
@@ -85,7 +99,7 @@ def probe_file(cfg: SimConfig, input_path, level, out, stage="reduced"):
     if not 0.0 < level < 1.0:
         raise ValueError(f"level = {level!r}: the gravity reduction must be in (0, 1)")
     return change_gravity(cfg, input_path, lambda g: (1.0 - level) * g, out, stage,
-                          f"probe {level:g}", gravity_reduction=level)
+                          f"probe {level:g}", "--level", gravity_reduction=level)
 
 
 def tilt_file(cfg: SimConfig, input_path, tilt, out, stage):
@@ -94,7 +108,7 @@ def tilt_file(cfg: SimConfig, input_path, tilt, out, stage):
     if not (0.0 < abs(tilt) < 0.5):
         raise ValueError(f"tilt = {tilt!r}: the tilt of gravity must be in (-0.5, 0.5), not 0")
     return change_gravity(cfg, input_path, lambda g: g + (tilt * float(np.hypot(*g)), 0.0), out,
-                          stage, f"tilt {tilt:+g}", gravity_tilt=tilt)
+                          stage, f"tilt {tilt:+g}", "--tilt", gravity_tilt=tilt)
 
 
 def restore_file(cfg: SimConfig, input_path, out, stage="restored"):
@@ -102,7 +116,7 @@ def restore_file(cfg: SimConfig, input_path, out, stage="restored"):
     relax again (:func:`change_gravity`); the part of the strain increment
     that comes back is the elastic part."""
     return change_gravity(cfg, input_path, lambda g: (0.0, -GRAVITY), out, stage, "restore",
-                          gravity_reduction=0.0)
+                          "--restore", gravity_reduction=0.0)
 
 
 #: Equal increments in which :func:`stretch_file` imposes the support's strain
@@ -151,14 +165,14 @@ def stretch_file(cfg: SimConfig, input_path, strain, out, stage="stretched"):
     Raises
     ------
     ValueError
-        For a strain outside that range, a state not at rest, a scene without
-        the support or a frictionless support, before anything runs.
+        For a strain outside that range, an input not relaxed
+        (:class:`sim.io.StateFileError`), a scene without the support or a
+        frictionless support, before anything runs.
     """
     strain = float(strain)
     if not (0.0 < abs(strain) < 0.01):
         raise ValueError(f"stretch = {strain!r}: the support's strain must be in (-0.01, 0.01), not 0")
-    sim, ds = _load_at_rest(cfg, input_path, "the support stretch starts from a state at rest (a "
-                            "relaxed state)")
+    sim, ds = _load_input(cfg, input_path, "--stretch")
     if BODY_SUPPORT not in sim.body_ids:
         raise ValueError(f"{input_path}: the scene has no support to stretch (physics.support = false)")
     if not sim.model.support_friction > 0.0:

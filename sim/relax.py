@@ -15,7 +15,7 @@ from .blowup import BlowUpError
 from .checkpoint import keep_last_good
 from .config import SimConfig
 from .engine import Simulation
-from .io import load_simulation, save_state
+from .io import check_input_stage, lineage, load_simulation, save_state
 from .progress import Progress, fixed_remaining, summary
 from .run_loop import Interrupted, stop_on_signals
 from .timestep import check_run, dt_source
@@ -204,7 +204,7 @@ def run_stage(cfg: SimConfig, sim, ds, out, stage, what, work, extra_time=0.0, g
     sim : Simulation
         The pile, as read from the file.
     ds : xarray.Dataset
-        The file (its ``protocol`` and ``seed`` carry over).
+        The file (its identity carries over: :func:`sim.io.lineage`).
     out : path
         The stage's state file (written atomically).
     stage, what : str
@@ -241,15 +241,23 @@ def run_stage(cfg: SimConfig, sim, ds, out, stage, what, work, extra_time=0.0, g
             raise
         finally:
             sim.heartbeat = None
-        save_state(sim, out, cfg.to_dict(), stage=stage, protocol=ds.attrs.get("protocol", ""),
-                   seed=int(ds.attrs.get("seed", -1)), **attrs)
+        save_state(sim, out, cfg.to_dict(), stage=stage, **lineage(ds), **attrs)
     summary(sim, what, _time.monotonic() - t)
     return sim
 
 
 def relax_file(cfg: SimConfig, input_path, out):
-    """Relax the pile of a state file and save it as the ``relaxed`` stage."""
+    """Relax the pile of a poured state file and save it as the ``relaxed`` stage.
+
+    Raises
+    ------
+    sim.io.StateFileError
+        For a file of another stage (a pour's checkpoint, a blow-up's last
+        good state, a relaxed or probed pile), before anything runs.
+    """
     sim, ds = load_simulation(input_path, cfg.model)
+    check_input_stage(input_path, ds, lambda stage: stage == "poured", "python -m sim relax",
+                      "a poured state (stage 'poured', written by python -m sim pour)")
 
     def work(progress):
         relax(sim, cfg, f"relax {ds.attrs.get('protocol', '')} seed {ds.attrs.get('seed', '')}",

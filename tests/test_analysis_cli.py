@@ -118,7 +118,7 @@ def test_params_command_prints_effective_defaults(capsys):
 def test_stress_only_fields_and_their_ensemble(tmp_path, states, capsys):
     """Without --reduced and with no optional quantity: the stress fields and
     their balance check only, and an ensemble of such files."""
-    relaxed, _, _, _ = states
+    relaxed, _, s, _ = states
     out, chk = tmp_path / "f.nc", tmp_path / "f.checks.json"
     assert main(["fields", "--relaxed", relaxed, "--quantities", "--out", str(out), "--checks", str(chk),
                  "--params", SMALL]) == 0
@@ -127,8 +127,11 @@ def test_stress_only_fields_and_their_ensemble(tmp_path, states, capsys):
     with xr.open_dataset(out) as ds:
         assert "stress" in ds and "stress_orientation" in ds
         assert not {"stress_increment", "fabric", "strain_increment", "displacement_gradient"} & set(ds.variables)
+    other = write_state(tmp_path / "seed1.nc", {**s, "attrs": {**s["attrs"], "seed": 1}})
+    out1 = tmp_path / "f1.nc"
+    assert main(["fields", "--relaxed", other, "--quantities", "--out", str(out1), "--params", SMALL]) == 0
     ens = tmp_path / "ens.nc"
-    assert main(["ensemble", "--fields", str(out), str(out), "--out", str(ens), "--params", SMALL]) == 0
+    assert main(["ensemble", "--fields", str(out), str(out1), "--out", str(ens), "--params", SMALL]) == 0
     with xr.open_dataset(ens) as ds:
         assert "stress_sem" in ds and "fabric" not in ds
     assert main(["fields", "--relaxed", relaxed, "--quantities", "strain", "--out", str(out),

@@ -136,16 +136,16 @@ def test_relax_and_probe_go_on_with_the_integrator_and_step_of_their_input(tmp_p
 def test_params_say_otherwise(tmp_path, caplog):
     """What --params sets is not taken from the input: a dt given is used with
     the input's integrator; both given, nothing is taken (and no line)."""
-    dt = _verlet_state(tmp_path / "relaxed.nc", "relaxed")
+    dt = _verlet_state(tmp_path / "poured.nc", "poured")
     caplog.set_level(logging.INFO, logger="sim")
     out = tmp_path / "again.nc"
-    assert main(["relax", "--input", str(tmp_path / "relaxed.nc"), "--out", str(out),
+    assert main(["relax", "--input", str(tmp_path / "poured.nc"), "--out", str(out),
                  "--params", '{"model": {"dt": 5e-6}}']) == 0
     assert _model(out) == ("verlet", 5e-6)
     assert [r.getMessage().split(" taken")[0] for r in caplog.records
             if "taken from the input" in r.getMessage()] == ["model.integrator = verlet"]
     caplog.clear()
-    assert main(["relax", "--input", str(tmp_path / "relaxed.nc"), "--out", str(out),
+    assert main(["relax", "--input", str(tmp_path / "poured.nc"), "--out", str(out),
                  "--params", f'{{"model": {{"integrator": "verlet", "dt": {dt / 2}}}}}']) == 0
     assert _model(out) == ("verlet", dt / 2)
     assert not any("taken from the input" in r.getMessage() for r in caplog.records)

@@ -134,13 +134,14 @@ def test_the_studys_relaxation_and_probes_pass_on_a_pile(poured):
     ({"model": {"dt": 1.0e-300}}, "model.dt = 1e-300"),
 ])
 @pytest.mark.parametrize("command", [["relax"], ["probe", "--level", "0.1"]])
-def test_a_relaxation_or_probe_at_an_extreme_is_refused_in_one_line(tmp_path, caplog, relaxed,
+def test_a_relaxation_or_probe_at_an_extreme_is_refused_in_one_line(tmp_path, caplog, poured, relaxed,
                                                                     params, named, command):
+    state = poured if command == ["relax"] else relaxed   # the stage each command takes
     if params.get("model", {}).get("dt") == "limit":      # the pile's own stability limit
-        sim, _ = load_simulation(relaxed)
+        sim, _ = load_simulation(state)
         params = {**params, "model": {"dt": sim.bound.dt_limit}}
     out = tmp_path / "out.nc"
-    status, errors, _ = _cli([*command, "--params", json.dumps(params), "--input", str(relaxed),
+    status, errors, _ = _cli([*command, "--params", json.dumps(params), "--input", str(state),
                               "--out", str(out)], caplog)
     assert status == 2
     assert len(errors) == 1 and named in errors[0] and "allowed" in errors[0], errors
