@@ -4,6 +4,9 @@ The analysis never imports the simulator: everything it knows about a pile
 comes from these files. :func:`load_state` checks names, dimensions, finiteness
 and index ranges and raises :class:`~analysis.errors.StateError` with the file,
 variable and first offending index, before any computation starts.
+:func:`check_identity` checks that a file is the pile and stage the argument
+naming it means, :func:`check_distinct_piles` that an ensemble's files are of
+one protocol and each pile once (docs/formats.md#which-file-is-which).
 """
 
 from __future__ import annotations
@@ -277,7 +280,8 @@ def check_identity(path: str, attrs: dict[str, Any], argument: str, stages: str,
     attrs : dict
         The file's global attributes.
     argument : str
-        The argument that named it (``--reduced``), in the error.
+        The argument that named it (``--reduced``; ``--probes reduced=``
+        when the path follows it without a space), in the error.
     stages : str
         A regular expression that the whole of the file's ``stage`` must match
         (:data:`REDUCTION_STAGES`, :data:`PROBE_STAGES`, ``"relaxed"``).
@@ -296,22 +300,22 @@ def check_identity(path: str, attrs: dict[str, Any], argument: str, stages: str,
         In one line naming the argument, the file, what it is and what was expected.
     """
     ident = identity(attrs)
+    named = f"{argument}{path}" if argument.endswith("=") else f"{argument} {path}"
     stage = ident.get("stage")
     if stage is not None and not re.fullmatch(stages, stage):
-        raise StateError(f"{argument} {path}: its stage is {stage!r}; {argument} takes {takes}")
+        raise StateError(f"{named}: its stage is {stage!r}; {argument} takes {takes}")
     if relaxed is None:
         return
     relaxed_path, parent = relaxed[0], identity(relaxed[1])
     same_file = os.path.exists(path) and os.path.exists(relaxed_path) and os.path.samefile(path, relaxed_path)
     if same_file or ident.get("data_digest", "-") == parent.get("data_digest"):
-        raise StateError(f"{argument} {path}: the same state as --relaxed {relaxed_path}; {argument} takes {takes}")
+        raise StateError(f"{named}: the same state as --relaxed {relaxed_path}; {argument} takes {takes}")
     differ = [k for k in ("protocol", "seed", "pour_digest") if _known_and_differ(ident, parent, k)]
     if differ:
-        raise StateError(f"{argument} {path}: a state of pile {pile_name(ident)}, but --relaxed {relaxed_path} is "
-                         f"of pile {pile_name(parent)} (their {' and '.join(differ)} differ); {argument} takes "
-                         f"{takes}")
+        raise StateError(f"{named}: a state of pile {pile_name(ident)}, but --relaxed {relaxed_path} is of pile "
+                         f"{pile_name(parent)} (another {' and '.join(differ)}); {argument} takes {takes}")
     if "relaxed_digest" in ident and "data_digest" in parent and ident["relaxed_digest"] != parent["data_digest"]:
-        raise StateError(f"{argument} {path}: it descends from the relaxed state with data_digest "
+        raise StateError(f"{named}: it descends from the relaxed state with data_digest "
                          f"{ident['relaxed_digest'][:16]}..., not from --relaxed {relaxed_path} (data_digest "
                          f"{parent['data_digest'][:16]}...); {argument} takes {takes}")
 

@@ -85,7 +85,7 @@ def test_the_reduced_state_of_another_pile_is_refused(tmp_path, piles, capsys):
     """Issue 47: wedge relaxed with layered reduced gave a median strain of -0.48, exit 0."""
     out = tmp_path / "f.nc"
     refused(capsys, fields(piles["wedge"][0], piles["layered"][1], out), "--reduced", piles["layered"][1],
-            "pile layered seed 1", "pile wedge seed 1", "protocol differ", "a gravity reduction")
+            "pile layered seed 1", "pile wedge seed 1", "(another protocol)", "a gravity reduction")
     assert not out.exists()
 
 
@@ -132,14 +132,14 @@ def test_a_probe_of_another_relaxed_state_is_refused(tmp_path, piles, capsys):
     refused(capsys, fields(moved, reduced, tmp_path / "f.nc"), "descends from the relaxed state with data_digest",
             f"not from --relaxed {moved}")
     resettled = pile(tmp_path / "resettled", "wedge", 1, digest="fedcba9876543210")[1]
-    refused(capsys, fields(relaxed, resettled, tmp_path / "f.nc"), "pour_digest differ",
+    refused(capsys, fields(relaxed, resettled, tmp_path / "f.nc"), "(another pour_digest)",
             "pour digest fedcba9876543210")
 
 
 def test_probes_are_checked_against_their_labels(tmp_path, piles, capsys):
     relaxed, reduced = piles["wedge"]
     argv = ["probes", "--relaxed", relaxed, "--probes", f"tiltp05={reduced}", "--out", str(tmp_path / "p.nc")]
-    refused(capsys, argv, f"--probes tiltp05= {reduced}: its stage is 'reduced'", "the probe of stage 'tiltp05'")
+    refused(capsys, argv, f"--probes tiltp05={reduced}: its stage is 'reduced'", "the probe of stage 'tiltp05'")
     argv[4] = f"reduced={piles['layered'][1]}"
     refused(capsys, argv, "pile layered seed 1")
     argv[4] = f"reduced={reduced}"
