@@ -49,8 +49,9 @@ def kernel_sources(package_dir=Path(__file__).parent):
     ``njit`` or :func:`sim.builds.build`) and, transitively, every module of
     the package that those import: a kernel may inline a helper from any of
     them, and this file, which holds the rule.  Subpackages
-    (``sim/numerics/``: the bench and the numerical studies) are not among them; their own kernels are cached by Numba's rule
-    (the modification time of their file).
+    (``sim/numerics/``: the bench and the numerical studies) are not among
+    them; their own kernels are cached by Numba's rule (the modification
+    time of their file).
 
     Parameters
     ----------
