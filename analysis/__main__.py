@@ -203,10 +203,14 @@ def cmd_general_fit(args, params) -> None:
     from .netcdf import write_dataset
     from .probes import general_fit_dataset
 
+    from .states import check_distinct_piles
+
     piles = [_read(p) for p in args.probes]
     for ds, p in zip(piles, args.probes):
         _require(ds, p, ("stress_increment", "strain_increment", "probe"))
     ensemble = _read(args.ensemble) if args.ensemble else None
+    check_distinct_piles(([(args.ensemble, ensemble.attrs)] if ensemble is not None else [])
+                         + [(p, ds.attrs) for p, ds in zip(args.probes, piles)], "--probes")
     ds = general_fit_dataset(piles, params, ensemble)
     write_dataset(ds, args.out, title="General 2D elastic fit of the probe increments, and reversibility",
                   params=params)
@@ -236,6 +240,7 @@ def cmd_ensemble(args, params) -> None:
 def cmd_moduli(args, params) -> None:
     from .elastic import moduli_dataset
     from .netcdf import write_dataset
+    from .states import check_distinct_piles
 
     ens = _read(args.ensemble)
     _require(ens, args.ensemble, ("stress_increment", "strain_increment"))
@@ -244,6 +249,8 @@ def cmd_moduli(args, params) -> None:
         ds = _read(p)
         _require(ds, p, ("stress_increment", "strain_increment"))
         piles.append(ds)
+    check_distinct_piles([(args.ensemble, ens.attrs)] + [(p, ds.attrs) for p, ds in zip(args.fields or [], piles)],
+                         "--fields")
     out = moduli_dataset(ens, piles, params)
     write_dataset(out, args.out, title=f"elastic moduli, protocol {out.attrs.get('protocol', '')}", params=params)
     _log(f"moduli -> {args.out}")
@@ -286,7 +293,13 @@ def cmd_base_pressure(args, params) -> None:
         check_distinct_piles([(s.path, s.attrs) for s in states], "--states")
         out = base_pressure_dataset(states, params)
     else:
-        out = combine_base_pressure([_read(p) for p in args.piles], list(args.piles), params)
+        piles = [_read(p) for p in args.piles]
+        for ds, p in zip(piles, args.piles):
+            _require(ds, p, ("seed", "x_bounds", "normal_force_density_per_seed", "shear_force_density_per_seed",
+                             "weight"))
+        check_distinct_piles([(p, {"protocol": ds.attrs.get("protocol", ""), "seed": seed})
+                              for p, ds in zip(args.piles, piles) for seed in ds["seed"].values], "--piles")
+        out = combine_base_pressure(piles, list(args.piles), params)
     n = out.attrs["n_seeds"]
     write_dataset(out, args.out, title=f"forces on the support, protocol {out.attrs.get('protocol', '')}, "
                   f"{n} piles", params=params)

@@ -274,3 +274,27 @@ def test_the_analysis_of_the_real_chain(chain, tmp_path, capsys):
     assert analysis(["fields", "--relaxed", relaxed, "--reduced", restored, "--out", str(out),
                      "--params", params]) == 1
     assert "--reduced takes a gravity reduction" in capsys.readouterr().err
+
+
+def test_every_reader_of_several_piles_counts_each_once(tmp_path, piles, capsys):
+    """moduli --fields, general-fit --probes and base-pressure --piles: the same pile
+    twice, or a pile of another protocol than the rest (and the ensemble), refused."""
+    made = {}
+    for protocol in ("wedge", "layered"):
+        relaxed, reduced = piles[protocol]
+        made[protocol] = {kind: str(tmp_path / f"{protocol}.{kind}.nc") for kind in ("fields", "probes", "bp")}
+        assert analysis([*fields(relaxed, reduced, made[protocol]["fields"]), "--params", SMALL]) == 0
+        assert analysis(["probes", "--relaxed", relaxed, "--probes", f"reduced={reduced}", "--out",
+                         made[protocol]["probes"], "--params", SMALL]) == 0
+        assert analysis(["base-pressure", "--states", reduced, "--out", made[protocol]["bp"],
+                         "--params", '{"base_pressure": {"stage": "reduced"}}']) == 0
+    ens = str(tmp_path / "ens.nc")
+    assert analysis(["ensemble", "--fields", made["wedge"]["fields"], "--out", ens, "--params", SMALL]) == 0
+    w, layered = made["wedge"], made["layered"]
+    out = ["--out", str(tmp_path / "out.nc")]
+    refused(capsys, ["moduli", "--ensemble", ens, "--fields", w["fields"], w["fields"], *out], "the same pile as")
+    refused(capsys, ["moduli", "--ensemble", ens, "--fields", layered["fields"], *out], "one protocol")
+    refused(capsys, ["general-fit", "--probes", w["probes"], w["probes"], *out], "the same pile as")
+    refused(capsys, ["general-fit", "--ensemble", ens, "--probes", layered["probes"], *out], "one protocol")
+    refused(capsys, ["base-pressure", "--piles", w["bp"], w["bp"], *out], "the same pile as")
+    refused(capsys, ["base-pressure", "--piles", w["bp"], layered["bp"], *out], "one protocol")
