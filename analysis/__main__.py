@@ -23,6 +23,7 @@ from . import __version__, draw, film, vtk
 from .errors import AnalysisError, InputError, ParamError
 from .fields import QUANTITIES
 from .params import parse_params
+from .paths import check_paths
 
 
 def code_digest() -> str:
@@ -522,6 +523,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
+        check_paths(args)
         params = parse_params(args.params)
     except ParamError as exc:
         print(f"error: {exc}", file=sys.stderr)

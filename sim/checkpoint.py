@@ -22,9 +22,15 @@ from .io import POUR_SECTIONS, StateFileError, code_version, load_simulation, sa
 log = logging.getLogger("sim")
 
 
+def last_good_path(out) -> Path:
+    """Where :func:`keep_last_good` saves the last good state of the run writing ``out``:
+    ``out`` with the suffix ``.lastgood.nc``."""
+    return Path(out).with_suffix(".lastgood.nc")
+
+
 def keep_last_good(sim, out, cfg, exc, **attrs):
     """Save the state a blow-up returned to, beside ``out``, under a name that says so."""
-    path = Path(out).with_suffix(".lastgood.nc")
+    path = last_good_path(out)
     save_state(sim, path, cfg.to_dict(), stage="lastgood", error=str(exc), **attrs)
     log.error("last good state (t = %.6g s) saved to %s", sim.time, path)
 

@@ -24,7 +24,11 @@ from pathlib import Path
 
 from . import __version__
 from .config import BOOKKEEPING, ConfigError, SimConfig
+from .checkpoint import last_good_path
+from .frames import partial_path
 from .io import OutputError, code_version, model_from_attrs, read_state
+from .lock import lock_path
+from .paths import PathRoles, at_file, check_distinct_paths
 from .settings_file import SettingsFileError, merge_settings, read_settings
 
 
@@ -133,6 +137,51 @@ def _int_list(option, text):
     if not values or min(values) < 1:
         raise ValueError(f"{option} {text!r}: give positive integers separated by commas")
     return values
+
+
+def _threads(text):
+    """The thread counts of ``bench --threads``, each at most what Numba may start."""
+    import numba
+
+    values = _int_list("--threads", text)
+    most = numba.config.NUMBA_NUM_THREADS
+    if max(values) > most:
+        raise ValueError(f"--threads {text!r}: at most {most} threads on this machine "
+                         f"(NUMBA_NUM_THREADS = {most}); give counts from 1 to {most}")
+    return values
+
+
+def _seed(seed):
+    """`seed` (``pour --seed``) if the generator and the state file take it, else ValueError."""
+    from .pour import SEED_MAX
+
+    if not 0 <= seed <= SEED_MAX:
+        raise ValueError(f"--seed {seed}: must be an integer from 0 to {SEED_MAX} (2^32 - 1), "
+                         "as the workflow's protocols.<protocol>.seeds")
+    return seed
+
+
+def _state_outputs(path):
+    """The file a run beside its state ``path`` may write: the last good state of a blow-up."""
+    return [("last good state", last_good_path(path))]
+
+
+#: The files each subcommand reads and writes (:func:`sim.paths.check_distinct_paths`):
+#: ``--params @FILE`` is read; the pour's checkpoint brings its lock and its frames so far.
+PATHS = {
+    "pour": PathRoles(inputs=("--params",), outputs=("--out", "--checkpoint", "--frames", "--log"),
+                      read={"--params": at_file},
+                      derived={"--out": _state_outputs,
+                               "--checkpoint": lambda path: [("lock", lock_path(path)),
+                                                             ("frames so far", partial_path(path))]}),
+    "relax": PathRoles(inputs=("--params", "--input"), outputs=("--out",),
+                       read={"--params": at_file}, derived={"--out": _state_outputs}),
+    "probe": PathRoles(inputs=("--params", "--input"), outputs=("--out",),
+                       read={"--params": at_file}, derived={"--out": _state_outputs}),
+    "warmup": PathRoles(),
+    "bench": PathRoles(inputs=("--state", "--scenes"), outputs=("--cache",)),
+    "summary": PathRoles(inputs=("states",)),
+}
 
 
 _REST = re.compile(r":[a-z]+:`~?([^`]+)`|``([^`]+)``")
@@ -268,6 +317,9 @@ def main(argv=None):
                         format="%(asctime)s %(levelname)s %(message)s")
     log = logging.getLogger("sim")
     try:
+        check_distinct_paths(args, PATHS[args.command])
+        if args.command == "pour":
+            _seed(args.seed)
         if args.command == "warmup":
             from .warmup import warmup
             warmup()
@@ -279,7 +331,7 @@ def main(argv=None):
             else:
                 bench_main(_int_list("--sizes", args.sizes), args.steps, args.repeats,
                            tuple(args.integrators.split(",")),
-                           _int_list("--threads", args.threads), Path(args.cache),
+                           _threads(args.threads), Path(args.cache),
                            args.state, args.peer)
             return 0
         if args.command == "summary":

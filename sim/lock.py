@@ -12,6 +12,12 @@ from pathlib import Path
 log = logging.getLogger("sim")
 
 
+def lock_path(checkpoint) -> Path:
+    """The lock file of a pour with the checkpoint `checkpoint`: ``<checkpoint>.lock``."""
+    checkpoint = Path(checkpoint)
+    return checkpoint.with_name(checkpoint.name + ".lock")
+
+
 class PourLockedError(RuntimeError):
     """Another live process is pouring the same pile."""
 

@@ -27,7 +27,7 @@ from .config import ConfigError, SimConfig
 from .engine import Simulation
 from .frames import FrameRecorder, partial_path
 from .io import save_state
-from .lock import PourLock, appended_log
+from .lock import PourLock, appended_log, lock_path
 from .progress import Progress, pour_remaining, summary
 from .release import pile_height_bound, pile_top, release_point, spot_clear
 from .run_loop import Interrupted, stop_on_signals
@@ -43,6 +43,11 @@ GRAVITY = 9.81
 #: Simulated time (s) after the last release within which every particle must
 #: have landed (see :func:`_in_flight`), else the pour fails.
 LANDING_TIME = 1.0
+
+#: The largest seed of a pile (the smallest is 0): that of the workflow's
+#: ``protocols.<protocol>.seeds`` (workflow/schemas/config.schema.yaml), well
+#: within the int64 a state file stores it as (:func:`sim.io.data_digest`).
+SEED_MAX = 2**32 - 1
 
 
 class LandingError(RuntimeError):
@@ -111,8 +116,8 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
     """
     if protocol not in ("wedge", "layered"):
         raise ValueError(f"protocol = {protocol!r}: must be 'wedge' or 'layered'")
-    if not isinstance(seed, int) or seed < 0:
-        raise ValueError(f"seed = {seed!r}: must be a non-negative integer")
+    if not isinstance(seed, int) or not 0 <= seed <= SEED_MAX:
+        raise ValueError(f"seed = {seed!r}: must be an integer from 0 to {SEED_MAX}")
     if not cfg.physics.support:
         raise ConfigError("physics.support = false: a pile is poured onto the support; "
                           "without it the particles fall for ever (allowed: true)")
@@ -122,7 +127,7 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
     with contextlib.ExitStack() as held:
         held.enter_context(stop_on_signals())
         lock = None if checkpoint is None else held.enter_context(
-            PourLock(checkpoint.with_name(checkpoint.name + ".lock"),
+            PourLock(lock_path(checkpoint),
                      stale_after=3 * cfg.pour.checkpoint_interval + 60.0))
         held.enter_context(appended_log(run_log))
         log.info("pour %s seed %d: started by process %s %d", protocol, seed,

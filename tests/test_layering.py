@@ -3,7 +3,8 @@ simulator imports nothing of the analysis, the analysis nothing of the
 simulator but its reader of settings files (it reads state files through the
 contract; settings, which precede both, are read by one reader,
 :mod:`sim.settings_file`, so that a number or a repeated key means the same to
-both), and no module of either package imports itself through others (no
+both) and the check that no output of a command line is an input or another
+output (:mod:`sim.paths`, one for both command lines), and no module of either package imports itself through others (no
 import cycle). Every import statement counts, also those inside functions."""
 
 import ast
@@ -47,8 +48,9 @@ def graph():
             for name, path in modules.items()}, modules
 
 
-#: What the analysis may import of the simulator: the one reader of settings.
-SHARED = ("sim.settings_file",)
+#: What the analysis may import of the simulator: the one reader of settings and
+#: the one check of a command line's paths.
+SHARED = ("sim.settings_file", "sim.paths")
 
 
 @pytest.mark.parametrize("package,forbidden", [("sim", ("analysis", "workflow")), ("analysis", ("sim", "workflow"))])

@@ -12,6 +12,7 @@ import sys
 
 from ..config import ConfigError
 from ..io import atomic_text, atomic_write, cf_attributes
+from ..paths import PathRoles, at_file, check_distinct_paths
 from ..settings_file import SettingsFileError, read_settings
 
 
@@ -44,12 +45,30 @@ def load_section(params, section):
     return sub
 
 
+#: The files of a check's command line (:func:`sim.paths.check_distinct_paths`).
+PATHS = PathRoles(inputs=("--params",), outputs=("--nc", "--figure", "--table"),
+                  read={"--params": at_file})
+
+
+def parser(section, description):
+    """The command line of ``python -m sim numerics <section>``: ``--params`` and the three outputs."""
+    ap = argparse.ArgumentParser(prog=f"python -m sim numerics {section}",
+                                 description=description)
+    ap.add_argument("--params", required=True,
+                    help=f"@FILE (YAML/JSON) or JSON/YAML text with a numerics.{section} section")
+    ap.add_argument("--nc", required=True, help="netCDF output")
+    ap.add_argument("--figure", required=True, help="PNG output")
+    ap.add_argument("--table", required=True, help="Markdown output")
+    return ap
+
+
 def run_numerics_check(section, description, argv, settings_class, compute, title, draw,
                        tabulate):
     """``python -m sim numerics <section>``: settings, computation and its three files.
 
     Parses ``--params`` (the ``numerics.<section>`` mapping) and the output
-    paths ``--nc``, ``--figure``, ``--table``; builds the settings, runs
+    paths ``--nc``, ``--figure``, ``--table`` (:func:`parser`; no two of them
+    one file, nor the ``--params`` file: :data:`PATHS`); builds the settings, runs
     ``compute(settings)`` (an :class:`xarray.Dataset`), writes it with the
     CF global attributes (:func:`sim.io.cf_attributes`), ``draw(ds, path)``
     and ``tabulate(ds, settings)`` (Markdown text), each atomically
@@ -59,14 +78,8 @@ def run_numerics_check(section, description, argv, settings_class, compute, titl
     -------
     xarray.Dataset
     """
-    ap = argparse.ArgumentParser(prog=f"python -m sim numerics {section}",
-                                 description=description)
-    ap.add_argument("--params", required=True,
-                    help=f"@FILE (YAML/JSON) or JSON/YAML text with a numerics.{section} section")
-    ap.add_argument("--nc", required=True, help="netCDF output")
-    ap.add_argument("--figure", required=True, help="PNG output")
-    ap.add_argument("--table", required=True, help="Markdown output")
-    args = ap.parse_args(argv)
+    args = parser(section, description).parse_args(argv)
+    check_distinct_paths(args, PATHS)
     raw = load_section(args.params, section)
     settings = settings_class.from_dict(raw)
     ds = compute(settings)

@@ -34,10 +34,16 @@ import sys
 import time
 from pathlib import Path
 
+from ..paths import PathRoles, check_distinct_paths
+
 #: Set in the environment of the process that ``perf record`` runs.
 CHILD = "POLYPILE_KERNEL_PROFILE_CHILD"
 KERNELS = ("pairs", "gather", "predict")
 WINDOW = 128  # bytes of machine code per line of the summary's hot windows
+
+
+#: The files of the command line (:func:`sim.paths.check_distinct_paths`).
+PATHS = PathRoles(inputs=("--state",), outputs=("--out",))
 
 
 def _parser():
@@ -146,6 +152,7 @@ def _annotate(out):
 def main(argv):
     """Run the command; returns the exit status."""
     args = _parser().parse_args(argv)
+    check_distinct_paths(args, PATHS)
     if args.repeats < 1:
         raise ValueError(f"--repeats = {args.repeats}: give at least 1")
     if not Path(args.state).is_file():
