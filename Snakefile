@@ -7,7 +7,8 @@ import sys
 from snakemake.utils import min_version
 
 sys.path.insert(0, workflow.basedir)  # for the modules of workflow/
-from workflow.reporting import Freshness, check_report_path, configuration_files, piles_made, report_path
+from workflow.reporting import (Freshness, check_report_path, configuration_files, piles_made, report_path,
+                                report_words)
 
 min_version("9.0")
 
@@ -36,13 +37,13 @@ include: "workflow/rules/reproduction.smk"
 
 
 # The first paragraph of the report (workflow/report/workflow.rst) names the
-# configuration files, the results folder and the piles there; a --report
-# under results/ but outside that folder is refused.
+# configuration files, the results folder and the piles there, the captions the
+# piles of each protocol; a --report under results/ but outside that folder is refused.
 CONFIGURATION = configuration_files(workflow.overwrite_configfiles, workflow.config_settings.config, REPO)
 check_report_path(report_path(sys.argv), RESULTS, CONFIGURATION)
-config["_report"] = {"configfiles": ", ".join(CONFIGURATION), "results": f"{RESULTS}/",
-                     "piles": piles_made(piles, analysis_seeds),
-                     "freshness": Freshness(lambda: workflow.dag, logger.warning) if report_path(sys.argv) else ""}
+config["_report"] = report_words(
+    CONFIGURATION, RESULTS, piles_made(piles, analysis_seeds),
+    Freshness(lambda: workflow.dag, logger.warning) if report_path(sys.argv) else "", config["protocols"])
 
 # What the scene asks for (config `outputs`; by default everything: every pile
 # stage, the picture of every relaxed pile, and the analysis), with the

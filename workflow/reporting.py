@@ -1,7 +1,10 @@
 """What the report (``snakemake --report``) says about its configuration: the
 first paragraph of workflow/report/workflow.rst names the configuration
 files, the results folder, how many piles are there and whether the results
-are up to date (:class:`Freshness`); and where a report may be written.
+are up to date (:class:`Freshness`); the captions say how many piles of each
+protocol the scene has, for any set of protocols (:func:`piles_per_protocol`);
+and where a report may be written.  The words come to the report's pages as
+``config["_report"]`` (:func:`report_words`).
 """
 
 import os
@@ -121,6 +124,49 @@ def piles_made(piles, analysis_seeds):
     there = sum(all(os.path.exists(piles.pile(p, s, st)) for st in piles.final_stages())
                 for p, s in piles.each())
     return f"{there} of {total} piles of {config['pour']['n_particles']} particles made so far"
+
+
+def piles_per_protocol(protocols):
+    """The piles of each protocol, in words: ``"2 wedge and 2 layered"``, ``"6 wedge"``.
+
+    Parameters
+    ----------
+    protocols : dict
+        Config ``protocols``: each protocol of the scene (one at least) with its ``seeds``.
+
+    Returns
+    -------
+    str
+        The number of seeds and the name of each protocol, in the configuration's order.
+    """
+    counts = [f"{len(spec['seeds'])} {protocol}" for protocol, spec in protocols.items()]
+    return ", ".join(counts[:-1]) + " and " + counts[-1] if len(counts) > 1 else counts[0]
+
+
+def report_words(configuration, results, piles, freshness, protocols):
+    """``config["_report"]``: what the report's pages (workflow/report/*.rst) say of the run.
+
+    Parameters
+    ----------
+    configuration : list of str
+        The configuration (:func:`configuration_files`).
+    results : str
+        The results folder (config ``results``).
+    piles : str
+        How many piles are made (:func:`piles_made`).
+    freshness : Freshness or str
+        Whether the results are up to date (:class:`Freshness`; empty without --report).
+    protocols : dict
+        Config ``protocols`` (:func:`piles_per_protocol`).
+
+    Returns
+    -------
+    dict
+        ``configfiles``, ``results``, ``piles``, ``freshness`` (workflow.rst)
+        and ``protocols``, the piles per protocol (the captions).
+    """
+    return {"configfiles": ", ".join(configuration), "results": f"{results}/", "piles": piles,
+            "freshness": freshness, "protocols": piles_per_protocol(protocols)}
 
 
 class Freshness:
