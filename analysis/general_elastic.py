@@ -42,6 +42,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import InputError
+
 #: Condition number above which the general fit is reported as not identified:
 #: the relative error of C can reach the condition number times the relative
 #: error of the data, so at 100 data known to 0.1 % pin C to 10 %.
@@ -108,12 +110,23 @@ def fit_general_stiffness(sigma: np.ndarray, u: np.ndarray, min_samples: int = M
         ``n_samples``, ``flag`` (:data:`GENERAL_FLAGS`; a fit that is not
         positive definite keeps its values but is flagged
         ``not_positive_definite``).
+
+    Raises
+    ------
+    InputError
+        When there are valid samples and every one of them has a zero
+        strain: the probes moved nothing, and nothing can be identified
+        anywhere (one line, instead of a file of fits that are all flagged).
     """
     s_m, u_m = mandel(sigma), mandel(u)
     valid = np.all(np.isfinite(s_m), axis=-1) & np.all(np.isfinite(u_m), axis=-1)
     n = valid.sum(axis=-1)
     s_m = np.where(valid[..., None], s_m, 0.0)
     u_m = np.where(valid[..., None], u_m, 0.0)
+    if valid.any() and not u_m.any():
+        raise InputError(f"general fit: nothing identified, the strain increment of every one of the "
+                         f"{int(valid.sum())} valid samples (probe x point) is zero: the probes moved no "
+                         "particle; look at the probe states and their increments (python -m analysis probes)")
     a = _design(u_m)                                   # (..., n, 3, 6)
     shape = a.shape[:-3]
     a = a.reshape(*shape, -1, 6)
