@@ -185,6 +185,12 @@ def test_base_pressure_names_the_stage_of_its_input(tmp_path, piles, capsys):
     argv = ["base-pressure", "--out", str(tmp_path / "bp.nc"), "--states"]
     refused(capsys, argv + [piles["wedge"][0], piles["wedge"][0]], "the same pile as")
     refused(capsys, argv + [piles["wedge"][0], piles["layered"][0]], "one protocol")
+    other = pile(tmp_path, "wedge", 2)[1]
+    refused(capsys, argv + [piles["wedge"][0], other], f"--states {other}: its stage is 'reduced', but",
+            "of stage 'relaxed'", "of one stage")
+    checkpoint = stamped(tmp_path / "pour.checkpoint.nc", step_pyramid(41, 0.006), stage="checkpoint",
+                         protocol="wedge", seed=3)
+    refused(capsys, argv + [checkpoint], "its stage is 'checkpoint'; --states takes the state of a finished stage")
 
 
 # ---------------------------------------------------------------- the simulator's stages
