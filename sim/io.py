@@ -94,7 +94,8 @@ def pour_digest(config: dict | None) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-#: What a state file of each stage that no stage may start from is (docs/formats.md#stages).
+#: What a state file of each stage is, in words, for a refusal (docs/formats.md#stages); any other
+#: stage is a probe's.
 STAGE_MEANING = {
     "poured": "a state not at rest (the pile as poured)",
     "checkpoint": "a state not at rest (a pour's checkpoint: the pour was stopped before its end)",
