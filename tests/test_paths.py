@@ -227,14 +227,31 @@ def test_a_seed_beyond_the_generator_s_range_is_refused_before_the_pour(tmp_path
     assert list(tmp_path.iterdir()) == []
 
 
-def test_the_simulator_s_seeds_are_the_workflow_s():
+def _seed_lists(schema):
+    """Every property ``seeds`` of a JSON schema (nested mappings and lists walked)."""
+    if isinstance(schema, dict):
+        if "seeds" in schema.get("properties", {}):
+            yield schema["properties"]["seeds"]
+        for value in schema.values():
+            yield from _seed_lists(value)
+    elif isinstance(schema, list):
+        for value in schema:
+            yield from _seed_lists(value)
+
+
+def test_the_workflow_s_seeds_are_the_simulator_s():
+    """The protocols' seeds and the pile numerics' seeds go to pour --seed: the
+    schemas refuse what the pour would."""
     import yaml
 
     from sim.pour import SEED_MAX
 
-    schema = yaml.safe_load((REPO / "workflow/schemas/config.schema.yaml").read_text())
-    seeds = schema["$defs"]["protocol"]["properties"]["seeds"]["items"]
-    assert (seeds["minimum"], seeds["maximum"]) == (0, SEED_MAX)
+    found = []
+    for name in ("config.schema.yaml", "numerics.schema.yaml"):
+        schema = yaml.safe_load((REPO / "workflow/schemas" / name).read_text())
+        found += [(name, s["items"].get("minimum"), s["items"].get("maximum")) for s in _seed_lists(schema)]
+    assert {f[0] for f in found} == {"config.schema.yaml", "numerics.schema.yaml"}
+    assert all(low == 0 and high == SEED_MAX for _, low, high in found), found
 
 
 def test_bench_threads_beyond_the_machine_are_refused(tmp_path):
