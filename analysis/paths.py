@@ -3,7 +3,8 @@ writes over a file it reads or over another of its outputs (``fields --relaxed
 R.nc --out R.nc`` replaced the state it computed from): :func:`check_paths`
 refuses such a command line in one line before anything is read, with the
 simulator's :func:`sim.paths.check_distinct_paths`, which the simulator's own
-command line uses too.
+command line uses too; so do the command lines of the pile numerics
+(:data:`NUMERICS_PATHS`).
 """
 
 from __future__ import annotations
@@ -60,21 +61,45 @@ PATHS = {
 }
 
 
-def check_paths(args: argparse.Namespace) -> None:
+_FIGURE = PathRoles(inputs=("--data",), outputs=("--out",))
+
+#: The files of the command lines of the pile numerics (:mod:`analysis.numerics`), by
+#: program and subcommand (None: it has none); ``--params`` and ``--model`` there are JSON text.
+NUMERICS_PATHS = {
+    ("python -m analysis.numerics.pile_precision", "data"): PathRoles(
+        inputs=("--states", "--summaries", "--pour-benchmarks", "--pour-cpu", "--relax-benchmarks",
+                "--relax-cpu"), outputs=("--out",)),
+    ("python -m analysis.numerics.pile_precision", "figure"): _FIGURE,
+    ("python -m analysis.numerics.ensemble_cost", "data"): PathRoles(
+        inputs=("--analysis-params", "--fields", "--pour-benchmarks", "--relax-benchmarks",
+                "--probe-benchmarks", "--base-pressure"), outputs=("--out",),
+        read={"--analysis-params": at_file}),
+    ("python -m analysis.numerics.ensemble_cost", "figure"): _FIGURE,
+    ("python -m analysis.numerics.piles_report", None): PathRoles(inputs=("--piles", "--ensemble"),
+                                                                  outputs=("--out",)),
+}
+
+
+def check_paths(args: argparse.Namespace, program: str | None = None) -> None:
     """Refuse a command line whose output is one of its inputs or another output.
 
     Parameters
     ----------
     args : argparse.Namespace
-        The parsed command line of ``python -m analysis`` (``args.command``
-        one of :data:`PATHS`).
+        The parsed command line: of ``python -m analysis`` (``args.command``
+        one of :data:`PATHS`), or of `program`.
+    program : str, optional
+        A command line of :data:`NUMERICS_PATHS` (its ``prog``), whose
+        subcommand is ``args.command`` if it has any.
 
     Raises
     ------
     PathsError
         One line naming both options and the file.
     """
+    roles = (PATHS[args.command] if program is None else
+             NUMERICS_PATHS[program, getattr(args, "command", None)])
     try:
-        check_distinct_paths(args, PATHS[args.command])
+        check_distinct_paths(args, roles)
     except PathCollision as exc:
         raise PathsError(str(exc)) from None

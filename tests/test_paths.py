@@ -16,7 +16,8 @@ from pathlib import Path
 import pytest
 
 import analysis.__main__ as analysis_main
-from analysis.paths import PATHS as ANALYSIS_PATHS, labelled
+from analysis.numerics import ensemble_cost, pile_precision, piles_report
+from analysis.paths import NUMERICS_PATHS, PATHS as ANALYSIS_PATHS, labelled
 from sim import cli
 from sim.numerics import command, kernel_profile
 from sim.paths import PathCollision, PathRoles, at_file, check_distinct_paths
@@ -113,7 +114,11 @@ COMMAND_LINES = (
        for name in ("collisions", "stability")]
     + [("sim numerics kernel-profile", kernel_profile._parser(), kernel_profile.PATHS)]
     + [(f"analysis {name}", p, ANALYSIS_PATHS[name])
-       for name, p in _subparsers(analysis_main.build_parser()).items()])
+       for name, p in _subparsers(analysis_main.build_parser()).items()]
+    + [(f"{top.prog} {name}", p, NUMERICS_PATHS[top.prog, name])
+       for top in (pile_precision._parser(), ensemble_cost._parser())
+       for name, p in _subparsers(top).items()]
+    + [(piles_report._parser().prog, piles_report._parser(), NUMERICS_PATHS[piles_report._parser().prog, None])])
 
 #: Options that name no file, and a value for each that a command line needs.
 NOT_PATHS = {"--protocol": "wedge", "--seed": "1", "--bookkeeping": None, "--level": "0.1",
@@ -121,7 +126,11 @@ NOT_PATHS = {"--protocol": "wedge", "--seed": "1", "--bookkeeping": None, "--lev
              "--sizes": None, "--steps": None, "--repeats": None, "--integrators": None,
              "--threads": None, "--peer": None, "--kernel": None, "--quantities": None,
              "--core-x": None, "--core-y": None, "--color-by": None, "--forces": None,
-             "--dpi": None, "--fps": None, "--title": None, "name": "fabric"}
+             "--dpi": None, "--fps": None, "--title": None, "name": "fabric",
+             "--model": None, "--seeds": "1"}
+
+#: Options that are settings as JSON text, not a file, in the command lines of analysis.numerics.
+JSON_TEXT = {"--params": "{}"}
 
 
 def _option(action):
@@ -135,9 +144,19 @@ def _options(parser):
 
 @pytest.mark.parametrize("name,parser,roles", COMMAND_LINES, ids=[c[0] for c in COMMAND_LINES])
 def test_every_option_is_a_path_in_or_out_or_named_as_no_path(name, parser, roles):
-    unknown = set(_options(parser)) - roles.options - set(NOT_PATHS)
+    text = set(JSON_TEXT) if "analysis.numerics" in name else set()
+    unknown = set(_options(parser)) - roles.options - set(NOT_PATHS) - text
     assert unknown == set(), f"{name}: say in its PathRoles whether these are read or written"
     assert roles.options <= set(_options(parser)), name
+
+
+def test_the_pile_numerics_refuse_their_output_over_an_input(tmp_path):
+    """The command lines of analysis.numerics call the check too (one line, status 2)."""
+    line = _refused(tmp_path, "-m", "analysis.numerics.pile_precision", "figure", "--data", "d.nc",
+                    "--out", "d.nc", says=("--out d.nc", "--data d.nc"))
+    assert line.endswith("give it a path of its own")
+    _refused(tmp_path, "-m", "analysis.numerics.piles_report", "--piles", "p.nc", "--ensemble", "e.nc",
+             "--out", "e.nc", says=("error: --out e.nc and --ensemble e.nc",))
 
 
 def _value(roles, option, path):
@@ -162,7 +181,7 @@ def _argv(parser, roles, given):
         action = options[option]
         value = (_value(roles, option, path) if path is not None else
                  _value(roles, option, f"{action.dest}.own") if option in roles.options else
-                 NOT_PATHS[option])
+                 {**NOT_PATHS, **JSON_TEXT}[option])
         if not action.option_strings:
             positional.append(value)
         elif action.nargs == 0:

@@ -13,6 +13,8 @@ from typing import Callable
 
 import xarray as xr
 
+from ..paths import check_paths
+
 log = logging.getLogger("analysis.numerics")
 
 
@@ -40,11 +42,13 @@ def data_or_figure(argv: list[str] | None, parser: argparse.ArgumentParser,
     Returns
     -------
     int
-        0, or 2 after logging a ValueError or FileNotFoundError (bad input).
+        0, or 2 after logging a ValueError or FileNotFoundError (bad input;
+        an output that is an input or another output, :func:`analysis.paths.check_paths`).
     """
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(asctime)s %(levelname)s %(message)s")
     try:
+        check_paths(args, parser.prog)
         if args.command == "data":
             data(args)
             log.info("wrote %s", args.out)

@@ -22,6 +22,7 @@ import xarray as xr
 
 from .ensemble_cost import HEADLINES
 from ..netcdf import write_text
+from ..paths import PathsError, check_paths
 from .pile_precision import OBSERVABLES, RESOLVED
 
 
@@ -149,15 +150,25 @@ def report(piles: xr.Dataset, ensemble: xr.Dataset, model: dict) -> str:
     return "\n".join(["# Numerics of whole piles", "", *piles_section(piles, model), *ensemble_section(ensemble)])
 
 
-def main(argv=None) -> int:
-    """Command line; returns the exit status."""
+def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="python -m analysis.numerics.piles_report", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--piles", required=True)
     ap.add_argument("--ensemble", required=True)
     ap.add_argument("--model", default="{}", help="the configuration's model section as JSON")
     ap.add_argument("--out", required=True)
+    return ap
+
+
+def main(argv=None) -> int:
+    """Command line; returns the exit status (2: an output that is an input or another output)."""
+    ap = _parser()
     args = ap.parse_args(argv)
+    try:
+        check_paths(args, ap.prog)
+    except PathsError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     with xr.open_dataset(args.piles) as p, xr.open_dataset(args.ensemble) as e:
         text = report(p.load(), e.load(), json.loads(args.model))
     write_text(text, args.out)
