@@ -10,7 +10,11 @@ message naming the setting, the value and what is allowed.  ``--bookkeeping``
 (JSON) carries the settings that change no result (checkpoint and progress
 intervals), which the workflow passes apart so that changing them re-runs
 nothing.  ``relax`` and ``probe`` take ``model.integrator`` and ``model.dt``
-of the state file they read where ``--params`` sets neither.
+of the state file they read where ``--params`` sets neither.  No output may
+be an input or another output, nor a file the run derives from one (a
+checkpoint's lock, a state's last good state): such a command line is refused
+in one line before anything runs (:mod:`sim.paths`), as are a
+``--seed`` outside 0 to 2^32 - 1 and ``bench --threads`` beyond Numba's.
 """
 
 from __future__ import annotations
