@@ -38,6 +38,12 @@ class ConfigError(ValueError):
 #: passes them outside the rule params so that changing them re-runs nothing.
 BOOKKEEPING = {"pour": ("checkpoint_interval", "progress_interval", "frame_interval")}
 
+#: Settings added after the study's piles were poured (issue 44), each at its
+#: default doing what the code did before it: at their default they are left
+#: out of the result settings (:func:`result_settings`), so those piles keep
+#: their pour digest and the workflow re-runs none of them.
+LATER_SETTINGS = {"pour": ("point_source", "outlet_width", "outlet_height", "line_source")}
+
 #: The JSON schema (YAML) of the simulator's sections of a configuration: the
 #: source of every default and bound of the simulator's settings.
 SCHEMA_FILE = Path(__file__).resolve().parent / "config.schema.yaml"
@@ -252,6 +258,16 @@ class PourParams:
     layered_slope_deg : float
         Layered sequence: the line never extends beyond the flanks of a pile
         of this slope, in degrees (below the angle of repose).
+    point_source : {"drip", "funnel"}
+        Wedge sequence: one particle at a time from a point, or a 2D hopper
+        outlet at the Beverloo flux (:mod:`sim.release`).
+    outlet_width : float
+        Funnel: outlet width in mean particle diameters.
+    outlet_height : float
+        Funnel: outlet height above the tip in mean particle diameters.
+    line_source : {"top", "rain"}
+        Layered sequence: a line as wide as the measured top, or a rain over
+        the plateau of the target pile (:mod:`sim.release`).
     checkpoint_interval : float
         Wall-clock seconds between checkpoints.
     progress_interval : float
@@ -269,6 +285,10 @@ class PourParams:
     line_margin: float = _default("pour", "line_margin")
     top_band: float = _default("pour", "top_band")
     layered_slope_deg: float = _default("pour", "layered_slope_deg")
+    point_source: str = _default("pour", "point_source")
+    outlet_width: float = _default("pour", "outlet_width")
+    outlet_height: float = _default("pour", "outlet_height")
+    line_source: str = _default("pour", "line_source")
     checkpoint_interval: float = _default("pour", "checkpoint_interval")
     progress_interval: float = _default("pour", "progress_interval")
     frame_interval: float = _default("pour", "frame_interval")
@@ -497,7 +517,8 @@ class SimConfig:
 
 
 def result_settings(settings: dict, sections=None) -> dict:
-    """A settings dict (as :meth:`SimConfig.to_dict`) without its :data:`BOOKKEEPING` keys.
+    """A settings dict (as :meth:`SimConfig.to_dict`) without its :data:`BOOKKEEPING` keys
+    and its :data:`LATER_SETTINGS` at their default.
 
     Parameters
     ----------
@@ -516,6 +537,8 @@ def result_settings(settings: dict, sections=None) -> dict:
         if sections is not None and section not in sections:
             continue
         drop = BOOKKEEPING.get(section, ())
-        out[section] = ({k: v for k, v in values.items() if k not in drop}
+        later = LATER_SETTINGS.get(section, ())
+        out[section] = ({k: v for k, v in values.items()
+                         if k not in drop and not (k in later and v == _default(section, k))}
                         if isinstance(values, dict) else values)
     return out

@@ -1,5 +1,6 @@
 """The pour: particles released one by one from a point (wedge) or line
-(layered) source (:mod:`sim.release`) onto the support, until all have landed.
+(layered) source (:mod:`sim.release`; the source's rate, speed and height:
+:func:`sim.release.source`) onto the support, until all have landed.
 
 The shapes of a pile come from a generator seeded with ``(seed, 0)``, and the
 release orientation of particle k from one seeded with ``(seed, 2, k)``
@@ -29,7 +30,8 @@ from .frames import FrameRecorder, partial_path
 from .io import save_state
 from .lock import PourLock, appended_log, lock_path
 from .progress import Progress, pour_remaining, summary
-from .release import pile_height_bound, pile_top, release_point, spot_clear
+from .release import (pile_height_bound, pile_top, release_point, source, spot_clear,
+                      touching)
 from .run_loop import Interrupted, stop_on_signals
 from .scene import make_scene
 from .shapes import make_shapes
@@ -141,7 +143,8 @@ def check_pour(cfg: SimConfig, protocol, seed, shapes, settle_time=0.1):
     Its simulated time is at most the releases, ``n_particles / rate``, plus
     ``settle_time`` and :data:`LANDING_TIME`; its fastest particle one
     released at ``release_speed`` that falls from ``release_height`` (plus
-    its circumradius) above the top of the pile to the support
+    its circumradius) above the top of the pile to the support (rate, speed
+    and height those of the source, :func:`sim.release.source`)
     (:func:`sim.release.pile_height_bound`), ``sqrt(v0² + 2 g h)``: the
     contacts only dissipate; its drag ``spin_drag``.
 
@@ -151,18 +154,19 @@ def check_pour(cfg: SimConfig, protocol, seed, shapes, settle_time=0.1):
         In one line naming the settings, before anything runs.
     """
     p = cfg.pour
+    src = source(cfg, shapes, protocol, GRAVITY)
     scene = make_scene(shapes, cfg.model, cfg.physics.support, cfg.physics.walls,
                        cfg.physics.rotation)
     height = pile_height_bound(shapes, cfg.physics.walls)
-    fall = p.release_height + float(np.max(shapes.radius)) + height
+    fall = src.elevation + float(np.max(shapes.radius)) + height
     check_run(scene, f"pour {protocol} seed {seed}",
-              duration=p.n_particles / p.rate + settle_time + LANDING_TIME,
-              speed=math.hypot(p.release_speed, math.sqrt(2.0 * GRAVITY * fall)),
+              duration=p.n_particles / src.rate + settle_time + LANDING_TIME,
+              speed=math.hypot(src.speed, math.sqrt(2.0 * GRAVITY * fall)),
               drag=p.spin_drag, sources={
-                  "duration": f"pour.n_particles = {p.n_particles} at pour.rate = {p.rate!r}/s "
+                  "duration": f"pour.n_particles = {p.n_particles} at {src.origin[0]} "
                               f"(and {settle_time + LANDING_TIME} s to settle and land)",
-                  "speed": f"pour.release_speed = {p.release_speed!r} m/s and a fall from "
-                           f"pour.release_height = {p.release_height!r} m above a pile up to "
+                  "speed": f"{src.origin[1]} and a fall from "
+                           f"{src.origin[2]} above a pile up to "
                            f"{height:.3g} m high",
                   "drag": f"pour.spin_drag = {p.spin_drag!r} 1/s",
                   "dt": dt_source(cfg.model)})
@@ -195,7 +199,8 @@ def _pour(cfg, protocol, seed, shapes, out, checkpoint, settle_time, lock, frame
     logs one line (:func:`_stopped`) and raises :class:`sim.run_loop.Interrupted`.
     """
     p = cfg.pour
-    interval = 1.0 / p.rate
+    src = source(cfg, shapes, protocol, GRAVITY)
+    interval = 1.0 / src.rate
     sim, next_release, resumed = _start(cfg, protocol, seed, checkpoint, shapes, (out, frames))
     recorder = FrameRecorder(shapes, p.n_particles, p.frame_interval) if frames else None
     if recorder is not None and resumed:
@@ -217,7 +222,7 @@ def _pour(cfg, protocol, seed, shapes, out, checkpoint, settle_time, lock, frame
     try:
         while sim.n < p.n_particles:
             if sim.time >= next_release:
-                next_release = _release(sim, cfg, protocol, seed, next_release, interval)
+                next_release = _release(sim, cfg, protocol, seed, next_release, interval, src.speed)
             sim.run(duration=max(next_release - sim.time, sim.dt))
             if recorder is not None:
                 recorder(sim)
@@ -227,7 +232,7 @@ def _pour(cfg, protocol, seed, shapes, out, checkpoint, settle_time, lock, frame
             if checkpoint is not None:
                 passed = (sim.snapshot(), next_release)
         sim.run(duration=settle_time)
-        _land(sim, cfg, what)
+        _land(sim, src, what, cfg.model.damping)
     except BlowUpError as exc:
         keep_last_good(sim, out, cfg, exc, **attrs)
         raise
@@ -267,37 +272,35 @@ def _stopped(sim, cfg, what, exc, checkpoint, passed, recorder, lock, attrs):
               what, exc.name, checkpoint, sim.time, sim.n, p.n_particles, checkpoint)
 
 
-def _release(sim, cfg, protocol, seed, next_release, interval):
-    """Release the next particle if its spot is clear; returns the time of the
-    release after it (sooner when this one waits for a clear spot)."""
+def _release(sim, cfg, protocol, seed, next_release, interval, speed):
+    """Release the next particle, moving down at `speed`, if its spot is clear;
+    returns the time of the release after it (sooner when this one waits for
+    a clear spot)."""
     k = sim.n
     x, y = release_point(sim, cfg, protocol, seed, k)
     if not spot_clear(sim, x, y, float(sim.shapes.radius[k])):
         return sim.time + 0.1 * interval
     theta = np.random.default_rng([seed, 2, k]).uniform(0, 2 * math.pi)
-    sim.place(k, x, y, theta, 0.0, -cfg.pour.release_speed)
+    sim.place(k, x, y, theta, 0.0, -speed)
     return next_release + interval
 
 
-def _in_flight(sim, cfg):
+def _in_flight(sim, elevation):
     """Mask of the particles in flight: touching nothing (no contact with a
     particle or body), with the energy to rise above their release height
-    (``y + |v|²/2g`` above the pile's top plus ``release_height`` plus their
-    circumradius).  A polygon hopping on the support or rolling down the
+    (``y + |v|²/2g`` above the pile's top plus the source's `elevation` plus
+    their circumradius).  A polygon hopping on the support or rolling down the
     flank is not in flight; one bounced off the pile is."""
-    c = sim.contacts()
-    touching = np.zeros(sim.n, bool)
-    touching[c["i"]] = True
-    touching[c["j"][c["j"] >= 0]] = True
     g = max(float(np.hypot(*sim.gravity)), 1e-12)
     reach = sim.position[:, 1] + np.sum(sim.velocity ** 2, axis=1) / (2.0 * g)
-    release = pile_top(sim) + cfg.pour.release_height + sim.shapes.radius[:sim.n]
-    return ~touching & (reach > release)
+    release = pile_top(sim) + elevation + sim.shapes.radius[:sim.n]
+    return ~touching(sim) & (reach > release)
 
 
-def _land(sim, cfg, what):
-    """Run on until no particle is in flight (:func:`_in_flight`), at most
-    :data:`LANDING_TIME` s of simulated time.
+def _land(sim, src, what, damping):
+    """Run on until no particle is in flight (:func:`_in_flight` above the
+    source `src`), at most :data:`LANDING_TIME` s of simulated time
+    (`damping`: ``model.damping``, for the message).
 
     Raises
     ------
@@ -305,14 +308,13 @@ def _land(sim, cfg, what):
         Naming how many particles are still in flight and how fast they move.
     """
     t0 = sim.time
-    while np.any(flying := _in_flight(sim, cfg)):
+    while np.any(flying := _in_flight(sim, src.elevation)):
         if sim.time - t0 >= LANDING_TIME:
             speed = np.hypot(*sim.velocity.T)
             raise LandingError(
                 f"{what}: {int(np.sum(flying))} of {sim.n} particles are still in flight "
                 f"{LANDING_TIME} s after the last release (fastest {float(speed.max()):.3g} "
                 f"m/s, highest at y = {float(sim.position[:, 1].max()):.3g} m): they bounce "
-                f"off the pile; lower pour.release_speed = {cfg.pour.release_speed} m/s or "
-                f"pour.release_height = {cfg.pour.release_height} m, or raise "
-                f"model.damping = {cfg.model.damping}")
+                f"off the pile; lower {src.origin[1]} or {src.origin[2]}, or raise "
+                f"model.damping = {damping}")
         sim.run(duration=0.01)

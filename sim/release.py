@@ -1,11 +1,24 @@
 """Where a pour releases its particles: the tip and top of the pile, the
-target pile of the line source, and whether the release spot is clear.
+target pile of the line source, the source's rate, speed and height
+(:func:`source`), and whether the release spot is clear.
 
-* **Wedge sequence (point source).**  Particles are released one at a time,
-  every ``1/rate`` seconds, at ``x = 0`` plus a uniform jitter of
-  ``±jitter``, at ``release_height`` above the current tip of the pile (plus
-  the particle's circumradius), moving down at ``release_speed``.
-* **Layered sequence (line source).**  The release point is uniform along a
+* **Wedge sequence (point source), ``point_source: drip``** (the default).
+  Particles are released one at a time, every ``1/rate`` seconds, at ``x = 0``
+  plus a uniform jitter of ``±jitter``, at ``release_height`` above the
+  current tip of the pile (plus the particle's circumradius), moving down at
+  ``release_speed``.
+* **Wedge sequence, ``point_source: funnel``.**  A 2D hopper outlet of
+  ``outlet_width`` mean particle diameters d (:func:`mean_diameter`), held
+  ``outlet_height`` diameters above the rising top of the heap, its flowing
+  layer included (:func:`heap_top`), and never in its own stream
+  (:func:`above_stream`): the outlet sets the flux,
+  that of the 2D Beverloo law (:func:`beverloo_rate`), and the release speed,
+  that of the slowest stream that carries it (:func:`stream_speed`); the
+  outlet is cut into :func:`outlet_slots` columns one largest particle wide,
+  particle k falling in column ``k mod slots`` at a uniform place inside it.
+  ``rate``, ``release_height``, ``release_speed`` and ``jitter`` are unused.
+* **Layered sequence (line source), ``line_source: top``** (the default).
+  The release point is uniform along a
   horizontal line at the same height.  Its length follows the momentary width
   of the pile's top: the horizontal extent (centre ± circumradius) of the
   settled particles whose tops lie within ``top_band`` of the highest one,
@@ -18,6 +31,12 @@ target pile of the line source, and whether the release spot is clear.
   base of the final pile and every later layer is narrower: the pile grows
   layer by layer without avalanches and its slope stays below the angle of
   repose.
+* **Layered sequence, ``line_source: rain``.**  A rain over the plateau of the
+  same target pile, growing layer by layer: the line spans the horizontal
+  section of the target pile at the height where its lower part holds the
+  particles released so far (:func:`rain_half_width`), whatever the pile's
+  measured top, so the line narrows at the speed that builds flanks of
+  ``layered_slope_deg``.
 
 A particle counts as *settled* when its speed is below 0.1 m/s; the tip is the
 highest ``y + R`` of settled particles (0 on the bare support).  A release
@@ -35,9 +54,22 @@ import math
 
 import numpy as np
 
+from dataclasses import dataclass
+
 from .config import SimConfig
 
 SETTLED_SPEED = 0.1
+
+#: Solid fraction of the target pile of the line source and of the bulk
+#: leaving the funnel (:func:`beverloo_rate`); the study's piles pack at about 0.8.
+PILE_PACKING = 0.8
+
+#: Discharge coefficient C and shape coefficient k of the 2D Beverloo law
+#: (:func:`beverloo_rate`): C = 1.03 for slot orifices (Nedderman, *Statics and
+#: kinematics of granular materials*, CUP 1992, ch. 10), k = 1.5 (Beverloo,
+#: Leniger & van de Velde, Chem. Eng. Sci. 15, 260, 1961).
+BEVERLOO_C = 1.03
+BEVERLOO_K = 1.5
 
 
 def _settled(sim):
@@ -54,6 +86,39 @@ def pile_top(sim):
     if not s.any():
         return 0.0
     return float(np.max(sim.position[s, 1] + sim.shapes.radius[:sim.n][s]))
+
+
+def touching(sim):
+    """Mask of the active particles in contact with a particle or a body (support, walls)."""
+    if sim.n == 0:
+        return np.zeros(0, bool)
+    c = sim.contacts()
+    mask = np.zeros(sim.n, bool)
+    mask[c["i"]] = True
+    mask[c["j"][c["j"] >= 0]] = True
+    return mask
+
+
+def heap_top(sim, on):
+    """Height of the heap's top, its flowing layer included: the highest
+    ``y + R`` of the particles `on` the heap (:func:`touching`; 0 when none),
+    so that a particle falling free from the source does not count."""
+    if not on.any():
+        return 0.0
+    return float(np.max(sim.position[:sim.n][on, 1] + sim.shapes.radius[:sim.n][on]))
+
+
+def above_stream(sim, free, x, y, radius):
+    """Height (≥ `y`) at which a disc of `radius` at `x` lies above every
+    `free` particle (not touching anything) whose circumdisc spans `x` within
+    `radius`: the outlet never releases into its own stream when the heap's
+    top, and with it the outlet, drops by a contact lost."""
+    pos = sim.position[:sim.n]
+    reach = sim.shapes.radius[:sim.n] + radius
+    below = free & (np.abs(pos[:, 0] - x) < reach)
+    if not below.any():
+        return y
+    return max(y, float(np.max(pos[below, 1] + reach[below])))
 
 
 def top_width(sim, band):
@@ -73,10 +138,10 @@ def top_width(sim, band):
 def target_pile(shapes, slope_deg):
     """Half base width and height of a triangular pile of all the particles.
 
-    Its area is their total area over a solid fraction of 0.8; its flanks rise
-    at ``slope_deg``.
+    Its area is their total area over a solid fraction of
+    :data:`PILE_PACKING`; its flanks rise at ``slope_deg``.
     """
-    area = float(np.sum(shapes.area)) / 0.8
+    area = float(np.sum(shapes.area)) / PILE_PACKING
     slope = math.tan(math.radians(slope_deg))
     half = math.sqrt(area / slope)
     return half, half * slope
@@ -111,6 +176,146 @@ def pile_height_bound(shapes, walls=None):
     return height
 
 
+@dataclass(frozen=True)
+class Source:
+    """What a pour's source does, whatever the pile.
+
+    Attributes
+    ----------
+    rate : float
+        Releases per second.
+    speed : float
+        Downward speed of a released particle, m/s.
+    elevation : float
+        Height of the release point above the tip of the pile (plus the
+        particle's circumradius), m.
+    origin : tuple of str
+        The settings that give rate, speed and elevation, for messages.
+    """
+
+    rate: float
+    speed: float
+    elevation: float
+    origin: tuple
+
+
+def mean_diameter(shapes):
+    """Mean circumdiameter d of the particles (m), the unit of the funnel's settings."""
+    return 2.0 * float(np.mean(shapes.radius))
+
+
+def beverloo_rate(shapes, outlet_width, gravity):
+    """Particles per second through a 2D outlet, by the 2D Beverloo law.
+
+    The mass flux per unit time of a slot of width D in a plane is
+    ``W = C ρ_b sqrt(g) (D − k d)^{3/2}`` (Beverloo et al. 1961; the 2D form
+    of Nedderman 1992, ch. 10), with ``ρ_b`` the bulk density (particle
+    density times :data:`PILE_PACKING`), C = :data:`BEVERLOO_C` and
+    k = :data:`BEVERLOO_K`.  Divided by the mean particle mass, it is
+    ``C φ sqrt(g) (D − k d)^{3/2} / ā`` particles per second.
+
+    Parameters
+    ----------
+    shapes : sim.shapes.Shapes
+    outlet_width : float
+        D in mean diameters d (:func:`mean_diameter`), more than k.
+    gravity : float
+        g, m/s².
+    """
+    d = mean_diameter(shapes)
+    return (BEVERLOO_C * PILE_PACKING * math.sqrt(gravity)
+            * ((outlet_width - BEVERLOO_K) * d) ** 1.5 / float(np.mean(shapes.area)))
+
+
+def outlet_slots(shapes, outlet_width):
+    """Number of columns, each as wide as the largest particle, across the outlet (at least 1)."""
+    width = outlet_width * mean_diameter(shapes)
+    return max(1, int(width // (2.0 * float(np.max(shapes.radius)))))
+
+
+def stream_speed(shapes, outlet_width, rate):
+    """Release speed (m/s) of the funnel's stream: the slowest at which it carries `rate`.
+
+    Particle k falls in column ``k mod slots`` (:func:`outlet_slots`), so a
+    column receives a particle every ``slots / rate`` seconds; moving at
+    ``2 R_max rate / slots`` its predecessor (accelerated by gravity since)
+    is more than a largest diameter below when it comes, and the release
+    never waits for a clear spot in the free stream.
+    """
+    return 2.0 * float(np.max(shapes.radius)) * rate / outlet_slots(shapes, outlet_width)
+
+
+def funnel(cfg: SimConfig, protocol):
+    """Whether a pour of `protocol` under `cfg` pours from the funnel."""
+    return protocol == "wedge" and cfg.pour.point_source == "funnel"
+
+
+def source(cfg: SimConfig, shapes, protocol, gravity):
+    """The :class:`Source` of a pour of `protocol`: the funnel's
+    (:func:`beverloo_rate`, :func:`stream_speed`, ``outlet_height`` d) for a
+    wedge pour with ``pour.point_source: funnel``, else ``rate``,
+    ``release_speed`` and ``release_height`` as set."""
+    p = cfg.pour
+    if funnel(cfg, protocol):
+        rate = beverloo_rate(shapes, p.outlet_width, gravity)
+        speed = stream_speed(shapes, p.outlet_width, rate)
+        elevation = p.outlet_height * mean_diameter(shapes)
+        return Source(rate, speed, elevation,
+                      (f"the Beverloo rate {rate:.4g}/s of pour.outlet_width = "
+                       f"{p.outlet_width!r} diameters", f"the funnel's stream at {speed:.3g} m/s",
+                       f"pour.outlet_height = {p.outlet_height!r} diameters ({elevation:.3g} m)"))
+    return Source(p.rate, p.release_speed, p.release_height,
+                  (f"pour.rate = {p.rate!r}/s", f"pour.release_speed = {p.release_speed!r} m/s",
+                   f"pour.release_height = {p.release_height!r} m"))
+
+
+def rain_half_width(shapes, slope_deg, k):
+    """Half-length of the rain's line when particle k is released (m).
+
+    The target pile (:func:`target_pile`, half base L, height H) filled up to
+    height h holds the fraction ``f = 1 − (1 − h/H)²`` of its area, and its
+    section there is ``L (1 − h/H)`` wide on each side: released over
+    ``L sqrt(1 − f_k)``, with ``f_k`` the area of particles 0 to k−1 over
+    that of all, the particles fill the target pile from the base up, each
+    layer on the plateau of the one before.
+    """
+    half, _ = target_pile(shapes, slope_deg)
+    area = shapes.area
+    filled = float(np.sum(area[:k])) / float(np.sum(area))
+    return half * math.sqrt(max(1.0 - filled, 0.0))
+
+
+def _point_span(sim, cfg: SimConfig, k):
+    """Horizontal range ``(lo, hi)`` of the point source for particle k."""
+    p = cfg.pour
+    if p.point_source == "drip":
+        return -p.jitter, p.jitter
+    width = p.outlet_width * mean_diameter(sim.shapes)
+    slots = outlet_slots(sim.shapes, p.outlet_width)
+    left = -0.5 * width + (k % slots) * width / slots
+    room = max(0.5 * width / slots - float(sim.shapes.radius[k]), 0.0)
+    centre = left + 0.5 * width / slots
+    return centre - room, centre + room
+
+
+def _line_span(sim, cfg: SimConfig, k, top):
+    """Horizontal range ``(lo, hi)`` of the line source for particle k under a tip at `top`."""
+    p = cfg.pour
+    radius = float(sim.shapes.radius[k])
+    if p.line_source == "rain":
+        half = max(rain_half_width(sim.shapes, p.layered_slope_deg, k), radius)
+        return -half, half
+    half, height = target_pile(sim.shapes, p.layered_slope_deg)
+    bound = max(half * (1.0 - top / height), radius)
+    extent = top_width(sim, p.top_band)
+    lo, hi = (-bound, bound) if extent is None else extent
+    lo = max(lo - p.line_margin, -bound)
+    hi = min(hi + p.line_margin, bound)
+    if hi <= lo:
+        lo, hi = -bound, bound
+    return lo, hi
+
+
 def release_point(sim, cfg: SimConfig, protocol, seed, k):
     """Where particle k would be released now, as ``(x, y)``.
 
@@ -118,23 +323,16 @@ def release_point(sim, cfg: SimConfig, protocol, seed, k):
     """
     rng = np.random.default_rng([seed, 1, k])
     radius = float(sim.shapes.radius[k])
-    top = pile_top(sim)
-    y = top + cfg.pour.release_height + radius
-    if protocol == "wedge":
-        lo, hi = -cfg.pour.jitter, cfg.pour.jitter
-    else:
-        half, height = target_pile(sim.shapes, cfg.pour.layered_slope_deg)
-        bound = max(half * (1.0 - top / height), radius)
-        extent = top_width(sim, cfg.pour.top_band)
-        lo, hi = (-bound, bound) if extent is None else extent
-        lo = max(lo - cfg.pour.line_margin, -bound)
-        hi = min(hi + cfg.pour.line_margin, bound)
-        if hi <= lo:
-            lo, hi = -bound, bound
+    on = touching(sim) if funnel(cfg, protocol) else None
+    top = pile_top(sim) if on is None else heap_top(sim, on)
+    elevation = source(cfg, sim.shapes, protocol, float(np.hypot(*sim.gravity))).elevation
+    y = top + elevation + radius
+    lo, hi = _point_span(sim, cfg, k) if protocol == "wedge" else _line_span(sim, cfg, k, top)
     if sim.walls is not None:
         lo = min(max(lo, sim.walls[0] + radius), sim.walls[1] - radius)
         hi = max(min(hi, sim.walls[1] - radius), lo)
-    return rng.uniform(lo, hi), y
+    x = rng.uniform(lo, hi)
+    return x, (y if on is None else above_stream(sim, ~on, x, y, radius))
 
 
 def spot_clear(sim, x, y, radius):
