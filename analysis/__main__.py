@@ -23,7 +23,7 @@ from . import __version__, draw, film, vtk
 from .errors import AnalysisError, InputError, ParamError
 from .fields import QUANTITIES
 from .params import parse_params
-from .paths import check_paths
+from .paths import check_paths, labelled
 
 
 def code_digest() -> str:
@@ -69,12 +69,9 @@ def _labelled(items: list[str]) -> dict[str, str]:
     """``label=path`` pairs (label defaults to the name of the file's folder)."""
     out = {}
     for it in items:
-        if "=" in it and "/" not in it.split("=", 1)[0]:
-            lab, path = it.split("=", 1)
-        else:
-            path = it
-            lab = os.path.basename(os.path.dirname(os.path.abspath(it))) or it
-        out[lab] = path
+        path = labelled(it)
+        out[it.partition("=")[0] if path != it else
+            os.path.basename(os.path.dirname(os.path.abspath(it))) or it] = path
     return out
 
 
