@@ -18,8 +18,8 @@ target pile of the line source, the source's rate, speed and height
   particle k falling in column ``k mod slots`` at a uniform place inside it.
   ``rate``, ``release_height``, ``release_speed`` and ``jitter`` are unused.
 * **Layered sequence (line source), ``line_source: top``** (the default).
-  The release point is uniform along a
-  horizontal line at the same height.  Its length follows the momentary width
+  The release point is uniform along a horizontal line at the same height.
+  Its length follows the momentary width
   of the pile's top: the horizontal extent (centre ± circumradius) of the
   settled particles whose tops lie within ``top_band`` of the highest one,
   plus ``line_margin`` on each side.  It is also kept within the flanks of a
@@ -51,10 +51,9 @@ particles at the same places as the uninterrupted one.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
-
-from dataclasses import dataclass
 
 from .config import SimConfig
 

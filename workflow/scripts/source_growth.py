@@ -1,0 +1,146 @@
+"""How the pour's sources grow a small pile: flank angle, moving particles and flux.
+
+Pours a small pile (``--n`` particles, several seeds) from each source of
+docs/model.md#protocols (wedge: drip, funnel; layered: top, rain) with a film
+(:class:`sim.frames.FrameRecorder`, one frame every ``--frame`` s) and prints
+one table row per source, medians over the frames of the growth (from
+``--from`` of the particles released to the last release) of all seeds:
+
+* the flank angle: the slope of a straight line fitted, on each side, to the
+  surface profile (highest ``y + R`` of the settled particles in bins one mean
+  diameter wide) where it lies between 20 % and 80 % of the tip's height,
+  the mean of both sides (:func:`flank_angle`);
+* the moving particles: those faster than :data:`sim.release.SETTLED_SPEED`
+  whose centre lies below the tip (particles of the pile, not falling ones),
+  and among them those released more than :data:`OLD` s before (the pile set
+  in motion, an avalanche, not a particle landing);
+* the measured flux: particles released per second over the growth, against
+  the source's (:func:`sim.release.source`).
+
+Usage (docs/model.md, the table of the protocols)::
+
+    python workflow/scripts/source_growth.py --n 300 --seeds 1 2 --out /tmp/growth
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from sim.config import SimConfig
+from sim.pour import GRAVITY, pile_shapes, pour
+from sim.release import SETTLED_SPEED, mean_diameter, source
+
+#: Seconds after its release from which a moving particle counts as the pile's.
+OLD = 0.5
+
+#: (protocol, pour settings) of each source measured.
+SOURCES = {
+    "wedge drip": ("wedge", {"point_source": "drip"}),
+    "wedge funnel": ("wedge", {"point_source": "funnel"}),
+    "layered top": ("layered", {"line_source": "top"}),
+    "layered rain": ("layered", {"line_source": "rain"}),
+}
+
+
+def flank_angle(x, top_y, d):
+    """Mean flank slope in degrees of a surface given by particle tops, or NaN.
+
+    Parameters
+    ----------
+    x, top_y : ndarray
+        Centre x and top (``y + R``) of the settled particles, m.
+    d : float
+        Bin width, m (a mean particle diameter).
+    """
+    bins = np.floor(x / d).astype(int)
+    edges = np.unique(bins)
+    h = np.array([top_y[bins == b].max() for b in edges])
+    xc = (edges + 0.5) * d
+    tip = h.max()
+    angles = []
+    for side in (xc < 0, xc > 0):
+        use = side & (h > 0.2 * tip) & (h < 0.8 * tip)
+        if use.sum() < 3:
+            continue
+        slope = np.polyfit(xc[use], h[use], 1)[0]
+        angles.append(math.degrees(math.atan(abs(slope))))
+    return float(np.mean(angles)) if angles else math.nan
+
+
+def growth(frames, radius, d, start):
+    """Per frame of the growth: time, released, flank angle, moving particles,
+    moving particles released more than :data:`OLD` s before."""
+    with xr.open_dataset(frames) as ds:
+        t, released = ds.time.values, ds.released.values
+        x, y, speed = ds.x.values, ds.y.values, ds.speed.values
+    n = x.shape[1]
+    seen = np.isfinite(x)
+    released_at = np.where(seen.any(axis=0), t[np.argmax(seen, axis=0)], np.inf)
+    rows = []
+    for f in range(len(t)):
+        if released[f] < start * n or released[f] >= n:
+            continue
+        on = np.isfinite(x[f])
+        settled = on & (speed[f] < SETTLED_SPEED)
+        if not settled.any():
+            continue
+        tops = y[f] + radius
+        tip = tops[settled].max()
+        moving = on & (speed[f] >= SETTLED_SPEED) & (y[f] < tip)
+        rows.append((t[f], released[f], flank_angle(x[f][settled], tops[settled], d),
+                     int(moving.sum()), int((moving & (released_at < t[f] - OLD)).sum())))
+    return np.array(rows)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=300)
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--frame", type=float, default=0.02)
+    ap.add_argument("--from", dest="start", type=float, default=0.3)
+    ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--sources", nargs="+", default=list(SOURCES))
+    ap.add_argument("--pour", nargs="*", default=[], metavar="KEY=VALUE",
+                    help="pour settings for every source, e.g. release_speed=0.2")
+    args = ap.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    print("| source | flank angle (deg): median [10-90 %] | moving particles: median [max] "
+          f"| of them released > {OLD} s before: median [max] "
+          "| flux measured / set (1/s) | final flank (deg), each seed |")
+    print("|---|---|---|---|---|---|")
+    for name in args.sources:
+        protocol, settings = SOURCES[name]
+        extra = {k: float(v) for k, v in (item.split("=", 1) for item in args.pour)}
+        cfg = SimConfig.from_dict({"pour": {"n_particles": args.n, "frame_interval": args.frame,
+                                            "progress_interval": 1e9, **extra, **settings}})
+        rows, fluxes, finals = [], [], []
+        for seed in args.seeds:
+            stem = args.out / f"{name.replace(' ', '_')}_{seed}"
+            frames = stem.with_suffix(".frames.nc")
+            if not frames.exists():
+                pour(cfg, protocol, seed, stem.with_suffix(".nc"), frames=frames)
+            shapes = pile_shapes(cfg, seed)
+            radius = shapes.radius[:args.n]
+            d = mean_diameter(shapes)
+            g = growth(frames, radius, d, args.start)
+            rows.append(g)
+            fluxes.append((g[-1, 1] - g[0, 1]) / (g[-1, 0] - g[0, 0]))
+            with xr.open_dataset(stem.with_suffix(".nc")) as st:
+                finals.append(flank_angle(st.x.values, st.y.values + radius, d))
+        g = np.concatenate(rows)
+        angle = g[np.isfinite(g[:, 2]), 2]
+        rate = source(cfg, shapes, protocol, GRAVITY).rate
+        print(f"| {name} | {np.median(angle):.1f} [{np.percentile(angle, 10):.1f}-"
+              f"{np.percentile(angle, 90):.1f}] | {np.median(g[:, 3]):.0f} [{g[:, 3].max():.0f}] "
+              f"| {np.median(g[:, 4]):.0f} [{g[:, 4].max():.0f}] "
+              f"| {np.mean(fluxes):.0f} / {rate:.0f} | "
+              f"{' '.join(f'{a:.1f}' for a in finals)} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
