@@ -119,10 +119,11 @@ def test_funnel_rate_is_the_2d_beverloo_flux():
     d = 2.0 * float(np.mean(shapes.radius))
     rho_b = PILE_PACKING * cfg.model.density
     mass = float(np.mean(shapes.mass))
-    flux = BEVERLOO_C * rho_b * math.sqrt(GRAVITY) * (6.0 * d - BEVERLOO_K * d) ** 1.5 / mass
+    width = cfg.pour.outlet_width * d
+    flux = BEVERLOO_C * rho_b * math.sqrt(GRAVITY) * (width - BEVERLOO_K * d) ** 1.5 / mass
     src = source(cfg, shapes, "wedge", GRAVITY)
     assert src.rate == pytest.approx(flux, rel=1e-12)
-    assert src.elevation == pytest.approx(4.0 * d)
+    assert src.elevation == pytest.approx(cfg.pour.outlet_height * d)
     assert mean_diameter(shapes) == d
     # the drip and both line sources keep the settings as set
     assert source(cfg, shapes, "layered", GRAVITY).rate == cfg.pour.rate

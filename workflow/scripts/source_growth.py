@@ -120,9 +120,9 @@ def main(argv=None):
                                             "progress_interval": 1e9, **extra, **settings}})
         rows, fluxes, finals = [], [], []
         for seed in args.seeds:
-            stem = args.out / f"{name.replace(' ', '_')}_{seed}"
+            stem = args.out / "_".join([*name.split(), *args.pour, str(seed)])
             frames = stem.with_suffix(".frames.nc")
-            if not frames.exists():
+            if not frames.exists():  # else poured by an earlier run of the same settings
                 pour(cfg, protocol, seed, stem.with_suffix(".nc"), frames=frames)
             shapes = pile_shapes(cfg, seed)
             radius = shapes.radius[:args.n]
