@@ -26,7 +26,7 @@ from sim.engine import Simulation
 from sim.io import pour_digest
 from sim.pour import GRAVITY, pile_shapes, pour
 from sim.release import (BEVERLOO_C, BEVERLOO_K, PILE_PACKING, mean_diameter, rain_half_width,
-                         source, target_pile)
+                         release_point, source, target_pile)
 
 QUIET = {"progress_interval": 1e9, "checkpoint_interval": 1e9}
 FUNNEL = {"pour": {"n_particles": 80, "point_source": "funnel", **QUIET}}
@@ -42,8 +42,8 @@ def polygon(sim, i):
 
 
 def recorded_pour(monkeypatch, tmp_path, cfg, protocol, seed):
-    """Pour, recording each release's time and the largest overlap (m²) of the
-    released polygon with any other particle at that moment."""
+    """Pour, recording each release's time, particle, the largest overlap (m²)
+    of the released polygon with any other particle at that moment, and x."""
     releases = []
     original = Simulation.place
 
@@ -52,7 +52,7 @@ def recorded_pour(monkeypatch, tmp_path, cfg, protocol, seed):
         new = polygon(sim, k)
         overlap = max((new.intersection(polygon(sim, j)).area for j in range(sim.n) if j != k),
                       default=0.0)
-        releases.append((sim.time, k, overlap))
+        releases.append((sim.time, k, overlap, float(sim.position[k, 0])))
 
     monkeypatch.setattr(Simulation, "place", place)
     pour(cfg, protocol, seed, tmp_path / f"{protocol}{seed}.nc")
@@ -149,11 +149,33 @@ def test_funnel_sets_the_flux_and_never_releases_onto_a_polygon(monkeypatch, tmp
     assert rec[:, 2].max() < 1e-12 * float(np.min(pile_shapes(cfg, seed).area))
 
 
-def test_rain_never_releases_onto_a_polygon(monkeypatch, tmp_path):
+def test_rain_never_releases_onto_a_polygon_nor_off_the_plateau(monkeypatch, tmp_path):
+    """In a real pour each particle k falls within the section of the target
+    pile that :func:`rain_half_width` gives, whatever the pile's measured top."""
     cfg = SimConfig.from_dict(RAIN)
+    shapes = pile_shapes(cfg, 3)
     rec = recorded_pour(monkeypatch, tmp_path, cfg, "layered", 3)
     assert len(rec) == cfg.pour.n_particles
-    assert rec[:, 2].max() < 1e-12 * float(np.min(pile_shapes(cfg, 3).area))
+    assert rec[:, 2].max() < 1e-12 * float(np.min(shapes.area))
+    for _, k, _, x in rec:
+        k = int(k)
+        assert abs(x) <= max(rain_half_width(shapes, 20.0, k), shapes.radius[k])
+
+
+@pytest.mark.parametrize("protocol, settings", [("wedge", {"point_source": "funnel",
+                                                             "outlet_width": 100.0}),
+                                                ("layered", {"line_source": "rain"})])
+def test_new_sources_release_inside_side_walls(protocol, settings):
+    """An outlet or a rain wider than a narrow box still releases each
+    particle wholly inside its walls (as tests/test_protocols.py checks for
+    the defaults)."""
+    walls = (-0.02, 0.01)
+    cfg = SimConfig.from_dict({"pour": {"n_particles": 400, **settings}})
+    sim = Simulation(pile_shapes(cfg, 1), cfg.model, walls=walls)
+    for k in range(1, 400):
+        x, _ = release_point(sim, cfg, protocol, 1, k)
+        r = sim.shapes.radius[k]
+        assert walls[0] + r <= x <= walls[1] - r
 
 
 @pytest.mark.parametrize("protocol, settings", [("wedge", FUNNEL), ("layered", RAIN)])
