@@ -11,7 +11,6 @@ file or variable, and exit status 2 (parameters) or 1 (inputs, failed checks).
 from __future__ import annotations
 
 import argparse
-import hashlib
 import os
 import re
 import sys
@@ -19,29 +18,13 @@ import time
 from pathlib import Path
 from typing import Any
 
+from sim.digest import code_digest
+
 from . import __version__, draw, film, vtk
 from .errors import AnalysisError, InputError, ParamError
 from .fields import QUANTITIES
 from .params import parse_params
 from .paths import check_paths, labelled
-
-
-def code_digest() -> str:
-    """The digest of the analysis's sources, for ``--version``.
-
-    Returns
-    -------
-    str
-        The first 16 hex digits of the SHA-256 of every ``analysis/**/*.py``
-        (relative path and contents, in the order of the paths); the
-        simulator's own is ``sim.io.code_version``, which this package does
-        not import (sim and analysis meet only in the state files).
-    """
-    package = Path(__file__).parent
-    digest = hashlib.sha256()
-    for path in sorted(package.rglob("*.py")):
-        digest.update(path.relative_to(package).as_posix().encode() + b"\0" + path.read_bytes())
-    return digest.hexdigest()[:16]
 
 
 def _log(msg: str) -> None:
@@ -436,7 +419,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "ensembles, elastic fits, invariants, base pressure, figures. Reads particle states through "
                     "docs/formats.md#state-files only.")
     p.add_argument("--version", action="version",
-                   version=f"polypile analysis {__version__}, code digest {code_digest()} (of analysis/**/*.py)")
+                   version=f"polypile analysis {__version__}, code digest {code_digest(Path(__file__).parent)} "
+                           "(of analysis/*.py)")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def add(name, help_, func):

@@ -33,6 +33,7 @@ import xarray as xr
 
 from . import __version__
 from .config import ModelParams, result_settings
+from .digest import code_digest
 from .engine import Simulation
 from .scene import BODY_SUPPORT
 from .shapes import shapes_from_nodes
@@ -163,21 +164,16 @@ def lineage(ds: xr.Dataset) -> dict:
 
 @functools.lru_cache(maxsize=1)
 def code_version() -> str:
-    """Hash of the simulator's sources, the code version recorded in every state file.
-
-    It covers ``sim/*.py``: the files the workflow lists as the simulation
-    rules' code inputs.  A pour resumes
-    a checkpoint only if it was written by the same code.
+    """The code version recorded in every state file: :func:`sim.digest.code_digest`
+    of ``sim/*.py``, the code digest the workflow gives the simulation rules.
+    A pour resumes a checkpoint only if it was written by the same code.
 
     Returns
     -------
     str
-        The first 16 hex digits of the SHA-256 of the sources.
+        16 hex digits.
     """
-    digest = hashlib.sha256()
-    for path in sorted(Path(__file__).parent.glob("*.py")):
-        digest.update(path.name.encode() + b"\0" + path.read_bytes())
-    return digest.hexdigest()[:16]
+    return code_digest(Path(__file__).parent)
 
 
 #: CF version named by the ``Conventions`` attribute of every netCDF file of ``sim``.

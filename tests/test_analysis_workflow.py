@@ -38,7 +38,7 @@ def _project(tmp_path, analysis_cfg=None):
                       probe={{"levels": [0.1], "tilts": [], "stretch": 0.0, "restore": False}})
         from workflow.analysis_inputs import ANALYSIS_MEM_MB, AnalysisInputs, labelled
         from workflow.commands import Commands
-        from workflow.digest import code_digest
+        from sim.digest import code_digest
         from workflow.piles import Piles
         from workflow.scene import Scene
         piles = Piles(config)

@@ -50,7 +50,7 @@ def graph():
 
 #: What the analysis may import of the simulator: the one reader of settings and
 #: the one check of a command line's paths.
-SHARED = ("sim.settings_file", "sim.paths")
+SHARED = ("sim.settings_file", "sim.paths", "sim.digest")
 
 
 @pytest.mark.parametrize("package,forbidden", [("sim", ("analysis", "workflow")), ("analysis", ("sim", "workflow"))])

@@ -186,7 +186,7 @@ class Freshness:
     """
 
     #: Why a job would run, in words: (attribute of Snakemake's reason, words);
-    #: the code of sim/ and analysis/ travels as a param (workflow/digest.py).
+    #: the code of sim/ and analysis/ travels as a param (sim/digest.py).
     REASONS = (("params_changed", "code or settings changed"),
                ("code_changed", "a rule's command changed"),
                ("input_changed", "inputs changed"), ("updated_input", "inputs changed"),

@@ -20,7 +20,7 @@ from snakemake.settings.types import DeploymentMethod
 
 from workflow.analysis_inputs import ANALYSIS_FIGURES, ANALYSIS_MEM_MB, AnalysisInputs, labelled
 from workflow.commands import Commands
-from workflow.digest import code_digest
+from sim.digest import code_digest
 from workflow.numerics_piles import NumericsPiles
 from workflow.piles import PILE_STAGE_PATTERN, STAGE_PATTERN, Piles, Unrecorded, probe_input_stage
 from workflow.resources import SimResources, per_attempt
