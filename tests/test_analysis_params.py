@@ -1,4 +1,4 @@
-"""The analysis config: Python defaults and the workflow schema agree; the package never imports sim/."""
+"""The analysis config: Python defaults and the workflow schema agree (the imports of the package: tests/test_layering.py)."""
 
 import copy
 import glob
