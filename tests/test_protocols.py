@@ -13,7 +13,7 @@ from sim.probe import probe_file, restore_file, tilt_file
 from sim.relax import RelaxationError, relax, relax_file
 from sim.release import pile_top, release_point, target_pile, top_width
 
-from scenes import scene
+from scenes import dying_at_run, scene
 
 SMALL = {"pour": {"n_particles": 24, "rate": 200.0, "checkpoint_interval": 1e-9,
                   "progress_interval": 1e9},
@@ -26,16 +26,8 @@ def test_killed_pour_resumes_from_checkpoint_and_retraces_the_run(tmp_path, monk
     pour(cfg, "wedge", 3, whole)
 
     ckpt = tmp_path / "ck.nc"
-    calls = {"n": 0}
     original = Simulation.run
-
-    def dying_run(self, *args, **kwargs):
-        calls["n"] += 1
-        if calls["n"] == 15:
-            raise KeyboardInterrupt("killed")
-        return original(self, *args, **kwargs)
-
-    monkeypatch.setattr(Simulation, "run", dying_run)
+    monkeypatch.setattr(Simulation, "run", dying_at_run(15))
     out = tmp_path / "poured.nc"
     with pytest.raises(KeyboardInterrupt):
         pour(cfg, "wedge", 3, out, checkpoint=ckpt)

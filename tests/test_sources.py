@@ -18,6 +18,7 @@ import math
 import numpy as np
 import pytest
 import xarray as xr
+from scenes import dying_at_run
 from shapely import Polygon, box
 from shapely.affinity import rotate, translate
 
@@ -188,16 +189,8 @@ def test_a_killed_pour_of_a_new_source_resumes_bit_for_bit(tmp_path, monkeypatch
     whole = tmp_path / "whole.nc"
     pour(cfg, protocol, 5, whole)
     ckpt, out = tmp_path / "ck.nc", tmp_path / "poured.nc"
-    calls = {"n": 0}
     original = Simulation.run
-
-    def dying_run(self, *args, **kwargs):
-        calls["n"] += 1
-        if calls["n"] == 15:
-            raise KeyboardInterrupt("killed")
-        return original(self, *args, **kwargs)
-
-    monkeypatch.setattr(Simulation, "run", dying_run)
+    monkeypatch.setattr(Simulation, "run", dying_at_run(15))
     with pytest.raises(KeyboardInterrupt):
         pour(cfg, protocol, 5, out, checkpoint=ckpt)
     with xr.open_dataset(ckpt) as partial:
