@@ -311,6 +311,17 @@ def _numerics(argv):
         return 2
 
 
+def _announce_compile(log):
+    """Say so in the log when the kernels have no compiled copy yet: their first
+    run compiles them, about a minute without a progress line."""
+    import numba
+
+    if not any(Path(numba.config.CACHE_DIR).rglob("*.nbi")):
+        log.info("compiling the simulator's kernels into %s first (no compiled copy of this code yet: "
+                 "about a minute, once per version of the kernels' sources; python -m sim warmup "
+                 "compiles them ahead)", numba.config.CACHE_DIR)
+
+
 def main(argv=None):
     """Run the command line; returns the exit status."""
     argv = sys.argv[1:] if argv is None else list(argv)
@@ -354,21 +365,26 @@ def main(argv=None):
         cfg = _params(args.params, args.bookkeeping,
                       args.input if args.command in ("relax", "probe") else None)
         from . import pour, probe, relax
-        if args.command == "pour":
-            pour.pour(cfg, args.protocol, args.seed, args.out, args.checkpoint,
-                      frames=args.frames, run_log=args.log)
-        elif args.command == "relax":
-            relax.relax_file(cfg, args.input, args.out)
-        elif args.command == "probe":
-            stage = args.stage or Path(args.out).stem
-            if args.stretch is not None:
-                probe.stretch_file(cfg, args.input, args.stretch, args.out, stage)
-            elif args.tilt is not None:
-                probe.tilt_file(cfg, args.input, args.tilt, args.out, stage)
-            elif args.restore:
-                probe.restore_file(cfg, args.input, args.out, stage)
-            else:
-                probe.probe_file(cfg, args.input, args.level, args.out, stage)
+        from .run_loop import stop_on_signals
+        _announce_compile(log)
+        # from here on, not only from the run loop: a signal while the shapes
+        # are drawn or the kernels compile ends the run at its first chunk, in one line
+        with stop_on_signals():
+            if args.command == "pour":
+                pour.pour(cfg, args.protocol, args.seed, args.out, args.checkpoint,
+                          frames=args.frames, run_log=args.log)
+            elif args.command == "relax":
+                relax.relax_file(cfg, args.input, args.out)
+            elif args.command == "probe":
+                stage = args.stage or Path(args.out).stem
+                if args.stretch is not None:
+                    probe.stretch_file(cfg, args.input, args.stretch, args.out, stage)
+                elif args.tilt is not None:
+                    probe.tilt_file(cfg, args.input, args.tilt, args.out, stage)
+                elif args.restore:
+                    probe.restore_file(cfg, args.input, args.out, stage)
+                else:
+                    probe.probe_file(cfg, args.input, args.level, args.out, stage)
         return 0
     except (ConfigError, ValueError, FileNotFoundError) as exc:
         log.error("%s", exc)

@@ -156,3 +156,26 @@ def test_a_missing_input_is_one_line_before_anything_runs(tmp_path, caplog):
     assert main(["relax", "--input", str(tmp_path / "none.nc"), "--out", str(tmp_path / "r.nc")]) == 2
     errors = [r.getMessage() for r in caplog.records if r.levelno == logging.ERROR]
     assert errors == [f"state file {tmp_path / 'none.nc'} does not exist"]
+
+
+def test_a_first_run_says_it_compiles_the_kernels(tmp_path, monkeypatch, caplog):
+    """Without a compiled copy of the kernels in the cache the first run compiles
+    them for about a minute without a progress line: the log says so first,
+    and says nothing of it once the cache holds them."""
+    import logging
+
+    import numba
+
+    from sim.cli import _announce_compile
+
+    log = logging.getLogger("sim")
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path / "cache"))
+    with caplog.at_level(logging.INFO, logger="sim"):
+        _announce_compile(log)
+    assert [r.getMessage() for r in caplog.records if "compiling the simulator's kernels" in r.getMessage()]
+    (tmp_path / "cache" / "step").mkdir(parents=True)
+    (tmp_path / "cache" / "step" / "step.kernel-1.py311.nbi").write_bytes(b"")
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="sim"):
+        _announce_compile(log)
+    assert not caplog.records

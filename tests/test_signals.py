@@ -140,3 +140,30 @@ def test_a_run_of_steps_longer_than_the_progress_interval_is_not_silent(tmp_path
     pour(cfg, "wedge", 3, tmp_path / "poured.nc")
     # the first run after the first release is one run of steps: before, one line at most
     assert caplog.text.count("released 1 of 2 (50 %)") >= 3
+
+
+def test_a_signal_before_the_run_loop_ends_the_pour_in_one_line(tmp_path, monkeypatch, caplog):
+    """A SIGTERM while the pour draws its shapes (before its release loop, before
+    its kernels run) is held by the command line's handler, not the default
+    one that kills the process without a word: the pour ends at its first
+    chunk with one line, nothing saved, no lock, status 143."""
+    import sim.pour
+    from sim.cli import main
+
+    draw = sim.pour.pile_shapes
+
+    def drawn_then_signalled(*args, **kwargs):
+        shapes = draw(*args, **kwargs)
+        os.kill(os.getpid(), signal.SIGTERM)
+        return shapes
+
+    monkeypatch.setattr(sim.pour, "pile_shapes", drawn_then_signalled)
+    ckpt = tmp_path / "ck.nc"
+    with caplog.at_level(logging.INFO, logger="sim"):
+        status = main(["pour", "--params", json.dumps(PARAMS), "--protocol", "wedge", "--seed", "2",
+                       "--out", str(tmp_path / "p.nc"), "--checkpoint", str(ckpt)])
+    assert status == 128 + signal.SIGTERM
+    stops = [r.getMessage() for r in caplog.records if "stopped by SIGTERM" in r.getMessage()]
+    assert len(stops) == 1 and "before the first pass of its release loop; nothing saved" in stops[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
