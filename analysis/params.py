@@ -86,7 +86,7 @@ def _spec(name: str, prop: dict[str, Any]) -> dict[str, Any]:
     if "enum" in prop:
         spec["choices"] = list(prop["enum"])
     if "pattern" in prop:
-        spec["pattern"] = prop["pattern"]
+        spec["pattern"], spec["pattern_words"] = prop["pattern"], prop["patternWords"]
     return spec
 
 
@@ -123,7 +123,7 @@ def _check_value(name: str, value: Any, spec: dict[str, Any]) -> None:
             allowed = ", ".join(repr(c) for c in spec["choices"])
             raise ParamError(f"analysis.{name} = {value!r} is not allowed; allowed values: {allowed}")
         if "pattern" in spec and not re.fullmatch(spec["pattern"], value):
-            raise ParamError(f"analysis.{name} = {value!r} is not allowed; allowed: {spec['pattern']}")
+            raise ParamError(f"analysis.{name} = {value!r} is not allowed; allowed: {spec['pattern_words']}")
         return
     elif kind == "sizes":
         if (not isinstance(value, list) or not value

@@ -157,3 +157,34 @@ def test_a_crafted_stage_is_refused_even_when_no_fields_are_asked_for():
     config["analysis"]["base_pressure"]["stage"] = "relaxed.nc; touch pwned; echo "
     with pytest.raises(ConfigurationError, match="analysis.base_pressure.stage"):
         validate_config(config)
+
+
+def test_a_pattern_is_refused_with_its_rule_in_words():
+    """No regular expression reaches a user: every ``pattern`` of the schemas has
+    its rule in words beside it (``patternWords``), and a refused value is
+    named with those words."""
+    import yaml as _yaml
+
+    from workflow.validation import ConfigurationError, validate_config
+    from workflow_config import configuration
+
+    def patterns(node):
+        if isinstance(node, dict):
+            if "pattern" in node and isinstance(node["pattern"], str):
+                yield node
+            for value in node.values():
+                yield from patterns(value)
+        elif isinstance(node, list):
+            for value in node:
+                yield from patterns(value)
+
+    files = [REPO / "workflow" / "schemas" / "config.schema.yaml", REPO / "workflow" / "schemas" /
+             "numerics.schema.yaml", REPO / "sim" / "config.schema.yaml", REPO / "analysis" / "params.schema.yaml"]
+    found = [node for f in files for node in patterns(_yaml.safe_load(f.read_text()))]
+    assert len(found) >= 3 and all(node.get("patternWords") for node in found)
+    config = configuration()
+    config["results"] = "my results/ü"
+    with pytest.raises(ConfigurationError) as refused:
+        validate_config(config)
+    message = str(refused.value)
+    assert "results = 'my results/ü': allowed: a relative folder" in message and "^[" not in message

@@ -134,6 +134,8 @@ def schema_problem(value, path):
     if error is None:
         return None
     where = ".".join(str(p) for p in error.absolute_path) or "(top level)"
+    if error.validator == "pattern":     # the rule in words (patternWords beside it), not the regex
+        return f"{where} = {error.instance!r}: allowed: {error.schema['patternWords']}"
     return f"{where}: {error.message}"
 
 
