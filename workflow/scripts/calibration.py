@@ -1,0 +1,267 @@
+"""Calibrate the sources before the stresses (issue 44, step 4): one record per pile.
+
+Reads ``config/calibration.yaml``: the piles (``config/sweep_piles.yaml``,
+1600 particles), fresh seeds, and the *arms*, each a protocol and the settings
+that make its source.  Every (arm, seed) is poured, relaxed, probed and
+analysed by the workflow in its own working directory
+``results/calibration/ARM/seedS/`` (so that two piles run side by side, one
+per core, without sharing a Snakemake lock), with a film's frames every
+``frame_interval`` simulated seconds, and as soon as it lands its record is
+written to ``docs/reproduction/calibration/ARM-seedS.json``:
+
+* ``growth``: how the pile grew, read from the frames of the growth (from
+  :data:`START` of the particles released to the last release) by
+  :func:`growth_record`: the fraction of those frames in which *the flanks
+  flow* (at least :data:`FLOW_MIN` particles of the pile, released more than
+  ``OLD`` s before and with their centre below the tip, faster than the
+  settling speed: an avalanche, not a particle landing), the median and
+  largest number of such particles, the flank angle (median, 90th
+  percentile, largest) and the measured flux;
+* ``quantities``: the sweeps' per-pile numbers
+  (:func:`analysis.pile_quantities.pile_quantities`: shape, core solid
+  fraction, the five primary history statistics, core moduli), the σ_yy
+  column contrast of the lowest RVE row (``stress_column``, the low-variance
+  statistic of docs/reproduction.md) and the flank fabric (mean deviatoric
+  fraction and mirrored axis over the flank RVEs);
+* ``cpu_s``: CPU seconds of the pour, the relaxation and the probes, each,
+  from Snakemake's benchmark files;
+* ``commit``: the checkout the pile was made in.
+
+:data:`FLOW_MIN`, ``OLD`` and :data:`START` were fixed, and committed, before
+the first calibration pile was poured.  ``--table`` writes
+``docs/reproduction/calibration.md`` from the records (mean ± standard error
+over seeds, per arm).
+
+Usage::
+
+    .venv/bin/python workflow/scripts/calibration.py --jobs 2 [--arms "wedge funnel"] [--records DIR]
+    .venv/bin/python workflow/scripts/calibration.py --table
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+import yaml
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO))
+
+from analysis.history import mean_sem  # noqa: E402
+from analysis.params import parse_params  # noqa: E402
+from analysis.pile_quantities import pile_quantities, quantities  # noqa: E402
+from sim.config import SimConfig  # noqa: E402
+from sim.pour import pile_shapes  # noqa: E402
+from sim.release import mean_diameter  # noqa: E402
+from sim.settings_file import SettingsDumper, read_settings_file  # noqa: E402
+from workflow.scripts.reproduction_numbers import pile_stress_contrasts  # noqa: E402
+from workflow.scripts.source_growth import OLD, growth  # noqa: E402
+from workflow.validation import merge_configs, validate_config  # noqa: E402
+
+CONFIG = REPO / "config" / "calibration.yaml"
+RECORDS = REPO / "docs" / "reproduction" / "calibration"
+#: Particles of the pile, released more than OLD s before, moving in one frame, from which its flanks flow.
+FLOW_MIN = 5
+#: The growth: frames from this fraction of the particles released to the last release.
+START = 0.3
+#: Jobs whose benchmark files make the CPU time of a pile.
+JOBS = ("pour", "relax", "probe")
+
+
+def arm_config(cal: dict, arm: str, seed: int) -> dict:
+    """The workflow configuration of one calibration pile: the study's, the piles', the arm's protocol
+    alone with this seed, a film's frames (not the film), and the arm's settings."""
+    spec = cal["arms"][arm]
+    cfg = merge_configs(read_settings_file(REPO / "config" / "config.yaml"), read_settings_file(REPO / cal["piles"]))
+    cfg = merge_configs(cfg, {"pour": {"frame_interval": cal["frame_interval"]}})
+    cfg = merge_configs(cfg, spec["settings"])
+    cfg["protocols"] = {spec["protocol"]: {"seeds": [seed]}}
+    cfg["outputs"] = sorted(set(cfg["outputs"]) | {"film"})
+    validate_config(cfg)
+    return cfg
+
+
+def slug(arm: str) -> str:
+    """``wedge funnel`` → ``wedge_funnel`` (folder and file names)."""
+    return arm.replace(" ", "_")
+
+
+def targets(cfg: dict, protocol: str, seed: int) -> dict:
+    """The files of one pile the record is read from, relative to its working directory."""
+    res = cfg.get("results", "results/study")
+    stem = f"{res}/fields/{protocol}/seed{seed}"
+    return {"fields": f"{stem}.nc", "summary": f"{stem}.summary.json", "base_pressure": f"{stem}.base_pressure.nc",
+            "frames": f"{res}/piles/{protocol}/seed{seed}/frames.nc", "benchmarks": f"{res}/benchmarks"}
+
+
+def cpu_seconds(benchmarks: Path, protocol: str, seed: int) -> dict:
+    """CPU seconds of each simulation job of the pile (the probes summed), from Snakemake's benchmark files."""
+    out = {}
+    for job in JOBS:
+        files = sorted((benchmarks / job / protocol).glob(f"seed{seed}.tsv")) + \
+            sorted((benchmarks / job / protocol).glob(f"seed{seed}_*.tsv"))
+        total = 0.0
+        for f in files:
+            header, row = f.read_text().splitlines()[:2]
+            total += float(dict(zip(header.split("\t"), row.split("\t")))["cpu_time"])
+        out[job] = total if files else math.nan
+    out["total"] = float(sum(out.values()))
+    return out
+
+
+def growth_record(frames: Path, cfg: dict, protocol: str, seed: int) -> dict:
+    """The growth statistics of one pile from its frames (the fixed definitions of the module's docstring)."""
+    sim_cfg = SimConfig.from_dict({k: cfg[k] for k in ("model", "particles", "pour") if k in cfg})
+    shapes = pile_shapes(sim_cfg, seed)
+    n = cfg["pour"]["n_particles"]
+    g = growth(frames, shapes.radius[:n], mean_diameter(shapes), START)
+    angle = g[np.isfinite(g[:, 2]), 2]
+    old = g[:, 4]
+    return {"frames": int(len(g)), "flow_fraction": float(np.mean(old >= FLOW_MIN)),
+            "old_moving_median": float(np.median(old)), "old_moving_max": int(old.max()),
+            "moving_median": float(np.median(g[:, 3])),
+            "flank_median_deg": float(np.median(angle)), "flank_p90_deg": float(np.percentile(angle, 90)),
+            "flank_max_deg": float(angle.max()),
+            "flux_per_s": float((g[-1, 1] - g[0, 1]) / (g[-1, 0] - g[0, 0]))}
+
+
+def flank_fabric(fields: xr.Dataset, history: dict) -> dict:
+    """Mean deviatoric fraction and mirrored major-axis angle (deg) of the fabric over the flank RVEs."""
+    x, y = fields["x"].values, fields["y"].values
+    flank = ((np.abs(x) >= history["flank_inner"] - 1e-9) & (np.abs(x) <= history["flank_outer"] + 1e-9))[None, :] \
+        & (y[:, None] <= history["flank_height"] + 1e-9) & (fields["mask_reason"].transpose("y", "x").values == 0)
+    dev = fields["fabric_deviatoric_fraction"].transpose("y", "x").values
+    axis = fields["fabric_orientation"].transpose("y", "x").values * np.sign(x)[None, :]
+    return {"fabric_deviator": float(np.nanmean(np.where(flank, dev, np.nan))),
+            "fabric_axis_deg": float(np.nanmean(np.where(flank, axis, np.nan)))}
+
+
+def commit_of(folder: Path) -> str:
+    """The short commit of the checkout the pile was made in."""
+    return subprocess.run(["git", "-C", str(folder), "rev-parse", "--short", "HEAD"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+
+
+def run_pile(cal: dict, arm: str, seed: int, records: Path) -> Path:
+    """Pour, relax, probe and analyse one pile in its own working directory; write its record."""
+    cfg = arm_config(cal, arm, seed)
+    protocol = cal["arms"][arm]["protocol"]
+    work = REPO / "results" / "calibration" / slug(arm) / f"seed{seed}"
+    work.mkdir(parents=True, exist_ok=True)
+    (work / "config.yaml").write_text(yaml.dump(cfg, Dumper=SettingsDumper))
+    files = targets(cfg, protocol, seed)
+    cmd = [sys.executable, "-m", "snakemake", *(files[k] for k in ("fields", "summary", "base_pressure", "frames")),
+           "-s", str(REPO / "Snakefile"), "--directory", str(work), "--cores", "1",
+           "--profile", str(REPO / "workflow" / "profiles" / "default"),
+           "--configfile", str(work / "config.yaml"), "--replace-workflow-config"]
+    log = work / "calibration.log"
+    print(f"{arm} seed {seed}: {work.relative_to(REPO)} (log {log.name})", flush=True)
+    with open(log, "a") as out:
+        subprocess.run(cmd, check=True, stdout=out, stderr=subprocess.STDOUT, env={**os.environ, "NUMBA_NUM_THREADS": "1"})
+    params = parse_params(json.dumps(cfg["analysis"]))
+    path = {k: work / v for k, v in files.items()}
+    q = pile_quantities(path["summary"], path["fields"], path["base_pressure"], params)
+    with xr.open_dataset(path["fields"]) as f:
+        f = f.load()
+    q["stress_column"] = pile_stress_contrasts(f, params)["stress_column"]
+    q.update(flank_fabric(f, params["history"]))
+    record = {"arm": arm, "protocol": protocol, "seed": seed, "n_particles": cfg["pour"]["n_particles"],
+              "settings": cal["arms"][arm]["settings"], "commit": commit_of(REPO),
+              "growth": growth_record(path["frames"], cfg, protocol, seed),
+              "quantities": q, "cpu_s": cpu_seconds(path["benchmarks"], protocol, seed),
+              "definitions": {"flow_min": FLOW_MIN, "old_s": OLD, "start": START,
+                              "frame_interval": cal["frame_interval"]}}
+    records.mkdir(parents=True, exist_ok=True)
+    dest = records / f"{slug(arm)}-seed{seed}.json"
+    tmp = dest.with_suffix(".part")
+    tmp.write_text(json.dumps(record, indent=1) + "\n")
+    tmp.replace(dest)
+    print(f"{arm} seed {seed}: recorded {dest} ({record['cpu_s']['total']:.0f} CPU s, "
+          f"flanks flow {100 * record['growth']['flow_fraction']:.0f} % of the growth)", flush=True)
+    return dest
+
+
+GROWTH = {"flow_fraction": "fraction of the growth the flanks flow",
+          "old_moving_median": "pile particles moving, median per frame",
+          "old_moving_max": "pile particles moving, largest",
+          "flank_median_deg": "flank angle while growing, median (deg)",
+          "flank_p90_deg": "flank angle while growing, 90th percentile (deg)",
+          "flux_per_s": "flux (particles per s)"}
+EXTRA = {"stress_column": "σ_yy lowest row centre/shoulders against a uniform pile − 1",
+         "fabric_deviator": "flank fabric deviatoric fraction",
+         "fabric_axis_deg": "flank fabric axis, mirrored (deg)"}
+CPU = {"pour": "CPU s, pour", "relax": "CPU s, relaxation", "probe": "CPU s, probes", "total": "CPU s per pile"}
+
+
+def table(records: list, params: dict, arms: list) -> str:
+    """Markdown: per quantity, mean ± standard error over seeds (and the number of piles) of each arm."""
+    by_arm = {a: [r for r in records if r["arm"] == a] for a in arms}
+    by_arm = {a: rs for a, rs in by_arm.items() if rs}
+    rows = ["| quantity | " + " | ".join(f"{a} ({len(rs)})" for a, rs in by_arm.items()) + " |",
+            "|---|" + "---|" * len(by_arm)]
+    sections = [("growth", GROWTH), ("quantities", {**quantities(params), **EXTRA}), ("cpu_s", CPU)]
+    for part, names in sections:
+        for key, text in names.items():
+            cells = []
+            for rs in by_arm.values():
+                m, s, *_ = mean_sem([r[part].get(key, math.nan) for r in rs])
+                cells.append(f"{m:.4g} ± {s:.2g}")
+            rows.append(f"| {text} | " + " | ".join(cells) + " |")
+    return "\n".join(rows) + "\n"
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--config", type=Path, default=CONFIG)
+    ap.add_argument("--arms", nargs="*", default=None, help="the arms to run (default: all of the config)")
+    ap.add_argument("--seeds", nargs="*", type=int, default=None, help="the seeds to run (default: the config's)")
+    ap.add_argument("--jobs", type=int, default=2, help="piles run side by side, one core each")
+    ap.add_argument("--records", type=Path, default=RECORDS, help="where each pile's record is written")
+    ap.add_argument("--table", action="store_true", help="only write docs/reproduction/calibration.md from the records")
+    args = ap.parse_args(argv)
+    cal = read_settings_file(args.config)
+    arms = args.arms or list(cal["arms"])
+    unknown = sorted(set(arms) - set(cal["arms"]))
+    if unknown:
+        raise SystemExit(f"--arms: {unknown} not among the arms of {args.config}: {list(cal['arms'])}")
+    if args.table:
+        params = parse_params(json.dumps(read_settings_file(REPO / cal["piles"])["analysis"]))
+        records = [json.loads(p.read_text()) for p in sorted(args.records.glob("*.json"))]
+        out = REPO / "docs" / "reproduction" / "calibration.md"
+        head = out.read_text().split("<!-- table -->")[0] if out.exists() else ""
+        out.write_text(head + "<!-- table -->\n\n" + table(records, params, arms))
+        print(out.read_text())
+        return
+    seeds = args.seeds or cal["seeds"]
+    for arm in arms:                                  # refuse a bad arm before any pile
+        arm_config(cal, arm, seeds[0])
+    # seed-major: the first seeds of every arm land first, so a stopped run leaves every arm measured
+    todo = [(a, s) for s in seeds for a in arms if not (args.records / f"{slug(a)}-seed{s}.json").exists()]
+    print(f"{len(todo)} piles to run, {args.jobs} at a time", flush=True)
+    failed = []
+
+    def one(job):
+        try:
+            run_pile(cal, *job, args.records)
+        except subprocess.CalledProcessError:       # its log says why; the other piles go on
+            failed.append(job)
+            print(f"{job[0]} seed {job[1]}: failed, see results/calibration/{slug(job[0])}/seed{job[1]}/"
+                  "calibration.log", flush=True)
+
+    with ThreadPoolExecutor(args.jobs) as pool:
+        list(pool.map(one, todo))
+    if failed:
+        raise SystemExit(f"{len(failed)} of {len(todo)} piles failed: {failed}")
+
+
+if __name__ == "__main__":
+    main()
