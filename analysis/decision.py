@@ -1,0 +1,186 @@
+"""The pre-registered decision on the pressure minimum (docs/reproduction/preregistration.md).
+
+Pure functions on the per-pile records of ``workflow/scripts/calibration.py``
+(one JSON object per pile: ``arm``, ``protocol``, ``seed``, ``growth``,
+``quantities``, ``cpu_s``):
+
+* :func:`select_arms`: which point source and which layered control the
+  decision uses, by the registered rule on the calibration records;
+* :func:`piles_required`: the piles per protocol for 80 % power to find a
+  difference of :data:`EFFECT` in the first decision statistic at the
+  family-wise 5 %, from the pooled scatter of the calibration piles;
+* :func:`verdict`: Welch's test per decision statistic, Holm's correction
+  over the family, and the registered sentence; it refuses an ensemble
+  short of the registered size.
+
+Every rule here is the page's; the page is the registration.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from scipy.stats import t as student_t
+
+from .history import holm, mean_sem, piles_for_power, t_power, welch
+
+#: The decision family: the pressure minimum read from the RVE stress (low
+#: variance) and from the support's force density.
+DECISION = ("stress_column", "base_pressure_column")
+#: The secondary statistics, reported with their own Holm correction.
+SECONDARY = ("strain@4.5", "solid_fraction@4.5", "gravity_gap", "stress_fabric")
+#: The effect the ensemble is powered for, in D1 (a fraction of the uniform pile's pressure).
+EFFECT = 0.05
+LEVEL, POWER = 0.05, 0.8
+#: The fewest piles per protocol the decision pours.
+MIN_PILES = 10
+#: The layered control's growing flanks must stay this far (deg) below the point source's angle of repose.
+REPOSE_MARGIN = 2.0
+WEDGE_ARMS = ("wedge drip", "wedge funnel")
+LAYERED_ARMS = ("layered top", "layered rain")
+
+
+def _arm_mean(records: list[dict], arm: str, part: str, key: str) -> float:
+    """Mean over the arm's piles of ``record[part][key]`` (finite values)."""
+    return mean_sem([r[part][key] for r in records if r["arm"] == arm])[0]
+
+
+def select_arms(records: list[dict]) -> dict[str, Any]:
+    """The point source and the layered control, by the registered rule.
+
+    Parameters
+    ----------
+    records : list of dict
+        The calibration records (every arm of :data:`WEDGE_ARMS` and
+        :data:`LAYERED_ARMS` with at least two piles).
+
+    Returns
+    -------
+    dict
+        ``point`` (the wedge arm whose flanks flow the larger mean fraction
+        of the growth; a tie keeps the first), ``repose_deg`` (its mean angle
+        of repose), ``qualified`` (the layered arms whose mean 90th
+        percentile growing flank lies at least :data:`REPOSE_MARGIN` below
+        it), ``layered`` (of those, the one with the smaller mean flow
+        fraction; None when none qualifies) and ``means`` (the numbers the
+        rule read, per arm).
+
+    Raises
+    ------
+    ValueError
+        If an arm has fewer than two piles.
+    """
+    for arm in WEDGE_ARMS + LAYERED_ARMS:
+        n = sum(r["arm"] == arm for r in records)
+        if n < 2:
+            raise ValueError(f"arm {arm!r}: {n} calibration piles, the rule needs at least 2")
+    means = {arm: {"flow_fraction": _arm_mean(records, arm, "growth", "flow_fraction"),
+                   "flank_p90_deg": _arm_mean(records, arm, "growth", "flank_p90_deg"),
+                   "angle_deg": _arm_mean(records, arm, "quantities", "angle_deg")}
+             for arm in WEDGE_ARMS + LAYERED_ARMS}
+    point = WEDGE_ARMS[0]
+    for arm in WEDGE_ARMS[1:]:
+        if means[arm]["flow_fraction"] > means[point]["flow_fraction"]:
+            point = arm
+    repose = means[point]["angle_deg"]
+    qualified = [a for a in LAYERED_ARMS if means[a]["flank_p90_deg"] <= repose - REPOSE_MARGIN]
+    layered = min(qualified, key=lambda a: means[a]["flow_fraction"]) if qualified else None
+    return {"point": point, "layered": layered, "repose_deg": repose, "qualified": qualified, "means": means}
+
+
+def pooled_sd(a, b) -> tuple[float, int]:
+    """Pooled standard deviation of two samples (finite values) and its degrees of freedom."""
+    a, b = (np.asarray(v, float) for v in (a, b))
+    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+    df = a.size + b.size - 2
+    if a.size < 2 or b.size < 2:
+        return math.nan, df
+    ss = ((a - a.mean()) ** 2).sum() + ((b - b.mean()) ** 2).sum()
+    return float(math.sqrt(ss / df)), int(df)
+
+
+def values(records: list[dict], arm: str, key: str) -> list[float]:
+    """``quantities[key]`` of the arm's piles, in seed order."""
+    return [r["quantities"][key] for r in sorted(records, key=lambda r: r["seed"]) if r["arm"] == arm]
+
+
+def piles_required(records: list[dict], point: str, layered: str) -> dict[str, Any]:
+    """Piles per protocol for the registered power in the first decision statistic.
+
+    Returns ``n`` (at least :data:`MIN_PILES`), the pooled ``sd`` and its
+    ``df``, and ``n_power`` (before the floor).
+    """
+    sd, df = pooled_sd(values(records, point, DECISION[0]), values(records, layered, DECISION[0]))
+    n = piles_for_power(sd, sd, EFFECT, POWER, comparisons=len(DECISION), level=LEVEL)
+    return {"sd": sd, "df": df, "n_power": n, "n": int(max(MIN_PILES, n)) if np.isfinite(n) else n}
+
+
+def verdict(records: list[dict], point: str, layered: str, n: int) -> dict[str, Any]:
+    """The registered test and sentence over the decision ensemble.
+
+    Parameters
+    ----------
+    records : list of dict
+        The decision records (missing piles are absent, or carry a NaN).
+    point, layered : str
+        The arms (as registered).
+    n : int
+        The registered piles per protocol.
+
+    Returns
+    -------
+    dict
+        Per decision and secondary statistic: the means, standard errors and
+        counts, the difference, Welch's t, df and p, Holm's adjusted p and
+        rejection; the achieved power at :data:`EFFECT`; ``finding`` (one of
+        ``minimum``, ``opposite``, ``none``) and ``sentence``.
+
+    Raises
+    ------
+    ValueError
+        If either protocol has fewer than ``n`` piles with a finite first
+        decision statistic (no test on a partial ensemble).
+    """
+    for arm in (point, layered):
+        have = int(np.isfinite(values(records, arm, DECISION[0])).sum())
+        if have < n:
+            raise ValueError(f"{arm}: {have} of the registered {n} piles; the verdict waits for all of them")
+    out: dict[str, Any] = {}
+    for family in (DECISION, SECONDARY):
+        rows = {}
+        for key in family:
+            a, b = values(records, point, key), values(records, layered, key)
+            (ma, sa, da, na), (mb, sb, db, nb) = mean_sem(a), mean_sem(b)
+            w = welch(a, b)
+            half = student_t.isf(0.025, w["df"]) * math.hypot(sa, sb) if np.isfinite(w["df"]) else math.nan
+            rows[key] = {"point": (ma, sa, na), "layered": (mb, sb, nb), "diff": ma - mb,
+                         "se": math.hypot(sa, sb), "ci95": (ma - mb - half, ma - mb + half), **w,
+                         "power": t_power(da, db, EFFECT, min(na, nb), len(family), LEVEL)
+                         if min(na, nb) >= 2 else math.nan}
+        adjusted, rejected = holm([r["p"] for r in rows.values()], LEVEL)
+        for r, p, rej in zip(rows.values(), adjusted, rejected):
+            r["p_holm"], r["rejected"] = p, rej
+        out["decision" if family is DECISION else "secondary"] = rows
+    d = out["decision"]
+    lower = [k for k in DECISION if d[k]["rejected"] and d[k]["diff"] < 0]
+    higher = [k for k in DECISION if d[k]["rejected"] and d[k]["diff"] > 0]
+    pct = lambda v: f"{100 * v:.1f} %"  # noqa: E731
+    if lower:
+        out["finding"] = "minimum"
+        out["sentence"] = "a minimum: " + "; ".join(
+            f"{k}: wedge − layered = {pct(d[k]['diff'])} ± {pct(d[k]['se'])} (Holm p {d[k]['p_holm']:.3g}; "
+            f"wedge alone {pct(d[k]['point'][0])} ± {pct(d[k]['point'][1])})" for k in lower)
+    elif higher:
+        out["finding"] = "opposite"
+        out["sentence"] = "the opposite of a minimum: " + "; ".join(
+            f"{k}: wedge − layered = +{pct(d[k]['diff'])} ± {pct(d[k]['se'])} (Holm p {d[k]['p_holm']:.3g})"
+            for k in higher)
+    else:
+        z = -d[DECISION[0]]["ci95"][0]
+        lo2 = d[DECISION[1]]["ci95"]
+        out["finding"] = "none"
+        out["sentence"] = (f"no minimum larger than {pct(max(z, 0.0))} (95 %) in {DECISION[0]}; "
+                           f"{DECISION[1]}: 95 % interval of wedge − layered [{pct(lo2[0])}, {pct(lo2[1])}]")
+    return out
