@@ -68,6 +68,11 @@ if config["committed"]:
     SIX_CONSTANT_VARIANTS = [v for v in VARIANTS
                              if any(has_stretch(f) for f in (COMMITTED / "variants" / v).glob("*/seed*.probes.nc"))]
 
+    # Issue 44: the calibration of the sources (one record per pile, {committed}/calibration/)
+    # and the pre-registered decision (config/decision.yaml, records in {committed}/decision/).
+    CALIBRATION_RECORDS = sorted(str(p) for p in (COMMITTED / "calibration").glob("*.json"))
+    DECISION_PLAN = REPO / "config" / "decision.yaml"
+
     rule reproduction:
         # make reproduction: the figures and the per-pile table, from the
         # committed per-pile results only.
@@ -81,7 +86,44 @@ if config["committed"]:
             variants=expand(str(COMMITTED / "variants" / "{variant}.md"), variant=VARIANTS),
             six_constants=expand(str(COMMITTED / "variants" / "{variant}" / "six_constants.md"),
                                  variant=SIX_CONSTANT_VARIANTS),
+            calibration=[str(COMMITTED / "calibration.md")] if CALIBRATION_RECORDS else [],
+            decision=[str(COMMITTED / "decision.md")] if DECISION_PLAN.exists() else [],
         localrule: True
+
+    rule reproduction_calibration:
+        input:
+            records=CALIBRATION_RECORDS,
+            config="config/calibration.yaml",
+            script="workflow/scripts/calibration.py",
+        output:
+            str(COMMITTED / "calibration.md"),
+        params:
+            records=str(COMMITTED / "calibration"),
+        log:
+            results_path("logs/reproduction/calibration.log"),
+        localrule: True
+        conda:
+            "../envs/polypile.yaml"
+        shell:
+            py_shell("{input.script:q} --table --config {input.config:q} --records {params.records:q} "
+                     "--out {output:q} > {log:q} 2>&1")
+
+    rule reproduction_decision:
+        input:
+            records=lambda wc: sorted(str(p) for p in (COMMITTED / "decision").glob("*.json")),
+            plan=str(DECISION_PLAN),
+            script="workflow/scripts/decision.py",
+        output:
+            str(COMMITTED / "decision.md"),
+        params:
+            records=str(COMMITTED / "decision"),
+        log:
+            results_path("logs/reproduction/decision.log"),
+        localrule: True
+        conda:
+            "../envs/polypile.yaml"
+        shell:
+            py_shell("{input.script:q} verdict --records {params.records:q} --out {output:q} > {log:q} 2>&1")
 
     rule reproduction_figure:
         input:

@@ -145,6 +145,12 @@ def flank_fabric(fields: xr.Dataset, history: dict) -> dict:
             "fabric_axis_deg": float(np.nanmean(np.where(flank, axis, np.nan)))}
 
 
+def _shown(path: Path) -> str:
+    """A path as the page names it: relative to the repository where it lies inside."""
+    path = Path(path).resolve()
+    return str(path.relative_to(REPO)) if path.is_relative_to(REPO) else str(path)
+
+
 def commit_of(folder: Path) -> str:
     """The short commit of the checkout the pile was made in."""
     return subprocess.run(["git", "-C", str(folder), "rev-parse", "--short", "HEAD"],
@@ -226,7 +232,9 @@ def main(argv=None) -> None:
     ap.add_argument("--seeds", nargs="*", type=int, default=None, help="the seeds to run (default: the config's)")
     ap.add_argument("--jobs", type=int, default=2, help="piles run side by side, one core each")
     ap.add_argument("--records", type=Path, default=RECORDS, help="where each pile's record is written")
-    ap.add_argument("--table", action="store_true", help="only write docs/reproduction/calibration.md from the records")
+    ap.add_argument("--table", action="store_true", help="only write the table of the records (to --out)")
+    ap.add_argument("--out", type=Path, default=REPO / "docs" / "reproduction" / "calibration.md",
+                    help="the table's file (with --table)")
     args = ap.parse_args(argv)
     cal = read_settings_file(args.config)
     arms = args.arms or list(cal["arms"])
@@ -236,10 +244,15 @@ def main(argv=None) -> None:
     if args.table:
         params = parse_params(json.dumps(read_settings_file(REPO / cal["piles"])["analysis"]))
         records = [json.loads(p.read_text()) for p in sorted(args.records.glob("*.json"))]
-        out = REPO / "docs" / "reproduction" / "calibration.md"
-        head = out.read_text().split("<!-- table -->")[0] if out.exists() else ""
-        out.write_text(head + "<!-- table -->\n\n" + table(records, params, arms))
-        print(out.read_text())
+        page = (f"# The calibration of the sources: piles of {records[0]['n_particles'] if records else '?'} "
+                "particles, per arm\n\n"
+                "Made by `workflow/scripts/calibration.py --table` from the per-pile records in "
+                f"{_shown(args.records)}/ (settings: {_shown(args.config)}; what each number is: the script's "
+                "docstring); mean ± standard error over seeds, the number of piles after each arm. CPU seconds "
+                "are each job's own (Snakemake's benchmark files), with two piles side by side on a 2-core host.\n\n"
+                + table(records, params, arms))
+        args.out.write_text(page)
+        print(page)
         return
     seeds = args.seeds or cal["seeds"]
     for arm in arms:                                  # refuse a bad arm before any pile

@@ -8,7 +8,8 @@ read by ``workflow/scripts/calibration.py --config config/decision.yaml
 --records docs/reproduction/decision``) and ``docs/reproduction/decision_plan.md``
 (the numbers the rules read).  Commit both before the first decision pile.
 
-``verdict`` reads the decision records and writes ``docs/reproduction/decision.md``:
+``verdict`` reads the decision records and writes ``docs/reproduction/decision.md``
+(rebuilt by ``make reproduction``):
 the registered test over the ensemble, or, short of N piles per protocol,
 only how far the ensemble is (no test).
 
@@ -90,8 +91,8 @@ def _row(key: str, r: dict) -> str:
             f"| {r['t']:.2f}, {r['df']:.1f} df | {r['p']:.3g} | {r['p_holm']:.3g} | {r['power']:.2f} |")
 
 
-def verdict(records: Path) -> str:
-    """Write docs/reproduction/decision.md from the decision records; return the page."""
+def verdict(records: Path, out: Path) -> str:
+    """Write the verdict page (docs/reproduction/decision.md) from the decision records to `out`; return it."""
     plan = read_settings_file(PLAN)
     point, layered = list(plan["arms"])
     n = len(plan["seeds"])
@@ -102,22 +103,22 @@ def verdict(records: Path) -> str:
              f"[decision_plan.md](decision_plan.md): {point} against {layered}, {n} piles per protocol. "
              "Made by `workflow/scripts/decision.py verdict` from docs/reproduction/decision/.", ""]
     try:
-        out = decision.verdict(recs, point, layered, n)
+        result = decision.verdict(recs, point, layered, n)
     except ValueError as exc:
         lines.append(f"**No verdict yet**: {exc} (piles recorded: {have}).")
         page = "\n".join(lines) + "\n"
-        (DOCS / "decision.md").write_text(page)
+        out.write_text(page)
         return page
-    lines += [f"**Verdict: {out['sentence']}.**", "",
+    lines += [f"**Verdict: {result['sentence']}.**", "",
               f"| statistic | {point} | {layered} | difference | Welch t | p | Holm p | power at "
               f"{decision.EFFECT:.0%} |", "|---|---|---|---|---|---|---|---|"]
-    lines += [_row(k, r) for k, r in out["decision"].items()]
+    lines += [_row(k, r) for k, r in result["decision"].items()]
     lines += ["", "Secondary (own Holm family, not the verdict):", "",
               "| statistic | point | layered | difference | Welch t | p | Holm p | power |",
               "|---|---|---|---|---|---|---|---|"]
-    lines += [_row(k, r) for k, r in out["secondary"].items()]
+    lines += [_row(k, r) for k, r in result["secondary"].items()]
     page = "\n".join(lines) + "\n"
-    (DOCS / "decision.md").write_text(page)
+    out.write_text(page)
     return page
 
 
@@ -127,9 +128,10 @@ def main(argv=None) -> None:
     ap.add_argument("--records", type=Path, default=None,
                     help="the records' folder (default: docs/reproduction/calibration for select, "
                          "docs/reproduction/decision for verdict)")
+    ap.add_argument("--out", type=Path, default=DOCS / "decision.md", help="the verdict's page (verdict)")
     args = ap.parse_args(argv)
     folder = args.records or DOCS / ("calibration" if args.step == "select" else "decision")
-    print(select(folder) if args.step == "select" else verdict(folder))
+    print(select(folder) if args.step == "select" else verdict(folder, args.out))
 
 
 if __name__ == "__main__":
