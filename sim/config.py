@@ -42,7 +42,8 @@ BOOKKEEPING = {"pour": ("checkpoint_interval", "progress_interval", "frame_inter
 #: default doing what the code did before it: at their default they are left
 #: out of the result settings (:func:`result_settings`), so those piles keep
 #: their pour digest and the workflow re-runs none of them.
-LATER_SETTINGS = {"pour": ("point_source", "outlet_width", "outlet_height", "line_source")}
+LATER_SETTINGS = {"particles": ("aspect_ratio",),
+                  "pour": ("point_source", "outlet_width", "outlet_height", "line_source")}
 
 #: The JSON schema (YAML) of the simulator's sections of a configuration: the
 #: source of every default and bound of the simulator's settings.
@@ -216,6 +217,10 @@ class ParticleParams:
         Shortest allowed edge as a fraction of the smaller ellipse diameter.
     min_angle_deg : float
         Interior angles must lie in ``[min_angle_deg, 180 - min_angle_deg]``.
+    aspect_ratio : float or None
+        ``None``: the semi-axes as above (the paper's draw).  A number ``r``:
+        one size ``s`` uniform in ``mean·(1 ± spread)`` and the semi-axes
+        ``s·√r`` and ``s/√r`` (:func:`sim.shapes.make_shapes`).
     """
 
     corners_min: int = _default("particles", "corners_min")
@@ -224,6 +229,7 @@ class ParticleParams:
     semi_axis_spread: float = _default("particles", "semi_axis_spread")
     min_edge_fraction: float = _default("particles", "min_edge_fraction")
     min_angle_deg: float = _default("particles", "min_angle_deg")
+    aspect_ratio: float | None = _default("particles", "aspect_ratio")
 
     def __post_init__(self):
         _check_fields(self, "particles")
@@ -466,13 +472,18 @@ class SimConfig:
     def __post_init__(self):
         if self.physics.walls is not None:
             width = self.physics.walls[1] - self.physics.walls[0]
-            largest = 2.0 * self.particles.semi_axis_mean * (1.0 + self.particles.semi_axis_spread)
+            p = self.particles
+            largest = 2.0 * p.semi_axis_mean * (1.0 + p.semi_axis_spread)
+            stretch = ""
+            if p.aspect_ratio is not None:
+                largest *= math.sqrt(p.aspect_ratio)
+                stretch = " x sqrt(aspect_ratio)"
             if width <= largest:
                 raise ConfigError(
                     f"physics.walls = {list(self.physics.walls)!r}: {width:.4g} m apart, "
                     f"but the largest particle is {largest:.4g} m across (2 x "
-                    "particles.semi_axis_mean x (1 + semi_axis_spread)); the walls must "
-                    "be farther apart than that")
+                    f"particles.semi_axis_mean x (1 + semi_axis_spread){stretch}); the walls "
+                    "must be farther apart than that")
 
     @classmethod
     def from_dict(cls, data: dict | None) -> "SimConfig":

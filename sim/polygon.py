@@ -345,22 +345,27 @@ def _check_corner_angles(ex, ey, min_angle_deg, name):
 # argument checks (also of sim.shapes)
 # ---------------------------------------------------------------------------
 def check_range(name, value, lo=None, hi=None, lo_open=False, hi_open=False):
-    """Raise ``ValueError`` unless ``lo <(=) value <(=) hi`` (and finite)."""
+    """Raise ``ValueError`` unless ``lo <(=) value <(=) hi`` (and finite).
+
+    The message names the argument, its value and the allowed range, e.g.
+    ``aspect_ratio = 'long' is not a number; allowed range [1, 3]``.
+    """
+    left = "-inf" if lo is None else f"{lo!r}"
+    right = "inf" if hi is None else f"{hi!r}"
+    lb = "(" if (lo_open or lo is None) else "["
+    rb = ")" if (hi_open or hi is None) else "]"
+    allowed = f"{lb}{left}, {right}{rb}"
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
+        raise ValueError(f"{name} = {value!r} is not a number; allowed range {allowed}") from None
     ok = np.isfinite(v)
     if ok and lo is not None:
         ok = v > lo if lo_open else v >= lo
     if ok and hi is not None:
         ok = v < hi if hi_open else v <= hi
     if not ok:
-        left = "-inf" if lo is None else f"{lo!r}"
-        right = "inf" if hi is None else f"{hi!r}"
-        lb = "(" if (lo_open or lo is None) else "["
-        rb = ")" if (hi_open or hi is None) else "]"
-        raise ValueError(f"{name} = {value!r} is outside the allowed range {lb}{left}, {right}{rb}")
+        raise ValueError(f"{name} = {value!r} is outside the allowed range {allowed}")
     return v
 
 

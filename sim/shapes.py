@@ -3,7 +3,8 @@
 :class:`Shapes` holds the polygons of all particles as ragged (CSR) arrays
 with their mass properties; :func:`make_shapes` draws them by the recipe of
 Roul, Schinner & Kassner (2010), Section 3.1 (corner number and semi-axes
-per particle, each polygon by :func:`sim.polygon.random_polygon`), and
+per particle, each polygon by :func:`sim.polygon.random_polygon`), or as
+elongated polygons of a set aspect ratio (``particles.aspect_ratio``), and
 :func:`shapes_from_nodes` rebuilds them from stored corners.  The maths and
 validation of one polygon are in :mod:`sim.polygon`.
 
@@ -159,6 +160,7 @@ def make_shapes(
     density=ModelParams.density,
     min_edge_fraction=ParticleParams.min_edge_fraction,
     min_angle_deg=ParticleParams.min_angle_deg,
+    aspect_ratio=ParticleParams.aspect_ratio,
     jitter=0.5,
 ):
     """Generate ``n`` random particles following the paper's recipe (Section 3.1).
@@ -167,6 +169,20 @@ def make_shapes(
     ``[corners_min, corners_max]`` and both semi-axes are drawn independently
     and uniformly from ``semi_axis_mean * (1 +- semi_axis_spread)``; the
     polygon is then drawn by :func:`random_polygon`.
+
+    With ``aspect_ratio = r`` the particles are elongated instead: one size
+    ``s`` per particle, uniform in ``semi_axis_mean * (1 +- semi_axis_spread)``,
+    gives the major semi-axis ``a = s sqrt(r)`` and the minor one
+    ``b = s / sqrt(r)``, so that the ellipse has the aspect ``r`` and the
+    area ``pi s^2`` of the circle of radius ``s``.
+
+    The random stream, in this order: the ``n`` corner numbers, then ``n``
+    uniforms for the first semi-axes (``aspect_ratio`` set: the sizes ``s``),
+    then, only when ``aspect_ratio`` is None, ``n`` uniforms for the second
+    semi-axes, then the polygons one after the other.  The default draw thus
+    takes the same numbers as before the setting existed, and a draw with
+    ``aspect_ratio`` set has the same corner numbers and, as sizes, the same
+    first semi-axes as the default draw from the same generator state.
 
     The arguments named like settings of the configuration take their
     defaults and allowed ranges from ``sim/config.schema.yaml``
@@ -192,13 +208,18 @@ def make_shapes(
     min_edge_fraction, min_angle_deg : float, optional
         ``particles.min_edge_fraction`` / ``min_angle_deg``, passed to
         :func:`random_polygon`.
+    aspect_ratio : float or None, optional
+        Ratio of the major to the minor semi-axis of every particle's ellipse
+        (``particles.aspect_ratio``); None (the default): both semi-axes drawn
+        independently, as in the paper.
     jitter : float, optional
         Passed to :func:`random_polygon`.
 
     Returns
     -------
     Shapes
-        With :attr:`Shapes.semi_a`, :attr:`Shapes.semi_b` set.
+        With :attr:`Shapes.semi_a`, :attr:`Shapes.semi_b` set (with
+        ``aspect_ratio``: the major and the minor semi-axis).
 
     Raises
     ------
@@ -218,6 +239,9 @@ def make_shapes(
                                      *_setting_range("particles", "min_edge_fraction"))
     min_angle_deg = check_range("min_angle_deg", min_angle_deg,
                                  *_setting_range("particles", "min_angle_deg"))
+    if aspect_ratio is not None:
+        aspect_ratio = check_range("aspect_ratio", aspect_ratio,
+                                   *_setting_range("particles", "aspect_ratio"))
     jitter = check_range("jitter", jitter, 0.0, 1.0)
     rng = np.random.default_rng(rng)
 
@@ -225,7 +249,11 @@ def make_shapes(
     lo = semi_axis_mean * (1.0 - semi_axis_spread)
     hi = semi_axis_mean * (1.0 + semi_axis_spread)
     semi_a = rng.uniform(lo, hi, size=n)
-    semi_b = rng.uniform(lo, hi, size=n)
+    if aspect_ratio is None:
+        semi_b = rng.uniform(lo, hi, size=n)
+    else:
+        stretch = np.sqrt(aspect_ratio)
+        semi_a, semi_b = semi_a * stretch, semi_a / stretch
     xs, ys = [], []
     for i in range(n):
         x, y = random_polygon(
