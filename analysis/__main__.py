@@ -104,7 +104,7 @@ def _relaxed_and_probes(relaxed_path: str, probes: dict[str, str], option: str) 
 # ------------------------------------------------------------------ commands
 def cmd_run_times(args, params) -> None:
     from .netcdf import atomic_path
-    from .numerics.run_times import job_label, run_times_html
+    from .run_times import job_label, run_times_html
 
     missing = [p for p in args.benchmarks if not os.path.exists(p)]
     if missing:

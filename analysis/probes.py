@@ -56,7 +56,7 @@ import numpy as np
 import xarray as xr
 
 from . import general_elastic as ge
-from .elastic import fit_cubic_moduli, fit_isotropic_moduli, gather_points
+from .elastic import POINTS, fit_cubic_moduli, fit_isotropic_moduli, gather_points
 from .ensemble import nan_mean_sem, slipped
 from .errors import InputError
 from .fields import rve_quantities
@@ -67,7 +67,6 @@ from .states import State, check_same_particles, pile_attributes
 
 #: The probe whose increment, compared with the reduction's, measures reversibility.
 RESTORED = "restored"
-POINTS = (1, 5)
 
 #: Stage names of the probes that change gravity (reductions and tilts): in a
 #: linear pile their strains at a point span two shapes only.

@@ -289,23 +289,24 @@ def _parser():
     return ap
 
 
-# python -m sim numerics WHAT ...: module of sim.numerics whose main(argv) runs WHAT
-NUMERICS = {"collisions": "collisions", "stability": "stability",
-            "kernel-profile": "kernel_profile"}
+# python -m sim numerics WHAT ...: the checks by name (each a module of sim.numerics with main(argv))
+NUMERICS = ("collisions", "stability", "kernel-profile")
 
 
 def _numerics(argv):
     """Run ``python -m sim numerics WHAT [options]``; returns the exit status."""
-    import importlib
     if not argv or argv[0] not in NUMERICS:
         print(f"usage: python -m sim numerics {{{','.join(NUMERICS)}}} [--help]",
               file=sys.stderr)
         return 2
     logging.basicConfig(level=logging.INFO, stream=sys.stderr,
                         format="%(asctime)s %(levelname)s %(message)s")
-    module = importlib.import_module(f".numerics.{NUMERICS[argv[0]]}", __package__)
+    # imported here: the checks load what a pour never needs
+    from .numerics import collisions, kernel_profile, stability
+    main = {"collisions": collisions.main, "stability": stability.main,
+            "kernel-profile": kernel_profile.main}[argv[0]]
     try:
-        return module.main(argv[1:])
+        return main(argv[1:])
     except (ConfigError, ValueError) as exc:
         logging.getLogger("sim").error("%s", exc)
         return 2

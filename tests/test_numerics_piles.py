@@ -18,7 +18,7 @@ from analysis.numerics.ensemble_cost import (check_params as check_ensemble_para
                                     piles_needed, standard_error_curve)
 from analysis.numerics.pile_precision import (RESOLVED, check_params, convergence_order, profile_edges, profile_error,
                                      scalar_error)
-from analysis.numerics.run_times import children_cpu_time
+from analysis.run_times import children_cpu_time
 from test_workflow import REPO, copy_workflow, job_counts, snakemake
 
 PILES = {"integrators": ["gear", "verlet"], "dt_factors": [1.0, 0.5], "seeds": [1, 2],

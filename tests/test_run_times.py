@@ -11,7 +11,7 @@ import sys
 import pytest
 
 from analysis.__main__ import main
-from analysis.numerics.run_times import benchmark_row, job_label, run_times_html
+from analysis.run_times import benchmark_row, job_label, run_times_html
 
 HEADER = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
 

@@ -5,6 +5,8 @@ a pile's observables and the ensemble's results are against what they cost.
 ``ensemble_cost``   standard error of the headline results against compute time
 ``piles_report``    their Markdown tables
 ``figures``         their figures
-``run_times``       Snakemake benchmark files and bash ``times`` output
 ``command``         their ``data`` / ``figure`` command lines
+
+The run times they read come from :mod:`analysis.run_times`, the product's
+reporting of what a job cost (``python -m analysis run-times``).
 """

@@ -51,7 +51,7 @@ from ..netcdf import var, write_dataset
 from ..params import resolve_params, settings_from_text
 from .command import data_or_figure, module_command
 from .figures import ensemble_error_figure
-from .run_times import benchmark_time
+from ..run_times import benchmark_time
 
 log = logging.getLogger("analysis.numerics")
 

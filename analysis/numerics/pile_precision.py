@@ -35,7 +35,7 @@ is *resolved* when it exceeds twice its error bar.
 Run time of a pile: the CPU time (user + system, from bash ``times``) of its
 pour and relax jobs, which includes a fixed start-up cost per job (imports,
 loading the kernels); their wall time (Snakemake benchmark files) is kept
-too but grows when other processes share the cores (:mod:`analysis.numerics.run_times`).
+too but grows when other processes share the cores (:mod:`analysis.run_times`).
 
 Command line (run by the rule ``numerics_piles_data``; ``figure`` by
 ``numerics_piles_figures``)::
@@ -64,7 +64,7 @@ from ..solid_fraction import solid_fraction
 from ..states import State, load_state
 from .command import data_or_figure, module_command
 from .figures import pile_error_figure
-from .run_times import benchmark_time, children_cpu_time
+from ..run_times import benchmark_time, children_cpu_time
 
 log = logging.getLogger("analysis.numerics")
 
