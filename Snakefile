@@ -2,11 +2,9 @@
 # Granular Matter (2010). Thin entry point: configuration, the rule files (common.smk
 # validates it) and the report; see README.md for the stages and docs/formats.md for the files.
 
-import sys
-
 from snakemake.utils import min_version
 
-sys.path.insert(0, workflow.basedir)  # for the modules of workflow/
+# workflow/ is the installed package of the rules' Python (pyproject.toml), read by name.
 from workflow.reporting import (Freshness, check_report_path, configuration_files, piles_made, report_path,
                                 report_words)
 

@@ -208,6 +208,47 @@ def pile_history(fields: xr.Dataset, params: dict[str, Any], heights: list[float
     return out
 
 
+def lowest_row(fields, params):
+    """Index of the lowest grid row whose centre and shoulder windows both hold a valid RVE (None: no such row)."""
+    centre, shoulders = windows(fields["x"].values, params["history"])
+    ok = fields["mask_reason"].transpose("y", "x").values == 0
+    rows = np.flatnonzero(ok[:, centre].any(axis=1) & ok[:, shoulders].any(axis=1))
+    return int(rows[0]) if rows.size else None
+
+
+def pile_stress_contrasts(fields, params):
+    """One pile's centre-over-shoulders contrasts behind the strain contrast, in the
+    windows of ``analysis.history`` (slipped RVEs left out, as there):
+
+    * ``stress_increment``: of ``Δσ_yy`` at the primary height;
+    * ``vertical_stiffness``: of the secant ``Δσ_yy / u_yy`` there (so that
+      ``1 + strain = (1 + stress_increment) / (1 + vertical_stiffness)`` up
+      to the windows' averaging);
+    * ``stress_column``: of ``σ_yy / p_u`` in the lowest grid row with valid
+      RVEs, ``p_u`` the pressure of a uniform-density pile of the pile's own
+      surface (:func:`analysis.history.uniform_pile_pressure`): the column
+      contrast of the base pressure, read from the RVE stress instead of 2 cm
+      bins of contact forces.
+    """
+    h = params["history"]
+    (fields,), _ = leave_out_slips([fields], params["ensemble"]["slip_strain_ratio"])
+    x, y = fields["x"].values, fields["y"].values
+    k = int(np.argmin(np.abs(y - h["primary_height"])))
+    ok = fields["mask_reason"].transpose("y", "x").values == 0
+    d = fields["stress_increment"].sel(i="y", j="y").transpose("y", "x").values
+    u = fields["strain_increment"].sel(i="y", j="y").transpose("y", "x").values
+    s = np.where(ok, fields["stress"].sel(i="y", j="y").transpose("y", "x").values, np.nan)
+    low = lowest_row(fields, params)
+    pu = uniform_pile_pressure(x, x, fields["surface_height"].values, 1.0)
+    centre, shoulders = windows(x, h)
+    window = u[k][centre | shoulders]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return {"stress_increment": row_contrast(d[k], x, h), "vertical_stiffness": row_contrast(d[k] / u[k], x, h),
+                "strain_min": float(np.min(window[np.isfinite(window)])) if np.isfinite(window).any() else math.nan,
+                "stress_column": math.nan if low is None else row_contrast(s[low] / pu, x, h),
+                "lowest_row_y": math.nan if low is None else float(y[low])}
+
+
 def mean_sem(values) -> tuple[float, float, float, int]:
     """Mean, standard error, standard deviation and count of the finite ``values``."""
     a = np.asarray(values, float)

@@ -3,15 +3,13 @@
 config/ with overrides laid over it as Snakemake merges a further
 --configfile, validated with its defaults filled in as the Snakefile does."""
 
-import sys
 from pathlib import Path
 
 import yaml
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))  # workflow/ is a folder of the checkout, not an installed package
+from workflow.validation import merge_configs, validate_config
 
-from workflow.validation import merge_configs, validate_config  # noqa: E402
+REPO = Path(__file__).resolve().parents[1]
 
 
 def configuration(*layers, base="config/smoke.yaml"):

@@ -53,19 +53,17 @@ import numpy as np
 import xarray as xr
 import yaml
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO))
+from analysis.growth import OLD, growth
+from analysis.history import mean_sem, pile_stress_contrasts
+from analysis.params import parse_params
+from analysis.pile_quantities import pile_quantities, quantities
+from sim.config import SimConfig
+from sim.pour import pile_shapes
+from sim.release import SETTLED_SPEED, mean_diameter
+from sim.settings_file import SettingsDumper, read_settings_file
+from workflow.validation import merge_configs, validate_config
 
-from analysis.history import mean_sem  # noqa: E402
-from analysis.params import parse_params  # noqa: E402
-from analysis.pile_quantities import pile_quantities, quantities  # noqa: E402
-from sim.config import SimConfig  # noqa: E402
-from sim.pour import pile_shapes  # noqa: E402
-from sim.release import mean_diameter  # noqa: E402
-from sim.settings_file import SettingsDumper, read_settings_file  # noqa: E402
-from workflow.scripts.reproduction_numbers import pile_stress_contrasts  # noqa: E402
-from workflow.scripts.source_growth import OLD, growth  # noqa: E402
-from workflow.validation import merge_configs, validate_config  # noqa: E402
+REPO = Path(__file__).resolve().parents[2]
 
 CONFIG = REPO / "config" / "calibration.yaml"
 RECORDS = REPO / "docs" / "reproduction" / "calibration"
@@ -123,7 +121,7 @@ def growth_record(frames: Path, cfg: dict, protocol: str, seed: int) -> dict:
     sim_cfg = SimConfig.from_dict({k: cfg[k] for k in ("model", "particles", "pour") if k in cfg})
     shapes = pile_shapes(sim_cfg, seed)
     n = cfg["pour"]["n_particles"]
-    g = growth(frames, shapes.radius[:n], mean_diameter(shapes), START)
+    g = growth(frames, shapes.radius[:n], mean_diameter(shapes), START, SETTLED_SPEED)
     angle = g[np.isfinite(g[:, 2]), 2]
     old = g[:, 4]
     return {"frames": int(len(g)), "flow_fraction": float(np.mean(old >= FLOW_MIN)),

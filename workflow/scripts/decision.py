@@ -23,16 +23,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import yaml
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO))
+from analysis import decision
+from sim.settings_file import SettingsDumper, read_settings_file
 
-from analysis import decision  # noqa: E402
-from sim.settings_file import SettingsDumper, read_settings_file  # noqa: E402
+REPO = Path(__file__).resolve().parents[2]
 
 DOCS = REPO / "docs" / "reproduction"
 CALIBRATION = REPO / "config" / "calibration.yaml"

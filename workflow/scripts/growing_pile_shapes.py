@@ -18,15 +18,13 @@ Usage::
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from sim.io import load_simulation  # noqa: E402
-from sim.measure import flank_angles  # noqa: E402
+from sim.io import load_simulation
+from sim.measure import flank_angles
 
 MOVING = 0.01
 """Speed (m/s) above which a particle counts as moving."""

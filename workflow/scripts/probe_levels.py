@@ -26,20 +26,18 @@ Usage::
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from analysis.ensemble import slipped  # noqa: E402
-from analysis.history import mean_sem  # noqa: E402
-from analysis.params import parse_params  # noqa: E402
-from analysis.probes import reversibility  # noqa: E402
-from sim.settings_file import read_settings_file  # noqa: E402
-from workflow.layout import folders  # noqa: E402
+from analysis.ensemble import slipped
+from analysis.history import mean_sem
+from analysis.params import parse_params
+from analysis.probes import reversibility
+from sim.settings_file import read_settings_file
+from workflow.layout import folders
 
 LEVELS = {"reduced05": 0.05, "reduced": 0.10, "reduced15": 0.15}
 

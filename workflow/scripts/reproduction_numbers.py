@@ -79,14 +79,13 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from analysis.elastic import mask_counts  # noqa: E402
-from analysis.ensemble import leave_out_slips  # noqa: E402
-from analysis.history import (UNITS, compare, holm, pile_history, piles_for_power,  # noqa: E402
-                              mean_sem, primary_names, row_contrast, t_threshold, uniform_pile_pressure, welch, windows)
-from analysis.params import parse_params  # noqa: E402
-from analysis.probes import reversibility  # noqa: E402
+from analysis.elastic import mask_counts
+from analysis.ensemble import leave_out_slips
+from analysis.history import (UNITS, compare, holm, pile_history, pile_stress_contrasts,
+                              piles_for_power, mean_sem, primary_names, t_threshold, welch, windows)
+from analysis.params import parse_params
+from analysis.probes import reversibility
 
 
 def _pm(v, s, spec=".3g"):
@@ -548,47 +547,6 @@ def _pile_items(items):
         p, path = item.split("=", 1)
         out.setdefault(p, []).append(path)
     return out
-
-
-def lowest_row(fields, params):
-    """Index of the lowest grid row whose centre and shoulder windows both hold a valid RVE (None: no such row)."""
-    centre, shoulders = windows(fields["x"].values, params["history"])
-    ok = fields["mask_reason"].transpose("y", "x").values == 0
-    rows = np.flatnonzero(ok[:, centre].any(axis=1) & ok[:, shoulders].any(axis=1))
-    return int(rows[0]) if rows.size else None
-
-
-def pile_stress_contrasts(fields, params):
-    """One pile's centre-over-shoulders contrasts behind the strain contrast, in the
-    windows of ``analysis.history`` (slipped RVEs left out, as there):
-
-    * ``stress_increment``: of ``Δσ_yy`` at the primary height;
-    * ``vertical_stiffness``: of the secant ``Δσ_yy / u_yy`` there (so that
-      ``1 + strain = (1 + stress_increment) / (1 + vertical_stiffness)`` up
-      to the windows' averaging);
-    * ``stress_column``: of ``σ_yy / p_u`` in the lowest grid row with valid
-      RVEs, ``p_u`` the pressure of a uniform-density pile of the pile's own
-      surface (:func:`analysis.history.uniform_pile_pressure`): the column
-      contrast of the base pressure, read from the RVE stress instead of 2 cm
-      bins of contact forces.
-    """
-    h = params["history"]
-    (fields,), _ = leave_out_slips([fields], params["ensemble"]["slip_strain_ratio"])
-    x, y = fields["x"].values, fields["y"].values
-    k = int(np.argmin(np.abs(y - h["primary_height"])))
-    ok = fields["mask_reason"].transpose("y", "x").values == 0
-    d = fields["stress_increment"].sel(i="y", j="y").transpose("y", "x").values
-    u = fields["strain_increment"].sel(i="y", j="y").transpose("y", "x").values
-    s = np.where(ok, fields["stress"].sel(i="y", j="y").transpose("y", "x").values, np.nan)
-    low = lowest_row(fields, params)
-    pu = uniform_pile_pressure(x, x, fields["surface_height"].values, 1.0)
-    centre, shoulders = windows(x, h)
-    window = u[k][centre | shoulders]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return {"stress_increment": row_contrast(d[k], x, h), "vertical_stiffness": row_contrast(d[k] / u[k], x, h),
-                "strain_min": float(np.min(window[np.isfinite(window)])) if np.isfinite(window).any() else math.nan,
-                "stress_column": math.nan if low is None else row_contrast(s[low] / pu, x, h),
-                "lowest_row_y": math.nan if low is None else float(y[low])}
 
 
 def convergence_reference(paths):

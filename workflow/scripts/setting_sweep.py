@@ -57,17 +57,16 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO))
+from analysis.history import mean_sem
+from analysis.params import parse_params
+from analysis.pile_quantities import MODULI, SHAPE, pile_quantities
+from analysis.pile_quantities import quantities as pile_quantity_names
+from sim.settings_file import SettingsDumper, read_settings_file, yaml_value
+from workflow.layout import folders
+from workflow.validation import ConfigurationError, validate_config
+from workflow.validation import merge_configs as merged
 
-from analysis.history import mean_sem  # noqa: E402
-from analysis.params import parse_params  # noqa: E402
-from analysis.pile_quantities import MODULI, SHAPE, pile_quantities  # noqa: E402
-from analysis.pile_quantities import quantities as pile_quantity_names  # noqa: E402
-from sim.settings_file import SettingsDumper, read_settings_file, yaml_value  # noqa: E402
-from workflow.layout import folders  # noqa: E402
-from workflow.validation import ConfigurationError, validate_config  # noqa: E402
-from workflow.validation import merge_configs as merged  # noqa: E402
+REPO = Path(__file__).resolve().parents[2]
 
 MEDIUM = REPO / "config" / "medium_piles.yaml"
 COST = {"cpu_s": "CPU s per pile (pour, relax, probe)"}

@@ -44,21 +44,18 @@ Usage::
 
 import argparse
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 from scipy.stats import t as student_t
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO))
 
-from analysis.anisotropy import (  # noqa: E402
+from analysis.anisotropy import (
     MODULI, has_stretch, pile_anisotropy, pile_summary, reduction_shear_contrast)
-from analysis.history import detection_factor, mean_sem  # noqa: E402
-from analysis.params import parse_params  # noqa: E402
-from analysis.probes import SIX_CONSTANTS_MAX_CONDITION  # noqa: E402
+from analysis.history import detection_factor, mean_sem
+from analysis.params import parse_params
+from analysis.probes import SIX_CONSTANTS_MAX_CONDITION
 
 #: Fits of the tables by default (the paper's m for its cubic law; the reduction alone needs the neighbours).
 POINTS = 5

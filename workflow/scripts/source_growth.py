@@ -9,7 +9,7 @@ one table row per source, medians over the frames of the growth (from
 * the flank angle: the slope of a straight line fitted, on each side, to the
   surface profile (highest ``y + R`` of the settled particles in bins one mean
   diameter wide) where it lies between 20 % and 80 % of the tip's height,
-  the mean of both sides (:func:`flank_angle`);
+  the mean of both sides (:func:`analysis.growth.flank_angle`);
 * the moving particles: those faster than :data:`sim.release.SETTLED_SPEED`
   whose centre lies below the tip (particles of the pile, not falling ones),
   and among them those released more than :data:`OLD` s before (the pile set
@@ -25,18 +25,15 @@ Usage (docs/model.md, the table of the protocols)::
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
+from analysis.growth import OLD, flank_angle, growth
 from sim.config import SimConfig
 from sim.pour import GRAVITY, pile_shapes, pour
 from sim.release import SETTLED_SPEED, mean_diameter, source
-
-#: Seconds after its release from which a moving particle counts as the pile's.
-OLD = 0.5
 
 #: (protocol, pour settings) of each source measured.
 SOURCES = {
@@ -45,56 +42,6 @@ SOURCES = {
     "layered top": ("layered", {"line_source": "top"}),
     "layered rain": ("layered", {"line_source": "rain"}),
 }
-
-
-def flank_angle(x, top_y, d):
-    """Mean flank slope in degrees of a surface given by particle tops, or NaN.
-
-    Parameters
-    ----------
-    x, top_y : ndarray
-        Centre x and top (``y + R``) of the settled particles, m.
-    d : float
-        Bin width, m (a mean particle diameter).
-    """
-    bins = np.floor(x / d).astype(int)
-    edges = np.unique(bins)
-    h = np.array([top_y[bins == b].max() for b in edges])
-    xc = (edges + 0.5) * d
-    tip = h.max()
-    angles = []
-    for side in (xc < 0, xc > 0):
-        use = side & (h > 0.2 * tip) & (h < 0.8 * tip)
-        if use.sum() < 3:
-            continue
-        slope = np.polyfit(xc[use], h[use], 1)[0]
-        angles.append(math.degrees(math.atan(abs(slope))))
-    return float(np.mean(angles)) if angles else math.nan
-
-
-def growth(frames, radius, d, start):
-    """Per frame of the growth: time, released, flank angle, moving particles,
-    moving particles released more than :data:`OLD` s before."""
-    with xr.open_dataset(frames) as ds:
-        t, released = ds.time.values, ds.released.values
-        x, y, speed = ds.x.values, ds.y.values, ds.speed.values
-    n = x.shape[1]
-    seen = np.isfinite(x)
-    released_at = np.where(seen.any(axis=0), t[np.argmax(seen, axis=0)], np.inf)
-    rows = []
-    for f in range(len(t)):
-        if released[f] < start * n or released[f] >= n:
-            continue
-        on = np.isfinite(x[f])
-        settled = on & (speed[f] < SETTLED_SPEED)
-        if not settled.any():
-            continue
-        tops = y[f] + radius
-        tip = tops[settled].max()
-        moving = on & (speed[f] >= SETTLED_SPEED) & (y[f] < tip)
-        rows.append((t[f], released[f], flank_angle(x[f][settled], tops[settled], d),
-                     int(moving.sum()), int((moving & (released_at < t[f] - OLD)).sum())))
-    return np.array(rows)
 
 
 def main(argv=None):
@@ -127,7 +74,7 @@ def main(argv=None):
             shapes = pile_shapes(cfg, seed)
             radius = shapes.radius[:args.n]
             d = mean_diameter(shapes)
-            g = growth(frames, radius, d, args.start)
+            g = growth(frames, radius, d, args.start, SETTLED_SPEED)
             rows.append(g)
             fluxes.append((g[-1, 1] - g[0, 1]) / (g[-1, 0] - g[0, 0]))
             with xr.open_dataset(stem.with_suffix(".nc")) as st:

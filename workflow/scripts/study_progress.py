@@ -60,19 +60,16 @@ import csv
 import math
 import os
 import re
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO))  # for workflow/ and sim/durations.py
 
-from sim.durations import hms, parse_hms  # noqa: E402
-from sim.lock import PourLock  # noqa: E402
-from workflow.piles import Piles, stage_rule  # noqa: E402
-from workflow.resources import PARTICLE_STEP_S, SimResources  # noqa: E402
-from workflow.validation import load_config  # noqa: E402
+from sim.durations import hms, parse_hms
+from sim.lock import PourLock
+from workflow.piles import Piles, stage_rule
+from workflow.resources import PARTICLE_STEP_S, SimResources
+from workflow.validation import load_config
 
 # A pile whose log was written this recently (s) counts as running.
 RECENT_S = 300.0

@@ -39,19 +39,16 @@ Usage::
 
 import argparse
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 from scipy.stats import mannwhitneyu, t as student_t
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO))
 
-from analysis.history import detection_factor, mean_sem  # noqa: E402
-from analysis.params import parse_params  # noqa: E402
-from analysis.pile_quantities import MODULI, SHAPE, pile_quantities, quantities  # noqa: E402
-from sim.settings_file import read_settings_file  # noqa: E402
+from analysis.history import detection_factor, mean_sem
+from analysis.params import parse_params
+from analysis.pile_quantities import MODULI, SHAPE, pile_quantities, quantities
+from sim.settings_file import read_settings_file
 
 COST = {"pour_cpu_min": "pour CPU (min; separate runs, not compared)"}
 #: A recorded pile's files: ``{protocol}/seed{seed}`` plus these suffixes.

@@ -1,0 +1,94 @@
+"""How a pile grew, read from the frames of its pour (``python -m sim pour --frames``).
+
+The film's frames (``results/README.md``: time, particles released, centre
+and speed of every released particle) say, frame by frame, how steep the
+flanks stood and how many particles of the pile were moving.  Used by the
+table of the sources (``workflow/scripts/source_growth.py``) and by the
+calibration records (``workflow/scripts/calibration.py``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import xarray as xr
+
+#: Seconds after its release from which a moving particle counts as the pile's.
+OLD = 0.5
+
+
+def flank_angle(x, top_y, d):
+    """Mean flank slope in degrees of a surface given by particle tops, or NaN.
+
+    The surface is the highest top in bins one mean diameter wide; on each
+    side of ``x = 0`` a straight line is fitted where it lies between 20 %
+    and 80 % of the tip's height (at least three bins), and the angles of
+    both sides are averaged.
+
+    Parameters
+    ----------
+    x, top_y : ndarray
+        Centre x and top (``y + R``) of the settled particles, m.
+    d : float
+        Bin width, m (a mean particle diameter).
+    """
+    bins = np.floor(x / d).astype(int)
+    edges = np.unique(bins)
+    h = np.array([top_y[bins == b].max() for b in edges])
+    xc = (edges + 0.5) * d
+    tip = h.max()
+    angles = []
+    for side in (xc < 0, xc > 0):
+        use = side & (h > 0.2 * tip) & (h < 0.8 * tip)
+        if use.sum() < 3:
+            continue
+        slope = np.polyfit(xc[use], h[use], 1)[0]
+        angles.append(math.degrees(math.atan(abs(slope))))
+    return float(np.mean(angles)) if angles else math.nan
+
+
+def growth(frames, radius, d, start, settled_speed):
+    """Per frame of the growth, one row: time, released, flank angle, moving
+    particles, moving particles released more than :data:`OLD` s before.
+
+    Parameters
+    ----------
+    frames : path-like
+        The frames file of the pour.
+    radius : ndarray
+        Circumradius of each particle of the pour, m.
+    d : float
+        A mean particle diameter, m (the surface's bin width).
+    start : float
+        The growth's first frame: the first with this fraction of the
+        particles released (its last: the last before all are).
+    settled_speed : float
+        Speed (m/s) below which a particle counts as settled
+        (``sim.release.SETTLED_SPEED``); the moving particles are the faster
+        ones whose centre lies below the tip of the settled ones.
+
+    Returns
+    -------
+    ndarray, shape (frames, 5)
+    """
+    with xr.open_dataset(frames) as ds:
+        t, released = ds.time.values, ds.released.values
+        x, y, speed = ds.x.values, ds.y.values, ds.speed.values
+    n = x.shape[1]
+    seen = np.isfinite(x)
+    released_at = np.where(seen.any(axis=0), t[np.argmax(seen, axis=0)], np.inf)
+    rows = []
+    for f in range(len(t)):
+        if released[f] < start * n or released[f] >= n:
+            continue
+        on = np.isfinite(x[f])
+        settled = on & (speed[f] < settled_speed)
+        if not settled.any():
+            continue
+        tops = y[f] + radius
+        tip = tops[settled].max()
+        moving = on & (speed[f] >= settled_speed) & (y[f] < tip)
+        rows.append((t[f], released[f], flank_angle(x[f][settled], tops[settled], d),
+                     int(moving.sum()), int((moving & (released_at < t[f] - OLD)).sum())))
+    return np.array(rows)
