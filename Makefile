@@ -109,13 +109,16 @@ test: venv-test browser
 	$(PY) -m pytest
 
 # The simulator's timings; with LAMMPS installed (make bench-peers) also a
-# LAMMPS disk pile of each size, timed in the same run, and the ratios to it.
+# LAMMPS disk pile of each size and LAMMPS's rounded polygons of each pile,
+# timed in the same run, and the ratios to them.
 bench: venv
 	mkdir -p logs
-	$(PY) -m sim bench --sizes 3000,10000,30000 $$(command -v lmp >/dev/null && echo --peer lammps) \
+	$(PY) -m sim bench --sizes 3000,10000,30000 \
+	  $$(command -v lmp >/dev/null && echo --peer lammps --peer lammps-polygons) \
 	  2>&1 | tee logs/bench.log
 
-# The bench's reference peer: Debian's lammps package (lmp, with mpirun).
+# The bench's peers: Debian's lammps package (lmp, with mpirun), its GRANULAR
+# package for the disks and its BODY package for the polygons.
 bench-peers:
 	@if command -v lmp >/dev/null && command -v mpirun >/dev/null; then :; \
 	elif command -v apt-get >/dev/null && [ "$$(id -u)" = 0 ]; then \

@@ -273,9 +273,10 @@ def _parser():
     p.add_argument("--threads", default="1,2", help="comma-separated thread counts")
     p.add_argument("--cache", default=".bench", help="folder of the built piles")
     p.add_argument("--state", help="time this state file instead of the built piles")
-    p.add_argument("--peer", choices=["lammps"],
-                   help="also time a LAMMPS disk pile of each N in this run (needs lmp: "
-                        "make bench-peers) and print the ratios")
+    p.add_argument("--peer", choices=["lammps", "lammps-polygons"], action="append",
+                   help="also time, in this run, a LAMMPS disk pile of each N (lammps) or "
+                        "LAMMPS's rounded polygons of each pile (lammps-polygons), and print "
+                        "the ratios; repeatable (needs LAMMPS: make bench-peers)")
     p.add_argument("--scenes", metavar="STATE",
                    help="instead: time the pile of this state file under each scene "
                         "variant (friction 0, damping 0, no rotation, no support)")

@@ -42,7 +42,7 @@ from ..integrators import INTEGRATORS
 from ..io import load_simulation, read_state, save_state
 from ..relax import RelaxationError, relax
 from ..shapes import make_shapes
-from . import lammps_peer
+from . import lammps_peer, lammps_polygons
 
 log = logging.getLogger("sim")
 
@@ -55,6 +55,8 @@ HEAP_SLOPE_DEG = 20.0
 #: particle by 1 s, and the bench prints the contacts per particle it times;
 #: relaxing for 3 s took that pile 23 min to build (the other core busy).
 HEAP_RELAX = RelaxParams(max_time=1.0)
+#: The peers ``--peer`` can time beside the piles.
+PEERS = ("lammps", "lammps-polygons")
 
 
 def _shapes(rng, n, model, particles=None):
@@ -328,10 +330,12 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
         Folder of the benchmark piles.
     state : str or Path, optional
         Time this state file instead of the built piles.
-    peer : {None, "lammps"}
-        Also time a LAMMPS disk pile of each N on as many MPI ranks as
-        threads, in this run (:mod:`sim.numerics.lammps_peer`), and give each
-        row its ratio to it.
+    peer : None, str or tuple of str
+        Peers among :data:`PEERS` to time in this run, each on as many MPI
+        ranks as threads, giving each row its ratio to them: ``"lammps"``, a
+        LAMMPS disk pile of each N (:mod:`sim.numerics.lammps_peer`);
+        ``"lammps-polygons"``, LAMMPS's rounded polygons of each pile
+        (:mod:`sim.numerics.lammps_polygons`).
 
     Returns
     -------
@@ -341,10 +345,14 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
     unknown = sorted(set(integrators) - set(INTEGRATORS))
     if unknown:
         raise ValueError(f"bench integrators {unknown}: must be among {sorted(INTEGRATORS)}")
-    if peer not in (None, "lammps"):
-        raise ValueError(f"bench --peer {peer!r}: the only peer is 'lammps'")
-    if peer:
-        lammps_peer.find_lmp()  # before any pile is built
+    peers_asked = (peer,) if isinstance(peer, str) else tuple(peer or ())
+    unknown = sorted(set(peers_asked) - set(PEERS))
+    if unknown:
+        raise ValueError(f"bench --peer {unknown}: must be among {list(PEERS)}")
+    if "lammps" in peers_asked:  # before any pile is built
+        lammps_peer.find_lmp()
+    if "lammps-polygons" in peers_asked:
+        lammps_polygons.find_lmp()
     paths = [Path(state)] if state else [loaded_pile(n, cache=cache) for n in sizes]
     rows = []
     print(f"{'N':>6} {'integrator':>10} {'thr':>3} {'contacts/N':>10} {'ns/p-step':>9} "
@@ -364,13 +372,16 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
                       f"{r['ns_per_contact']:>10.1f} {r['cores_used']:>5.2f} "
                       f"{r['share_predict']:>7.0%} {r['share_pairs']:>6.0%} "
                       f"{r['share_gather']:>6.0%}", flush=True)
-    peers = _time_peers(paths, threads, steps, repeats, cache) if peer else []
-    rows = lammps_peer.ratios(rows, peers)
+    peers = _time_peers(paths, threads, steps, repeats, cache) if "lammps" in peers_asked else []
+    polygon_peers = (_time_polygon_peers(paths, threads, steps, repeats, cache)
+                     if "lammps-polygons" in peers_asked else [])
+    rows = lammps_polygons.ratios(lammps_peer.ratios(rows, peers), polygon_peers)
     for r in rows:
-        if "ratio_to_lammps" in r:
-            print(f"against LAMMPS disks, N = {r['n_particles']}, {r['integrator']}, "
-                  f"{r['threads']} thread(s)/rank(s): {r['ratio_to_lammps']:.2f}x per "
-                  f"particle-step, {r['ratio_to_lammps_per_contact']:.2f}x per contact")
+        for name, key in (("disks", "ratio_to_lammps"), ("polygons", "ratio_to_lammps_polygons")):
+            if key in r:
+                print(f"against LAMMPS {name}, N = {r['n_particles']}, {r['integrator']}, "
+                      f"{r['threads']} thread(s)/rank(s): {r[key]:.2f}x per "
+                      f"particle-step, {r[key + '_per_contact']:.2f}x per contact")
     derived = derived_figures(rows)
     for r in derived["parallel_efficiency"]:
         print(f"parallel efficiency, N = {r['n_particles']}, {r['integrator']}, "
@@ -379,7 +390,8 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
         print(f"cost per particle-step at N = {r['n_particles']} against N = "
               f"{r['against_n']}, {r['integrator']}, {r['threads']} thread(s): {r['ratio']:.2f}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-    print(json.dumps({"bench": rows, **derived, "lammps": peers, "peak_rss_bytes": peak,
+    print(json.dumps({"bench": rows, **derived, "lammps": peers,
+                      "lammps_polygons": polygon_peers, "peak_rss_bytes": peak,
                       "threads_available": numba.config.NUMBA_NUM_THREADS}))
     return rows
 
@@ -400,6 +412,25 @@ def _time_peers(paths, threads, steps, repeats, cache):
                   f"{p['contacts_per_particle']:>10.2f} "
                   f"{p['lammps_ns_per_particle_step']:>9.1f} "
                   f"{p['lammps_ns_per_contact']:>10.1f}", flush=True)
+    return peers
+
+
+def _time_polygon_peers(paths, threads, steps, repeats, cache):
+    """LAMMPS's rounded polygons of each pile, at its time step and skin, on each
+    thread count as MPI ranks (settled once, kept in ``cache``); printed as a table."""
+    print(f"{'N':>6} {'peer':>16} {'rk':>3} {'contacts/N':>10} {'ns/p-step':>9} "
+          f"{'ns/contact':>10}", flush=True)
+    peers = []
+    for path in paths:
+        sim = _load(path, "verlet")
+        for t in threads:
+            p = lammps_polygons.time_peer(sim.shapes, sim.theta, t, sim.dt, sim.skin, sim.model,
+                                          steps, repeats, cache)
+            peers.append(p)
+            print(f"{p['n_particles']:>6} {'lammps-polygons':>16} {t:>3} "
+                  f"{p['contacts_per_particle']:>10.2f} "
+                  f"{p['lammps_polygons_ns_per_particle_step']:>9.1f} "
+                  f"{p['lammps_polygons_ns_per_contact']:>10.1f}", flush=True)
     return peers
 
 

