@@ -27,6 +27,9 @@ NODE_VARS = ("node_x", "node_y")
 CONTACT_VARS = ("contact_i", "contact_j", "contact_x", "contact_y", "force_x", "force_y",
                 "normal_x", "normal_y", "overlap_area")
 INTEGER_VARS = ("node_count", "contact_i", "contact_j")
+#: ``contact_j`` of the first polygon of a rough base (docs/formats.md#state-files);
+#: polygon b is ``BASE_FIRST - b``.
+BASE_FIRST = -4
 REQUIRED_ATTRS = ("gravity",)
 DIMS = {**{v: "particle" for v in PARTICLE_VARS}, **{v: "node" for v in NODE_VARS},
         **{v: "contact" for v in CONTACT_VARS}}
@@ -129,6 +132,12 @@ def content_digest(ds: xr.Dataset) -> str:
 def state_from_dataset(ds: xr.Dataset, path: str = "<dataset>") -> State:
     """Validate a contract dataset and return it as a :class:`State`.
 
+    The fixed polygons of a rough base (dimension ``base_polygon``) are no
+    particles of the pile: their contacts (``contact_j`` from
+    :data:`BASE_FIRST` down) become contacts with the support
+    (``contact_j = -1``), so that the base pressure is the pile's force on
+    the base layer and the fields see it as the support.
+
     A file written with a ``data_digest`` (every state the simulator writes)
     must still match it (:func:`content_digest`): bytes changed inside the
     file after it was written are named as damage, not read as a pile.
@@ -185,9 +194,14 @@ def state_from_dataset(ds: xr.Dataset, path: str = "<dataset>") -> State:
     bad = (ci < 0) | (ci >= n)
     if bad.any():
         raise _fail(path, f"contact_i out of range [0, {n}) at contact {int(np.flatnonzero(bad)[0])}")
-    bad = (cj < -1) | (cj >= n)
+    n_base = ds.sizes.get("base_polygon", 0)
+    on_base = (cj <= BASE_FIRST) & (cj > BASE_FIRST - n_base)
+    bad = ((cj < -1) & ~on_base) | (cj >= n)
     if bad.any():
-        raise _fail(path, f"contact_j out of range [-1, {n}) at contact {int(np.flatnonzero(bad)[0])}")
+        allowed = f"[-1, {n})" + (f" or [{BASE_FIRST - n_base + 1}, {BASE_FIRST}] (base polygons)"
+                                  if n_base else "")
+        raise _fail(path, f"contact_j out of range {allowed} at contact {int(np.flatnonzero(bad)[0])}")
+    arrays["contact_j"] = np.where(on_base, -1, cj)
     bad = ci == cj
     if bad.any():
         raise _fail(path, f"contact {int(np.flatnonzero(bad)[0])} joins a particle to itself")

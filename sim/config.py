@@ -43,7 +43,8 @@ BOOKKEEPING = {"pour": ("checkpoint_interval", "progress_interval", "frame_inter
 #: out of the result settings (:func:`result_settings`), so those piles keep
 #: their pour digest and the workflow re-runs none of them.
 LATER_SETTINGS = {"particles": ("aspect_ratio",),
-                  "pour": ("point_source", "outlet_width", "outlet_height", "line_source")}
+                  "pour": ("point_source", "outlet_width", "outlet_height", "line_source"),
+                  "physics": ("rough_base", "rough_base_slope_deg")}
 
 #: The JSON schema (YAML) of the simulator's sections of a configuration: the
 #: source of every default and bound of the simulator's settings.
@@ -436,14 +437,24 @@ class PhysicsParams:
     rotation : bool
         Orientations are integrated; False fixes each particle's orientation
         at the one it was released with.
+    rough_base : bool
+        Fixed polygons lie on the support (:class:`sim.scene.RoughBase`).
+    rough_base_slope_deg : float
+        Without walls, the base spans the base of a triangular pile of all
+        the particles with flanks at this angle (:func:`sim.pour.rough_base`).
     """
 
     support: bool = _default("physics", "support")
     walls: tuple | None = _default("physics", "walls")
     rotation: bool = _default("physics", "rotation")
+    rough_base: bool = _default("physics", "rough_base")
+    rough_base_slope_deg: float = _default("physics", "rough_base_slope_deg")
 
     def __post_init__(self):
         _check_fields(self, "physics")
+        if self.rough_base and not self.support:
+            raise ConfigError("physics.rough_base = True: the base lies on the support, but "
+                              "physics.support = False (allowed with a rough base: true)")
         if self.walls is not None:
             schema = setting_schema("physics", "walls")
             if not isinstance(self.walls, (list, tuple)) or not (

@@ -7,6 +7,7 @@ import numpy as np
 
 from .broadphase import carry_history, match_pairs
 from .contact_law import tangential_stiffness
+from .scene import BODY_BASE
 from .step import ROW, ROW_SIZE
 from .warmstart import WITNESS_DTYPE
 
@@ -17,11 +18,12 @@ def contacts(state, scene):
     Returns
     -------
     dict of numpy.ndarray
-        ``i``, ``j`` (j < 0: a body), ``x``, ``y`` (force point), ``fx``,
+        ``i``, ``j`` (j < 0: a body; ``BODY_BASE - b``: base polygon b),
+        ``x``, ``y`` (force point), ``fx``,
         ``fy`` (total force on i), ``nx``, ``ny`` (normal from i to j),
         ``area``, ``spring`` (tangential history), ``witness`` (n, 4): the
         crossing edges the narrow phase starts from next step
-        (:mod:`sim.warmstart`; -1 for bodies).
+        (:mod:`sim.warmstart`; -1 for the half-plane bodies).
     """
     rows = state.pout
     act = np.flatnonzero(rows[:, ROW["active"]] > 0) if rows.shape[0] else np.empty(0, int)
@@ -30,14 +32,17 @@ def contacts(state, scene):
     parts_rows = [rows[act]]
     parts_spring = [state.spring[act]]
     parts_witness = [state.cross[act]]
-    for b, body in enumerate(scene.body_ids):
+    n_half = len(scene.body_ids)
+    for b in range(n_half + scene.base_slots):
         brow = state.bout[b, :state.n]
         bact = np.flatnonzero(brow[:, ROW["active"]] > 0)
         parts_i.append(bact)
-        parts_j.append(np.full(len(bact), body, np.int64))
+        parts_j.append(np.full(len(bact), scene.body_ids[b], np.int64) if b < n_half else
+                       BODY_BASE - state.base_owner[b - n_half, bact])
         parts_rows.append(brow[bact])
         parts_spring.append(state.bspring[b, bact])
-        parts_witness.append(np.full((len(bact), 4), -1, np.int64))
+        parts_witness.append(np.full((len(bact), 4), -1, np.int64) if b < n_half else
+                             state.base_cross[(b - n_half) * scene.capacity + bact])
     allrows = np.concatenate(parts_rows) if parts_rows else np.zeros((0, ROW_SIZE))
     return {
         "i": np.concatenate(parts_i).astype(np.int64),
@@ -62,6 +67,16 @@ def load_history(state, scene, ci, cj, spring, witness=None):
     for b, bid in enumerate(scene.body_ids):
         sel = cj == bid
         state.bspring[b, ci[sel]] = spring[sel]
+    if scene.base_slots:
+        sel = cj <= BODY_BASE
+        polygon = BODY_BASE - cj[sel]
+        slot = polygon % scene.base_slots
+        state.bspring[len(scene.body_ids) + slot, ci[sel]] = spring[sel]
+        state.base_owner[slot, ci[sel]] = polygon
+        if witness is not None:
+            at = slot * scene.capacity + ci[sel]
+            state.base_axis[at] = -1
+            state.base_cross[at] = witness[sel]
     pair = cj >= 0
     lo = np.minimum(ci[pair], cj[pair])
     hi = np.maximum(ci[pair], cj[pair])

@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 
 import numba
+import numpy as np
 
 from . import blowup, contacts, energy, state as states
 from .config import ModelParams
@@ -77,6 +78,8 @@ class Simulation:
         Whether the frictional support ``y < 0`` exists.
     walls : tuple of float or None
         ``(x_left, x_right)`` positions of frictional side walls, or None.
+    base : sim.scene.RoughBase or None
+        Fixed polygons on the support (``physics.rough_base``), or None.
     rotate : bool
         Integrate rotations (False fixes every particle's orientation: its
         angular velocity is zero and θ never changes).
@@ -113,9 +116,10 @@ class Simulation:
     _stale = _Field("state", "stale")
 
     def __init__(self, shapes, model: ModelParams, gravity=(0.0, -9.81), support=True,
-                 walls=None, rotate=True, skin=None):
-        self.scene = make_scene(shapes, model, support, walls, rotate, skin)
+                 walls=None, rotate=True, skin=None, base=None):
+        self.scene = make_scene(shapes, model, support, walls, rotate, skin, base)
         self.state = states.new_state(self.scene, gravity)
+        self._base = _base_arrays(base, int(shapes.node_offset[-1]))
         self._init, self._step = integrator(self.scene)
         self.full_law = False
         self.check_every = max(50, int(round(1e-3 / self.dt)))
@@ -222,7 +226,8 @@ class Simulation:
                           self.inv_inertia, sh.area),
                 Pairs(st.pi, st.pj, st.spring, st.pdamping, st.axis, st.cross, st.pout,
                       st.pforce, st.pair_offset, st.pair_index),
-                Bodies(self.body_p, self.body_m, self.body_friction, st.bspring, st.bout),
+                Bodies(self.body_p, self.body_m, self.body_friction, st.bspring, st.bout,
+                       *self._base, st.base_owner, st.base_axis, st.base_cross),
                 Law(float(m.youngs_modulus), float(m.damping), float(m.friction), self.eps,
                     bool(damped), bool(tangential), bool(body_tangential)),
                 Motion(self.dt, self.coeffs, self.gravity[0], self.gravity[1],
@@ -293,3 +298,15 @@ class Simulation:
     def net_forces(self):
         """Net force (n, 2) on each active particle from the last evaluation plus gravity."""
         return contacts.net_forces(self.state, self.scene)
+
+
+def _base_arrays(base, corners):
+    """The rough base's fixed fields of :class:`sim.step.Bodies` (empty arrays
+    without a base): the offsets of its polygons' world corners in the
+    state's ``wx``, ``wy``, after the particles' `corners`
+    (:func:`sim.state.new_state`), their boxes, centres, areas and the top."""
+    if base is None:
+        return (np.zeros(1, np.int64), np.empty((0, 4)), np.empty((0, 2)), np.empty(0), 0.0)
+    return (base.shapes.node_offset + corners, base.box,
+            np.ascontiguousarray(np.column_stack([base.x, base.y])), base.shapes.area,
+            float(base.top))

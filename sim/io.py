@@ -35,7 +35,7 @@ from . import __version__
 from .config import ModelParams, result_settings
 from .digest import code_digest
 from .engine import Simulation
-from .scene import BODY_SUPPORT
+from .scene import BODY_BASE, BODY_SUPPORT, place_base
 from .shapes import shapes_from_nodes
 
 PARTICLE_VARS = {
@@ -364,7 +364,7 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
                                    attrs={"units": "1", "long_name": "particle index i"})
     ds["contact_j"] = xr.DataArray(c["j"].astype(np.int32), dims="contact", attrs={
         "units": "1", "long_name": "particle index j; -1 support, -2 left wall, "
-        "-3 right wall"})
+        "-3 right wall" + ("" if sim.base is None else f", {BODY_BASE} - b base polygon b")})
     values = {"contact_x": c["x"], "contact_y": c["y"], "force_x": c["fx"],
               "force_y": c["fy"], "normal_x": c["nx"], "normal_y": c["ny"],
               "overlap_area": c["area"], "contact_spring": c["spring"]}
@@ -382,6 +382,8 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
         attrs={"units": "m (rad for theta)", "long_name": "scaled time derivatives "
                "dt^k/k! d^k q/dt^k of x, y, theta kept by the integrator, with dt the "
                "global attribute dt (restart data)"})
+    if sim.base is not None:
+        _add_base(ds, sim.base)
     m = sim.model
     g = float(np.hypot(*sim.gravity))
     walls = sim.walls if sim.walls is not None else (np.nan, np.nan)
@@ -402,6 +404,38 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
     if attrs.get("stage") in POUR_STAGES and "pour_digest" not in attrs:
         ds.attrs["pour_digest"] = pour_digest(config)
     return ds
+
+
+#: The variables of a rough base (docs/formats.md#state-files), with their
+#: dimension, units and meaning.
+BASE_VARS = {
+    "base_x": ("base_polygon", "m", "x of the centre of mass of each base polygon"),
+    "base_y": ("base_polygon", "m", "y of the centre of mass of each base polygon"),
+    "base_theta": ("base_polygon", "rad", "orientation of each base polygon"),
+    "base_node_count": ("base_polygon", "1", "corners of each base polygon"),
+    "base_node_x": ("base_node", "m", "base polygon corner x in the body frame, "
+                    "counter-clockwise, polygon after polygon"),
+    "base_node_y": ("base_node", "m", "base polygon corner y in the body frame"),
+}
+
+
+def _add_base(ds: xr.Dataset, base) -> None:
+    """Add the :data:`BASE_VARS` of `base` (:class:`sim.scene.RoughBase`) to `ds`."""
+    values = {"base_x": base.x, "base_y": base.y, "base_theta": base.theta,
+              "base_node_count": base.shapes.node_count.astype(np.int32),
+              "base_node_x": base.shapes.node_x, "base_node_y": base.shapes.node_y}
+    for name, (dim, units, long_name) in BASE_VARS.items():
+        ds[name] = xr.DataArray(values[name], dims=dim,
+                                attrs={"units": units, "long_name": long_name})
+
+
+def _base_of(ds: xr.Dataset, density: float):
+    """The :class:`sim.scene.RoughBase` a state file records, or None."""
+    if "base_x" not in ds:
+        return None
+    shapes = shapes_from_nodes(ds["base_node_count"].values.astype(np.int64),
+                               ds["base_node_x"].values, ds["base_node_y"].values, density)
+    return place_base(shapes, ds["base_x"].values, ds["base_y"].values, ds["base_theta"].values)
 
 
 def data_digest(ds: xr.Dataset) -> str:
@@ -463,10 +497,12 @@ def read_state(path) -> xr.Dataset:
                              f"{str(exc).splitlines()[0] if str(exc) else 'no detail'}): "
                              "truncated or not a netCDF file; delete it and run the step "
                              "that writes it again") from None
-    missing = [v for v in REQUIRED if v not in ds]
+    has_base = any(v in ds for v in BASE_VARS)
+    required = REQUIRED + (list(BASE_VARS) if has_base else [])
+    missing = [v for v in required if v not in ds]
     if missing:
         raise StateFileError(f"state file {path}: missing variable(s) {missing}")
-    for v in REQUIRED:
+    for v in required:
         vals = np.asarray(ds[v].values, float)
         if not np.all(np.isfinite(vals)):
             k = int(np.argmax(~np.isfinite(vals.ravel())))
@@ -483,9 +519,12 @@ def read_state(path) -> xr.Dataset:
                              f"{ds.sizes['node']} nodes")
     ci = ds["contact_i"].values
     cj = ds["contact_j"].values
-    if ci.size and (ci.min() < 0 or ci.max() >= n or cj.max() >= n or cj.min() < -3):
+    lowest = BODY_BASE - ds.sizes["base_polygon"] + 1 if has_base else -3
+    if ci.size and (ci.min() < 0 or ci.max() >= n or cj.max() >= n or cj.min() < lowest):
         raise StateFileError(f"state file {path}: contact indices outside 0..{n - 1} "
-                             "(contact_j may also be -1, -2, -3)")
+                             "(contact_j may also be -1, -2, -3"
+                             + (f", or {BODY_BASE} .. {lowest} for the base polygons)"
+                                if has_base else ")"))
     return ds
 
 
@@ -541,7 +580,8 @@ def load_simulation(path, model: ModelParams | None = None, capacity_shapes=None
     sim = Simulation(shapes, model, gravity=(float(ds.attrs["gravity_x"]),
                                              float(ds.attrs["gravity_y"])),
                      support=bool(ds.attrs.get("support", 1)), walls=walls,
-                     rotate=bool(ds.attrs.get("rotate", 1)))
+                     rotate=bool(ds.attrs.get("rotate", 1)),
+                     base=_base_of(ds, model.density))
     sim.set_scaled_derivatives(ds["integrator_state"].values, float(ds.attrs["dt"]))
     sim.time = float(ds.attrs["time"])
     sim.step = int(ds.attrs["step"])

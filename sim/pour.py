@@ -6,7 +6,9 @@ The shapes of a pile come from a generator seeded with ``(seed, 0)``, and the
 release orientation of particle k from one seeded with ``(seed, 2, k)``
 (its position: :func:`sim.release.release_point`), so a pour resumed from a
 checkpoint (:mod:`sim.checkpoint`) releases the same particles at the same
-places as the uninterrupted one.
+places as the uninterrupted one.  The polygons of a rough base
+(``physics.rough_base``, :func:`rough_base`) come from one seeded with
+``(seed, 3)``.
 """
 
 from __future__ import annotations
@@ -31,9 +33,9 @@ from .io import save_state
 from .lock import PourLock, appended_log, lock_path
 from .progress import Progress, pour_remaining, summary
 from .release import (pile_height_bound, pile_top, release_point, source, spot_clear,
-                      touching)
+                      target_pile, touching)
 from .run_loop import Interrupted, stop_on_signals
-from .scene import make_scene
+from .scene import lay_base, make_scene
 from .shapes import make_shapes
 from .timestep import check_run, dt_source
 
@@ -58,10 +60,37 @@ class LandingError(RuntimeError):
 
 def pile_shapes(cfg: SimConfig, seed: int):
     """The shapes of a pile's particles, drawn reproducibly from its seed."""
+    return _drawn(cfg, np.random.default_rng([seed, 0]), cfg.pour.n_particles)
+
+
+def _drawn(cfg: SimConfig, rng, n):
+    """`n` polygons drawn from `rng` by the recipe of ``cfg.particles``."""
     p = cfg.particles
-    return make_shapes(np.random.default_rng([seed, 0]), cfg.pour.n_particles,
-                       p.corners_min, p.corners_max, p.semi_axis_mean, p.semi_axis_spread,
-                       cfg.model.density, p.min_edge_fraction, p.min_angle_deg)
+    return make_shapes(rng, n, p.corners_min, p.corners_max, p.semi_axis_mean,
+                       p.semi_axis_spread, cfg.model.density, p.min_edge_fraction,
+                       p.min_angle_deg)
+
+
+def rough_base(cfg: SimConfig, seed: int, shapes):
+    """The rough base of a pile (``physics.rough_base``), or None without one.
+
+    Its polygons are drawn by the particles' recipe from a generator seeded
+    with ``(seed, 3)`` and laid side by side on the support
+    (:func:`sim.scene.lay_base`) between the walls, or without walls over
+    ``|x| <= L``, ``L`` the half base width of a triangular pile of all the
+    particles `shapes` with flanks at ``physics.rough_base_slope_deg``
+    (:func:`sim.release.target_pile`).
+    """
+    phys = cfg.physics
+    if not phys.rough_base:
+        return None
+    if phys.walls is not None:
+        lo, hi = phys.walls
+    else:
+        hi = target_pile(shapes, phys.rough_base_slope_deg)[0]
+        lo = -hi
+    return lay_base(lambda rng, n: _drawn(cfg, rng, n), np.random.default_rng([seed, 3]), lo, hi,
+                    cfg.model.density)
 
 
 def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
@@ -145,8 +174,8 @@ def check_pour(cfg: SimConfig, protocol, seed, shapes, settle_time=0.1):
     released at ``release_speed`` that falls from ``release_height`` (plus
     its circumradius) above the top of the pile to the support (rate, speed
     and height those of the source, :func:`sim.release.source`)
-    (:func:`sim.release.pile_height_bound`), ``sqrt(v0² + 2 g h)``: the
-    contacts only dissipate; its drag ``spin_drag``.
+    (:func:`sim.release.pile_height_bound`, plus the top of a rough base),
+    ``sqrt(v0² + 2 g h)``: the contacts only dissipate; its drag ``spin_drag``.
 
     Raises
     ------
@@ -155,9 +184,10 @@ def check_pour(cfg: SimConfig, protocol, seed, shapes, settle_time=0.1):
     """
     p = cfg.pour
     src = source(cfg, shapes, protocol, GRAVITY)
+    base = rough_base(cfg, seed, shapes)
     scene = make_scene(shapes, cfg.model, cfg.physics.support, cfg.physics.walls,
-                       cfg.physics.rotation)
-    height = pile_height_bound(shapes, cfg.physics.walls)
+                       cfg.physics.rotation, base=base)
+    height = pile_height_bound(shapes, cfg.physics.walls) + (0.0 if base is None else base.top)
     fall = src.elevation + float(np.max(shapes.radius)) + height
     check_run(scene, f"pour {protocol} seed {seed}",
               duration=p.n_particles / src.rate + settle_time + LANDING_TIME,
@@ -186,7 +216,8 @@ def _start(cfg, protocol, seed, checkpoint, shapes, outputs):
         remove_checkpoint(checkpoint)
     phys = cfg.physics
     sim = Simulation(shapes, cfg.model, gravity=(0.0, -GRAVITY), support=phys.support,
-                     walls=phys.walls, rotate=phys.rotation)
+                     walls=phys.walls, rotate=phys.rotation,
+                     base=rough_base(cfg, seed, shapes))
     return sim, 0.0, False
 
 
@@ -275,9 +306,12 @@ def _stopped(sim, cfg, what, exc, checkpoint, passed, recorder, lock, attrs):
 def _release(sim, cfg, protocol, seed, next_release, interval, speed):
     """Release the next particle, moving down at `speed`, if its spot is clear;
     returns the time of the release after it (sooner when this one waits for
-    a clear spot)."""
+    a clear spot).  A release point lower than a circumradius above the top
+    of a rough base is raised to that height."""
     k = sim.n
     x, y = release_point(sim, cfg, protocol, seed, k)
+    if sim.base is not None:
+        y = max(y, sim.base.top + float(sim.shapes.radius[k]))
     if not spot_clear(sim, x, y, float(sim.shapes.radius[k])):
         return sim.time + 0.1 * interval
     theta = np.random.default_rng([seed, 2, k]).uniform(0, 2 * math.pi)

@@ -8,7 +8,8 @@ while a pile grows):
   (see :mod:`sim.integrators`);
 * the candidate pair list ``pi, pj`` with one tangential spring and one set
   of narrow-phase witnesses per pair (:mod:`sim.broadphase`,
-  :mod:`sim.warmstart`), and one spring per particle and fixed body;
+  :mod:`sim.warmstart`), and one spring per particle and fixed body (and per
+  particle and slot of its contacts with a rough base, :class:`sim.scene.RoughBase`);
 * the contact rows of the last force evaluation (``pout``, ``bout``) and the
   kernels' buffers (predictions, world corners, per-thread scratch).
 
@@ -70,9 +71,17 @@ class State:
         A particle moved too far from its reference: its pairs must be
         refreshed before the next step.
     bspring, bout : numpy.ndarray
-        Tangential spring and contact row of each body and particle.
+        Tangential spring and contact row of each body and particle, then of
+        each slot of the rough base and particle (:class:`sim.step.Bodies`).
+    base_owner : numpy.ndarray, shape (base_slots, capacity)
+        The base polygon each slot of each particle was last tested against
+        (-1: none since the particle was placed).
+    base_axis, base_cross : numpy.ndarray
+        The narrow-phase witnesses of each slot (``slot * capacity +
+        particle``) against its base polygon, as ``axis``, ``cross`` of a pair.
     wx, wy, box, pred, work
-        The kernels' buffers: world corners, bounding boxes, predictions,
+        The kernels' buffers: world corners (of the particles, then the
+        fixed ones of a rough base's polygons), bounding boxes, predictions,
         per-thread scratch (:class:`sim.step.Workspace`).
     """
 
@@ -97,6 +106,9 @@ class State:
     moved: bool
     bspring: np.ndarray
     bout: np.ndarray
+    base_owner: np.ndarray
+    base_axis: np.ndarray
+    base_cross: np.ndarray
     wx: np.ndarray
     wy: np.ndarray
     box: np.ndarray
@@ -107,8 +119,13 @@ class State:
 def new_state(scene, gravity) -> State:
     """An empty :class:`State` of `scene` (no active particle) under `gravity` (m/s²)."""
     shapes, capacity = scene.shapes, scene.capacity
-    n_bodies = len(scene.body_ids)
+    n_bodies = len(scene.body_ids) + scene.base_slots
     max_corners = int(np.max(shapes.node_count)) if capacity else 3
+    base_x, base_y = np.empty(0), np.empty(0)
+    if scene.base is not None:
+        max_corners = max(max_corners, int(np.max(scene.base.shapes.node_count)))
+        base_x, base_y = scene.base.wx, scene.base.wy
+    witnesses = scene.base_slots * capacity
     n_threads = numba.config.NUMBA_NUM_THREADS
     return State(
         n=0, r=np.zeros((len(scene.coeffs), 3, capacity)), time=0.0, step=0,
@@ -120,7 +137,11 @@ def new_state(scene, gravity) -> State:
         pair_offset=np.zeros(1, np.int64), pair_index=np.empty(0, np.int64),
         x_ref=np.empty(0), y_ref=np.empty(0), stale=True, moved=False,
         bspring=np.zeros((n_bodies, capacity)), bout=np.zeros((n_bodies, capacity, ROW_SIZE)),
-        wx=np.zeros_like(shapes.node_x), wy=np.zeros_like(shapes.node_y),
+        base_owner=np.full((scene.base_slots, capacity), -1, np.int64),
+        base_axis=np.full(witnesses, -1, WITNESS_DTYPE),
+        base_cross=np.full((witnesses, 4), -1, WITNESS_DTYPE),
+        wx=np.concatenate([np.zeros_like(shapes.node_x), base_x]),
+        wy=np.concatenate([np.zeros_like(shapes.node_y), base_y]),
         box=np.zeros((capacity, 4)), pred=np.zeros((capacity, PRED_SIZE)),
         work=Workspace(np.stack([make_scratch(max_corners) for _ in range(n_threads)]),
                        np.zeros((n_threads, THREAD_ROW)), np.zeros(capacity // BLOCK + 1)))
@@ -128,8 +149,10 @@ def new_state(scene, gravity) -> State:
 
 def forget_particle(state: State, k):
     """Clear particle ``k``'s contact history: the springs and witnesses of its
-    pairs and its springs with the bodies, as for contacts never made."""
+    pairs, its springs with the bodies and its witnesses against a rough base's
+    polygons, as for contacts never made."""
     state.bspring[:, k] = 0.0
+    state.base_owner[:, k] = -1
     its_pairs = (state.pi == k) | (state.pj == k)
     state.spring[its_pairs] = 0.0
     state.axis[its_pairs] = -1
@@ -141,7 +164,7 @@ def forget_particle(state: State, k):
 #: last force evaluation (``pout``, ``bout``), so that a restored state reports
 #: its own contacts.
 SNAPSHOT_FIELDS = ("n", "r", "time", "step", "gravity", "pi", "pj", "spring", "axis", "cross",
-                   "pout", "bspring", "bout")
+                   "pout", "bspring", "bout", "base_owner", "base_axis", "base_cross")
 
 
 class Snapshot:

@@ -9,7 +9,8 @@ A step is two parallel passes without write races:
 2. :func:`gather_and_correct` (over particles): sums the forces of the pairs a
    particle belongs to (in the fixed order of the broad phase's index, so the
    sum is deterministic), adds its contacts with the fixed bodies (support,
-   walls; their spring history is per particle) and gravity, applies the
+   walls, and the polygons of a rough base: :func:`_base_contacts`; their
+   spring history is per particle) and gravity, applies the
    integrator's corrector and then already the next step's predictor for
    this particle (:func:`sim.integrators.nordsieck_step`: its predicted
    position and velocity, ``Particles.pred``), and after each block of
@@ -111,12 +112,24 @@ pairs of each particle
 the pair's i, ``2 p + 1`` where it is its j).
 """
 
-Bodies = namedtuple("Bodies", "point normal friction spring out")
-Bodies.__doc__ = """Fixed half-plane bodies ``{q : (q − point)·normal < 0}`` of infinite mass.
+Bodies = namedtuple("Bodies", "point normal friction spring out base_offset base_box "
+                              "base_centre base_area base_top owner axis cross")
+Bodies.__doc__ = """Fixed bodies of infinite mass: half-planes ``{q : (q − point)·normal < 0}``
+and the polygons of a rough base (:class:`sim.scene.RoughBase`).
 
 point, normal : (n_bodies, 2), normal is the unit outward normal; friction :
-(n_bodies,) μ with particles; spring : (n_bodies, capacity) tangential
-springs; out : (n_bodies, capacity, ROW_SIZE) rows.
+(n_bodies,) μ with particles; spring : (n_bodies + slots, capacity)
+tangential springs; out : (n_bodies + slots, capacity, ROW_SIZE) rows: first
+those of the half-planes, then ``slots`` rows per particle for its contacts
+with base polygons (polygon b in row ``n_bodies + b % slots``);
+base_offset : (n_base + 1,) where the base polygons' world corners lie in
+``Particles.wx, wy`` (after the particles'; they never change); base_box :
+(n_base, 4) their bounding boxes, in increasing x; base_centre : (n_base, 2);
+base_area : (n_base,); base_top : their highest corner; owner : (slots,
+capacity) the base polygon each slot of each particle was last tested
+against (-1: none); axis, cross : (slots × capacity,) and (slots × capacity,
+4) the narrow-phase witnesses of slot s of particle i at ``s * capacity +
+i``, as those of a pair.
 """
 
 Law = namedtuple("Law", "youngs_modulus damping friction eps damped tangential "
@@ -414,6 +427,100 @@ def _body_contact(b, i, pred, node_offset, wx, wy, inv_mass, inv_inertia, area, 
     return fx, fy, tq
 
 
+@njit(cache=True, error_model="numpy")
+def _base_contacts(i, pred, node_offset, wx, wy, box, inv_mass, inv_inertia, area, bodies,
+                   law, dt, S, geo, record):
+    """Force (x, y) and torque on particle i (at its prediction ``pred[i]``) from
+    the polygons of the rough base.
+
+    Called for a particle whose box reaches below the base's top.  The
+    candidates are the polygons whose x range meets that of i's box (found
+    by bisection: the ranges follow each other).  Each is tested as a pair
+    is (:func:`pair_forces`: the slot's witness, else the clipping, which
+    finds a new one; a slot taken over by another polygon starts without a
+    witness), and each contact is that of two particles, the base polygon's
+    inverse mass and inertia zero: the same law, Young's modulus and
+    friction ``law.friction`` as between particles.  Not inlined, as
+    :func:`_body_contact`.
+
+    Returns
+    -------
+    (float, float, float, int)
+        Force (x, y) and torque on i, and the slots in contact as bits
+        (slot s: ``1 << s``); the caller clears the others
+        (:func:`_clear_body_contact`), so a new contact starts with an
+        unloaded spring.
+    """
+    base_box = bodies.base_box
+    first = bodies.point.shape[0]
+    slots = bodies.owner.shape[0]
+    axis = bodies.axis
+    cross = bodies.cross
+    capacity = bodies.owner.shape[1]
+    a0 = node_offset[i]
+    a1 = node_offset[i + 1]
+    used = 0
+    fx = 0.0
+    fy = 0.0
+    tq = 0.0
+    lo = 0
+    hi = base_box.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if base_box[mid, 1] < box[i, 0]:
+            lo = mid + 1
+        else:
+            hi = mid
+    for b in range(lo, min(lo + slots, base_box.shape[0])):
+        if base_box[b, 0] > box[i, 1]:
+            break
+        if base_box[b, 2] > box[i, 3] or base_box[b, 3] < box[i, 2]:
+            continue
+        s = b % slots
+        p = s * capacity + i
+        if bodies.owner[s, i] != b:
+            bodies.owner[s, i] = b
+            axis[p] = -1
+            cross[p, 0] = -1
+        b0 = bodies.base_offset[b]
+        b1 = bodies.base_offset[b + 1]
+        if axis[p] >= 0 and axis_separates(wx, wy, a0, a1, b0, b1, axis[p]):
+            continue
+        xi = pred[i, 0]
+        yi = pred[i, 1]
+        xb = bodies.base_centre[b, 0]
+        yb = bodies.base_centre[b, 1]
+        if not (overlap_from_crossings(wx, wy, a0, a1, b0, b1, xi, yi, xb, yb, law.eps,
+                                       geo, cross, p) or
+                _clip_pair(wx, wy, a0, a1, b0, b1, xi, yi, xb, yb, law.eps, geo, S, axis,
+                           cross, p)):
+            continue
+        row = first + s
+        rix = geo[5] - xi
+        riy = geo[6] - yi
+        ri = math.sqrt(rix * rix + riy * riy)
+        rb = math.sqrt((geo[5] - xb) ** 2 + (geo[6] - yb) ** 2)
+        l = max(characteristic_length(ri, rb), law.eps)
+        damping = (damping_coefficient(reduced_mass(inv_mass[i], 0.0), law.youngs_modulus,
+                                       law.damping) if law.damped else 0.0)
+        wi = pred[i, 5] / dt
+        cfx, cfy, sp = _contact_force(
+            geo, bodies.spring[row, i] if law.tangential else 0.0,
+            pred[i, 3] / dt - wi * riy, pred[i, 4] / dt + wi * rix, l, damping, inv_mass[i],
+            0.0, ri, rb, inv_inertia[i], 0.0, law, law.friction, dt, law.tangential)
+        if law.tangential:
+            bodies.spring[row, i] = sp
+        ctq = rix * cfy - riy * cfx
+        if record:
+            _write_row(bodies.out[row], i, geo, cfx, cfy, ctq, 0.0,
+                       geo[0] / min(area[i], bodies.base_area[b]))
+        used |= 1 << s
+        fx += cfx
+        fy += cfy
+        tq += ctq
+    return fx, fy, tq, used
+
+
 @njit(cache=True, inline="always")
 def _clear_body_contact(bout, bspring, b, i, body_tangential, record):
     """Unload the spring of particle i with body b, which it does not touch, and
@@ -453,7 +560,9 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
     """
     r, pred, node_offset, node_x, node_y, wx, wy, box, mass, inv_mass, inv_inertia, area = pt
     force, offset, index = pairs[7:]
-    point, normal, _, bspring, bout = bodies
+    point, normal, _, bspring, bout = bodies[:5]
+    base_slots = bodies.owner.shape[0]
+    base_top = bodies.base_top
     scratch, geo_rows, block_moved = work
     coeffs = motion.coeffs
     dt = motion.dt
@@ -500,6 +609,19 @@ def gather_and_correct(n, pt, pairs, bodies, law, motion, work, x_ref, y_ref, re
                 fx += bfx
                 fy += bfy
                 tq += btq
+            if base_slots:
+                touched = 0
+                if box[i, 2] < base_top:
+                    bfx, bfy, btq, touched = _base_contacts(i, pred, node_offset, wx, wy, box,
+                                                            inv_mass, inv_inertia, area, bodies,
+                                                            law, dt, S, geo, record)
+                    fx += bfx
+                    fy += bfy
+                    tq += btq
+                for s in range(base_slots):
+                    if not (touched >> s) & 1:
+                        _clear_body_contact(bout, bspring, n_bodies + s, i, law.tangential,
+                                            record)
             ax = fx * inv_mass[i]
             ay = fy * inv_mass[i]
             # the drag's divisions only where there is drag: without it the
