@@ -13,12 +13,12 @@ import numpy as np
 
 from .blowup import BlowUpError
 from .checkpoint import keep_last_good
-from .config import SimConfig
+from .config import SimConfig, setting_schema
 from .engine import Simulation
 from .io import check_input_stage, lineage, load_simulation, save_state
 from .progress import Progress, fixed_remaining, summary
 from .run_loop import Interrupted, stop_on_signals
-from .timestep import check_run, dt_source
+from .timestep import check_run, drag_limit, dt_source
 
 log = logging.getLogger("sim")
 
@@ -27,8 +27,22 @@ class RelaxationError(RuntimeError):
     """The pile did not come to rest within ``relax.max_time``."""
 
 
-def _rest_measures(sim, load):
+#: Factor by which the energy watchdog raises the drag when the contacts feed
+#: the kinetic energy (:class:`EnergyWatchdog`).
+FED_DRAG_FACTOR = 4.0
+
+#: A window of the watchdog holds at least this many chunks of steps.
+WATCH_CHUNKS = 20
+
+#: Names of the bodies in the contact table (``contact_j`` < 0; below −3 the
+#: polygons of a rough base).
+BODY_NAMES = {-1: "the support", -2: "a wall", -3: "a wall"}
+
+
+def _rest_measures(sim, load, net):
     """What the rest criterion compares, for the load ``load`` (N) a stage settles.
+
+    ``net`` is :meth:`sim.engine.Simulation.net_forces`.
 
     Returns
     -------
@@ -49,8 +63,137 @@ def _rest_measures(sim, load):
     d = 2.0 * float(np.mean(sim.shapes.radius[:n]))
     ke = sim.kinetic_energy() / n / (m * g * d)
     vmax = float(np.max(np.hypot(*sim.velocity.T)))
-    unbalanced = float(np.hypot(*sim.net_forces().T).sum()) / load if load > 0 else 0.0
+    unbalanced = float(np.hypot(*net.T).sum()) / load if load > 0 else 0.0
     return ke, vmax, unbalanced
+
+
+class EnergyWatchdog:
+    """Does the kinetic energy fall as fast as the relaxation drag makes it?
+
+    The drag ``c`` takes ``2 c`` of the kinetic energy per second (the force
+    ``−c m v`` and torque ``−c I ω`` on every particle) and a conservative,
+    damped contact law only takes more, so while the pile is not at rest its
+    kinetic energy falls at least as ``exp(−2 c t)``.  Over each window of
+    :attr:`window` seconds the watchdog compares the mean kinetic energy of
+    the window's second half with that of its first, and a ratio above
+    ``exp(−c window / 2)`` (a decay at less than half the drag's own rate)
+    is energy fed when the energy balance says who feeds it: the work of the
+    contacts on the particles, the change of kinetic plus gravitational
+    energy plus what the drag took (``2 c KE`` per second, summed over the
+    chunks), is more than half the drag's take.  So a flank that gravity
+    keeps creeping (the work is gravity's) or a pile that unloads after a
+    gravity probe while its motion dies away (the kinetic energy falls) is
+    no finding.  A window in which the rest criteria hold is no evidence and
+    starts afresh.
+
+    The feed it finds in a stiff pile (``youngs_modulus`` ≥ 10⁹ N/m, docs/model.md,
+    Relaxation drag): a polygon rocking on an edge, whose elastic force acts
+    at the midpoint of the contact line and does net work on each rocking
+    cycle; the normal damping and the drag take a fixed share per cycle of
+    the contact's frequency (∝ sqrt(Y)) and of a second respectively, so a
+    drag that stops the rocking at 10⁷ N/m leaves it going at 10⁹ N/m.
+
+    Parameters
+    ----------
+    sim : Simulation
+        The relaxing pile; its drag then is the one the window judges.
+    window : float
+        Length of a window, s.
+    """
+
+    def __init__(self, sim, window):
+        self.window = float(window)
+        self._restart(sim)
+
+    def _restart(self, sim):
+        """Open a window at the current state."""
+        self.drag = sim.drag
+        self.start = sim.time
+        self.times = []
+        self.energies = []          # per particle, J/m, one row per chunk
+        self.force2 = np.zeros(sim.n)
+        self.momentum2 = np.zeros(sim.n)
+        self.energy0 = sim.kinetic_energy() + sim.potential_energy()
+        self.drag_work = 0.0
+
+    def add(self, sim, net, at_rest):
+        """Take the state after a chunk of steps; ``net`` its net forces
+        (:meth:`sim.engine.Simulation.net_forces`).
+
+        Returns
+        -------
+        str or None
+            At the end of a window in which the contacts fed the kinetic
+            energy, one sentence that names the particle carrying most of it;
+            None otherwise.
+        """
+        if at_rest or sim.drag != self.drag:
+            self._restart(sim)
+            return None
+        m = sim.shapes.mass[:sim.n]
+        v2 = np.sum(sim.velocity ** 2, axis=1)
+        self.drag_work += 2.0 * self.drag * sim.kinetic_energy() * (
+            sim.time - (self.times[-1] if self.times else self.start))
+        self.times.append(sim.time)
+        self.energies.append(0.5 * (m * v2 + sim.shapes.inertia[:sim.n] * sim.omega ** 2))
+        self.force2 += np.sum(net ** 2, axis=1)
+        self.momentum2 += m * m * v2
+        if sim.time - self.start < self.window or len(self.times) < WATCH_CHUNKS:
+            return None
+        found = self._verdict(sim)
+        self._restart(sim)
+        return found
+
+    def _verdict(self, sim):
+        e = np.array(self.energies)
+        half = len(e) // 2
+        first, second = float(e[:half].sum(axis=1).mean()), float(e[half:].sum(axis=1).mean())
+        span = 0.5 * (self.times[-1] - self.times[0])
+        c = self.drag
+        if not first > 0.0 or second <= first * math.exp(-c * span):
+            return None
+        work = sim.kinetic_energy() + sim.potential_energy() - self.energy0 + self.drag_work
+        if not work > 0.5 * self.drag_work:
+            return None
+        rate = math.log(first / second) / span if second > 0.0 else math.inf
+        n = sim.n
+        g = max(float(np.hypot(*sim.gravity)), 1e-12)
+        mgd = float(np.mean(sim.shapes.mass[:n])) * g * 2.0 * float(np.mean(sim.shapes.radius[:n]))
+        per = e[half:].mean(axis=0)
+        k = int(np.argmax(per))
+        hz = math.sqrt(self.force2[k] / self.momentum2[k]) / (2.0 * math.pi) \
+            if self.momentum2[k] > 0.0 else 0.0
+        return (f"KE held at {second / n / mgd:.3g} m g d per particle for {2 * span:.3g} s "
+                f"(falling at {rate:.3g}/s where the drag of {c:g} 1/s alone takes "
+                f"{2 * c:g}/s): the contacts did {work:.3g} J/m of work on the particles "
+                f"({work / (2 * span):.3g} W/m); "
+                f"particle {k} carries {per[k] / per.sum():.0%} of it, "
+                f"{_contacts_of(sim, k)}, oscillating at about {hz:.3g} Hz")
+
+
+def _contacts_of(sim, k):
+    """Particle ``k``'s contacts in words, e.g. "rocking on the support (1 contact)"."""
+    c = sim.contacts()
+    mine = (c["i"] == k) | (c["j"] == k)
+    other = np.where(c["i"][mine] == k, c["j"][mine], c["i"][mine])
+    names = [BODY_NAMES.get(int(j), "the rough base") if j < 0 else f"particle {j}"
+             for j in other]
+    if not names:
+        return "in flight (no contact)"
+    if len(names) == 1:
+        return f"rocking on {names[0]} (1 contact)"
+    return f"in {len(names)} contacts ({', '.join(names)})"
+
+
+def _stronger_drag(sim):
+    """:data:`FED_DRAG_FACTOR` times the drag, at most the schema's largest
+    ``relax.rocking_drag`` and no more than the time step carries
+    (:func:`sim.timestep.drag_limit`); the drag itself where none is."""
+    drag = sim.drag
+    c = min(drag * FED_DRAG_FACTOR, float(setting_schema("relax", "rocking_drag")["maximum"]))
+    while c > 1.01 * drag and drag_limit(sim.scene.bound, sim.model.integrator, c) < sim.dt:
+        c = 0.5 * (c + drag)
+    return c if c > 1.01 * drag else drag
 
 
 def relax(sim: Simulation, cfg: SimConfig, what="relax", load=None, progress=None):
@@ -69,6 +212,10 @@ def relax(sim: Simulation, cfg: SimConfig, what="relax", load=None, progress=Non
     The background drag ``relax.drag`` acts while this runs (and during a
     gravity ramp), never while pouring; once the kinetic-energy criterion
     holds, or after ``relax.drag_time``, it becomes ``relax.rocking_drag``.
+    From then on an :class:`EnergyWatchdog` checks that the contacts feed no
+    kinetic energy; where they do (a polygon rocking in a stiff pile), it
+    logs one warning line naming the particle and raises the drag
+    (:func:`_stronger_drag`), which vanishes at rest as the other drags do.
 
     Parameters
     ----------
@@ -111,17 +258,31 @@ def _relax_loop(sim, cfg, what, t0, load, scale, progress):
     ke_max = r.kinetic_energy_fraction * scale ** 2
     speed_max = r.max_speed * scale
     chunk = max(min(1e-3, r.hold_time / 5.0), sim.dt)
-    rest_since = None
+    rest_since = watch = fed = None
     while True:
         sim.run(duration=chunk)
-        ke, vmax, unbalanced = _rest_measures(sim, load)
+        net = sim.net_forces()
+        ke, vmax, unbalanced = _rest_measures(sim, load, net)
         calm = ke < ke_max
-        if (calm or sim.time - t0 >= r.drag_time) and sim.drag != r.rocking_drag:
-            log.info("%s: %s after %.4f s (KE per particle %.3g m g d, max speed %.3g m/s);"
-                     " drag %g -> %g 1/s", what, "calm" if calm else "relax.drag_time over",
-                     sim.time - t0, ke, vmax, sim.drag, r.rocking_drag)
-            sim.drag = r.rocking_drag
-        if calm and vmax < speed_max and unbalanced < r.unbalanced_force:
+        if (calm or sim.time - t0 >= r.drag_time) and watch is None:
+            if sim.drag != r.rocking_drag:
+                log.info("%s: %s after %.4f s (KE per particle %.3g m g d, max speed %.3g m/s);"
+                         " drag %g -> %g 1/s", what, "calm" if calm else "relax.drag_time over",
+                         sim.time - t0, ke, vmax, sim.drag, r.rocking_drag)
+                sim.drag = r.rocking_drag
+            if sim.drag > 0.0:
+                watch = EnergyWatchdog(sim, max(r.hold_time, WATCH_CHUNKS * chunk))
+        at_rest = calm and vmax < speed_max and unbalanced < r.unbalanced_force
+        if watch is not None:
+            found = watch.add(sim, net, at_rest)
+            if found:
+                fed = found
+                stronger = _stronger_drag(sim)
+                log.warning("%s: energy fed at %.4f s: %s; drag %g -> %g 1/s%s", what,
+                            sim.time - t0, found, sim.drag, stronger,
+                            "" if stronger > sim.drag else " (the most the time step carries)")
+                sim.drag = stronger
+        if at_rest:
             rest_since = sim.time if rest_since is None else rest_since
             if sim.time - rest_since >= r.hold_time:
                 log.info("%s: at rest after %.4f s (KE per particle %.3g m g d, max speed "
@@ -139,7 +300,7 @@ def _relax_loop(sim, cfg, what, t0, load, scale, progress):
                 f"relax.kinetic_energy_fraction = {r.kinetic_energy_fraction} and "
                 f"relax.max_speed = {r.max_speed} scaled by the load, unbalanced force < "
                 f"relax.unbalanced_force = {r.unbalanced_force}); raise relax.max_time or "
-                "the damping")
+                "the damping" + (f"; last energy watchdog finding: {fed}" if fed else ""))
         progress.detail = (f"KE per particle {ke:.2g} m g d, max speed {vmax:.2g} m/s, "
                            f"unbalanced force {unbalanced:.2g} of the load")
 

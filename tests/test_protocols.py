@@ -1,5 +1,7 @@
 """Pouring protocols: resuming a killed pour, the layered line, relaxation and its drag."""
 
+import logging
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -10,7 +12,7 @@ from sim.config import SimConfig
 from sim.engine import Simulation
 from sim.pour import GRAVITY, pile_shapes, pour
 from sim.probe import probe_file, restore_file, tilt_file
-from sim.relax import RelaxationError, relax, relax_file
+from sim.relax import EnergyWatchdog, RelaxationError, relax, relax_file
 from sim.release import pile_top, release_point, target_pile, top_width
 
 from scenes import dying_at_run, scene
@@ -116,10 +118,17 @@ def _rocker(relax, corners=ROCKER_CORNERS, state=ROCKER_STATE):
     return sim, cfg
 
 
-def test_weak_drag_leaves_a_polygon_rocking_on_the_support():
+def test_weak_drag_leaves_a_polygon_rocking_on_the_support(monkeypatch, caplog):
     """The contact law does not damp rocking, and its force point (the midpoint
     of the contact line) makes it non-conservative: under 20/s of drag alone
-    the hexagon still moves at over 1 mm/s after 1 s."""
+    (the energy watchdog silenced) the hexagon still moves at over 1 mm/s
+    after 1 s. The watchdog finds that feed and names the hexagon."""
+    sim, cfg = _rocker({"drag": 20.0, "rocking_drag": 20.0, "max_time": 1.0})
+    with caplog.at_level(logging.INFO, logger="sim"):
+        relax(sim, cfg)
+    assert any("energy fed" in r.getMessage() and "rocking on the support" in r.getMessage()
+               for r in caplog.records)
+    monkeypatch.setattr(EnergyWatchdog, "add", lambda self, sim, net, at_rest: None)
     sim, cfg = _rocker({"drag": 20.0, "rocking_drag": 20.0, "max_time": 1.0})
     with pytest.raises(RelaxationError, match="not at rest"):
         relax(sim, cfg)
