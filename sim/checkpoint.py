@@ -1,10 +1,16 @@
-"""A pour's checkpoint housekeeping, and the last good state of a blow-up.
+"""A pour's checkpoint housekeeping, its finished copy, and the last good state of a blow-up.
 
 A checkpoint is resumed only if it was made for the same pile by the same
 code (:func:`sim.io.code_version`) under the same result-relevant settings of
 :data:`POUR_SECTIONS`; otherwise, or when it cannot be read, it is renamed
 aside (``*.unused``) and the pour starts afresh.  The frames of a film taken
 so far are kept beside it (:func:`sim.frames.partial_path`).
+
+A finished pour may also be kept apart from its outputs (:func:`keep_finished`),
+where a workflow that deletes those outputs (Snakemake, which counts them
+incomplete when it was interrupted while the pour ran) leaves it: a rerun takes
+it under the same rule as a checkpoint instead of pouring again
+(:func:`take_finished`).
 """
 
 from __future__ import annotations
@@ -12,14 +18,19 @@ from __future__ import annotations
 import json
 import logging
 import os
+import shutil
 import time as _time
 from pathlib import Path
 
 from .config import result_settings
 from .frames import partial_path
-from .io import POUR_SECTIONS, StateFileError, code_version, load_simulation, save_state
+from .io import (POUR_SECTIONS, StateFileError, atomic_path, code_version, load_simulation,
+                 save_state)
 
 log = logging.getLogger("sim")
+
+#: What reading a pour's state file and its attributes raises when the file is unusable.
+UNREADABLE = (StateFileError, KeyError, ValueError, AttributeError)
 
 
 def last_good_path(out) -> Path:
@@ -52,26 +63,52 @@ def set_aside(checkpoint, reason):
     log.warning("checkpoint %s %s; set aside as %s, pouring afresh", checkpoint, reason, aside)
 
 
+def _made_otherwise(ds, cfg, protocol, seed):
+    """What a pour's state file `ds` was made for otherwise than this pour.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A checkpoint or a poured state.
+    cfg : SimConfig
+    protocol : str
+    seed : int
+
+    Returns
+    -------
+    list of str
+        Of "protocol", "seed", "code version" (:func:`sim.io.code_version`) and
+        "configuration" (the result-relevant settings, :meth:`SimConfig.result_dict`),
+        those that differ; empty for a file this pour may take as its own.
+
+    Raises
+    ------
+    ValueError, AttributeError
+        When the file's attributes cannot be read as such (:data:`UNREADABLE`).
+    """
+    made = {"protocol": ds.attrs.get("protocol"), "seed": int(ds.attrs.get("seed", -1)),
+            "code version": ds.attrs.get("code_version"),
+            "configuration": result_settings(json.loads(ds.attrs.get("config", "{}")),
+                                             POUR_SECTIONS)}
+    now = {"protocol": protocol, "seed": seed, "code version": code_version(),
+           "configuration": cfg.result_dict(POUR_SECTIONS)}
+    return [key for key in now if made[key] != now[key]]
+
+
 def resume(cfg, protocol, seed, checkpoint, shapes):
     """The simulation and next release time of a usable checkpoint, or None.
 
     A checkpoint is used only if it was made for the same pile by the same
-    code under the same result-relevant settings (:meth:`SimConfig.result_dict`);
+    code under the same result-relevant settings (:func:`_made_otherwise`);
     otherwise, or if it cannot be read, it is set aside.
     """
     try:
         sim, ds = load_simulation(checkpoint, cfg.model, capacity_shapes=shapes)
-        made = {"protocol": ds.attrs.get("protocol"), "seed": int(ds.attrs.get("seed", -1)),
-                "code version": ds.attrs.get("code_version"),
-                "configuration": result_settings(json.loads(ds.attrs.get("config", "{}")),
-                                                 POUR_SECTIONS)}
+        differ = _made_otherwise(ds, cfg, protocol, seed)
         next_release = float(ds.attrs["next_release"])
-    except (StateFileError, KeyError, ValueError, AttributeError) as exc:
+    except UNREADABLE as exc:
         set_aside(checkpoint, f"is unusable ({exc})")
         return None
-    now = {"protocol": protocol, "seed": seed, "code version": code_version(),
-           "configuration": cfg.result_dict(POUR_SECTIONS)}
-    differ = [key for key in now if made[key] != now[key]]
     if differ:
         set_aside(checkpoint, f"was made with another {' and '.join(differ)}")
         return None
@@ -95,3 +132,85 @@ def remove_checkpoint(checkpoint):
     """Delete a checkpoint and its frames (a finished pour, or a fresh start)."""
     checkpoint.unlink(missing_ok=True)
     partial_path(checkpoint).unlink(missing_ok=True)
+
+
+def _copy(source, path):
+    """Write a copy of the file `source` to `path` atomically (:func:`sim.io.atomic_path`).
+
+    A copy, not a hard link: a hard link would make the two one file, which
+    :func:`sim.paths.check_distinct_paths` refuses as ``--out`` and ``--finished``.
+    """
+    with atomic_path(path) as tmp:
+        shutil.copyfile(source, tmp)
+
+
+def keep_finished(finished, out, frames=None):
+    """Keep a copy of a finished pour, its state `out` and its `frames` (or none),
+    as `finished` and the frames beside it (:func:`sim.frames.partial_path`).
+
+    Each copy is written atomically, the frames first, so a `finished` state
+    that exists is whole and its frames, where the pour took them, are there.
+    Frames of an earlier pour left beside it are removed when this one took none.
+    """
+    finished = Path(finished)
+    if frames:
+        _copy(frames, partial_path(finished))
+    else:
+        partial_path(finished).unlink(missing_ok=True)
+    _copy(out, finished)
+
+
+def take_finished(cfg, protocol, seed, finished, out, frames=None):
+    """The simulation of a finished pour kept by :func:`keep_finished`, copied
+    to `out` (and its frames to `frames`), or None to pour.
+
+    The finished pour is taken only if it was made for the same pile by the
+    same code under the same result-relevant settings (:func:`_made_otherwise`,
+    the rule of a checkpoint), and with its frames where `frames` asks for a
+    film; a log line says so.  Otherwise it is removed with one log line (a
+    rerun under other settings pours afresh and never sees it again), or, when
+    only its frames are missing, left for the pour to supersede.  The
+    temporary files that a killed copy left of it and of the outputs are
+    removed first (:func:`remove_temporaries`; the caller holds the pour's lock).
+
+    Parameters
+    ----------
+    cfg : SimConfig
+    protocol : str
+    seed : int
+    finished : path
+        The finished pour kept (``pour --finished``).
+    out, frames : path
+        The pour's state file and frames (or None).
+
+    Returns
+    -------
+    Simulation or None
+    """
+    finished = Path(finished)
+    remove_temporaries(finished, out, frames)
+    if not finished.exists():
+        return None
+    what = f"pour {protocol} seed {seed}: the finished pour {finished}"
+    try:
+        sim, ds = load_simulation(finished)
+        differ = _made_otherwise(ds, cfg, protocol, seed)
+        why = f"was made with another {' and '.join(differ)}" if differ else None
+    except UNREADABLE as exc:
+        why = f"is unusable ({exc})"
+    if why:
+        finished.unlink()
+        partial_path(finished).unlink(missing_ok=True)
+        log.warning("%s %s; removed, pouring afresh", what, why)
+        return None
+    if frames and not partial_path(finished).exists():
+        log.warning("%s has no frames of a film (%s); pouring afresh to take them",
+                    what, partial_path(finished))
+        return None
+    if frames:
+        _copy(partial_path(finished), frames)
+    _copy(finished, out)
+    log.info("%s was made for this pile by this code under these settings; taken as it is "
+             "(copied to %s%s), not poured again", what, out,
+             f" and its frames to {frames}" if frames else "")
+    return sim

@@ -173,11 +173,13 @@ def _state_outputs(path):
 #: The files each subcommand reads and writes (:func:`sim.paths.check_distinct_paths`):
 #: ``--params @FILE`` is read; the pour's checkpoint brings its lock and its frames so far.
 PATHS = {
-    "pour": PathRoles(inputs=("--params",), outputs=("--out", "--checkpoint", "--frames", "--log"),
+    "pour": PathRoles(inputs=("--params",),
+                      outputs=("--out", "--checkpoint", "--frames", "--log", "--finished"),
                       read={"--params": at_file},
                       derived={"--out": _state_outputs,
                                "--checkpoint": lambda path: [("lock", lock_path(path)),
-                                                             ("frames so far", partial_path(path))]}),
+                                                             ("frames so far", partial_path(path))],
+                               "--finished": lambda path: [("frames", partial_path(path))]}),
     "relax": PathRoles(inputs=("--params", "--input"), outputs=("--out",),
                        read={"--params": at_file}, derived={"--out": _state_outputs}),
     "probe": PathRoles(inputs=("--params", "--input"), outputs=("--out",),
@@ -237,6 +239,12 @@ def _parser():
     p.add_argument("--log", metavar="FILE",
                    help="also append the log to FILE, the pile's log over all runs of its pour, "
                    "once this run holds the pour's lock (a run the lock refuses leaves it as it is)")
+    p.add_argument("--finished", metavar="FILE",
+                   help="also keep a copy of the finished pour in FILE (its frames beside it), "
+                   "where a workflow that deletes the outputs of a run it counts as incomplete "
+                   "leaves it; a rerun that finds one made for this pile by this code under "
+                   "these settings takes it instead of pouring again, and removes one made "
+                   "otherwise")
 
     p = sub.add_parser("relax", help="relax a pile to rest")
     p.add_argument("--params", action="append", help=params_help)
@@ -374,7 +382,7 @@ def main(argv=None):
         with stop_on_signals():
             if args.command == "pour":
                 pour.pour(cfg, args.protocol, args.seed, args.out, args.checkpoint,
-                          frames=args.frames, run_log=args.log)
+                          frames=args.frames, run_log=args.log, finished=args.finished)
             elif args.command == "relax":
                 relax.relax_file(cfg, args.input, args.out)
             elif args.command == "probe":

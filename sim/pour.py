@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from .blowup import BlowUpError
-from .checkpoint import (keep_last_good, remove_checkpoint, remove_temporaries, resume,
-                         save_checkpoint)
+from .checkpoint import (keep_finished, keep_last_good, remove_checkpoint, remove_temporaries,
+                         resume, save_checkpoint, take_finished)
 from .config import ConfigError, SimConfig
 from .engine import Simulation
 from .frames import FrameRecorder, partial_path
@@ -94,7 +94,7 @@ def rough_base(cfg: SimConfig, seed: int, shapes):
 
 
 def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
-         settle_time=0.1, frames=None, run_log=None):
+         settle_time=0.1, frames=None, run_log=None, finished=None):
     """Pour a pile from a point (wedge) or line (layered) source and save it.
 
     Parameters
@@ -126,6 +126,15 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
         the lock, its log lines are appended to the file (:func:`sim.lock.appended_log`)
         from a line naming the process.  A run the lock refuses leaves the file
         as it is, so it never spoils the log of the pour that is running.
+    finished : path, optional
+        Where to keep a copy of the finished pour (its frames beside it), for a
+        workflow that may delete the outputs of a pour that finished (Snakemake
+        counts them incomplete when it was interrupted while the pour ran, and
+        deletes them to run the pour again): written before the checkpoint is deleted
+        (:func:`sim.checkpoint.keep_finished`).  A pour that finds one made for
+        this pile by the same code under the same settings takes it as its
+        outputs instead of pouring, with a log line; one made otherwise it
+        removes (:func:`sim.checkpoint.take_finished`).
 
     Returns
     -------
@@ -163,7 +172,14 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
         held.enter_context(appended_log(run_log))
         log.info("pour %s seed %d: started by process %s %d", protocol, seed,
                  socket.gethostname(), os.getpid())
-        return _pour(cfg, protocol, seed, shapes, out, checkpoint, settle_time, lock, frames)
+        taken = None if finished is None else take_finished(cfg, protocol, seed, finished, out,
+                                                            frames)
+        if taken is None:
+            return _pour(cfg, protocol, seed, shapes, out, checkpoint, settle_time, lock, frames,
+                         finished)
+        if checkpoint is not None:    # of a run killed after it kept the finished pour
+            remove_checkpoint(checkpoint)
+        return taken
 
 
 def check_pour(cfg: SimConfig, protocol, seed, shapes, settle_time=0.1):
@@ -221,7 +237,7 @@ def _start(cfg, protocol, seed, checkpoint, shapes, outputs):
     return sim, 0.0, False
 
 
-def _pour(cfg, protocol, seed, shapes, out, checkpoint, settle_time, lock, frames):
+def _pour(cfg, protocol, seed, shapes, out, checkpoint, settle_time, lock, frames, finished):
     """The pour itself (see :func:`pour`); ``lock`` is refreshed at each checkpoint.
 
     On a signal (:func:`sim.run_loop.stop_on_signals`) it writes the state
@@ -276,6 +292,8 @@ def _pour(cfg, protocol, seed, shapes, out, checkpoint, settle_time, lock, frame
         recorder.finish(sim)
         recorder.save(frames, cfg.to_dict(), **attrs)
     save_state(sim, out, cfg.to_dict(), stage="poured", **attrs)
+    if finished is not None:
+        keep_finished(finished, out, frames)
     if checkpoint is not None:
         remove_checkpoint(checkpoint)
     summary(sim, f"pour {protocol} seed {seed}", _time.monotonic() - t_wall)

@@ -454,7 +454,7 @@ if cmd == "warmup":
     sys.exit(0)
 parser = argparse.ArgumentParser()
 for option in ("--params", "--bookkeeping", "--protocol", "--seed", "--out", "--checkpoint",
-               "--input", "--level", "--frames", "--log"):
+               "--input", "--level", "--frames", "--log", "--finished"):
     parser.add_argument(option)
 args = parser.parse_args(rest)
 if cmd in ("pour", "relax", "probe"):

@@ -148,6 +148,15 @@ class Piles:
         simulator deletes it when the pour has finished."""
         return self.results_path(f"piles/{protocol}/seed{seed}/pour.checkpoint.nc")
 
+    def pour_finished(self, protocol, seed):
+        """Copy of a finished pour (python -m sim pour --finished; its frames
+        beside it, ``pour.finished.frames.nc``). Deliberately not a Snakemake
+        output: Snakemake, interrupted while a pour ran, marks the outputs of
+        the pour that then finishes incomplete, and its rerun deletes them and
+        runs the pour again, which takes this copy instead of pouring. Superseded
+        by each pour that finishes, removed by one under other settings or code."""
+        return self.results_path(f"piles/{protocol}/seed{seed}/pour.finished.nc")
+
     def pile_frames(self, protocol, seed):
         """Path of the frames of a pile's pour (python -m sim pour --frames; output film)."""
         return self.results_path(f"piles/{protocol}/seed{seed}/frames.nc")

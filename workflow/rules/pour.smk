@@ -37,6 +37,12 @@ rule pour:
         sim=sim_params("model", "particles", "pour", "physics"),
         bookkeeping=sim_bookkeeping(),
         checkpoint=lambda wildcards: pour_checkpoint(wildcards.protocol, wildcards.seed),
+        # the finished pour kept apart (Piles.pour_finished): Snakemake,
+        # interrupted while the pour ran, marks the outputs of the pour that
+        # then finishes incomplete, and its rerun deletes them; the rerun's
+        # pour takes this copy instead of pouring again.
+        # Unrecorded, as run_log: where the copy lies changes no result
+        finished=lambda wildcards: Unrecorded(piles.pour_finished(wildcards.protocol, wildcards.seed)),
         # empty: no frames (an empty :q field vanishes, leaving --frames without
         # a value, which the simulator reads as none); Unrecorded, so that a
         # scene without film re-pours nothing that a scene with film poured
@@ -62,5 +68,5 @@ rule pour:
             "pour --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
             " --protocol {wildcards.protocol} --seed {wildcards.seed}"
             " --out {output.poured:q} --checkpoint {params.checkpoint:q} --frames {params.frames:q}"
-            " --log {params.run_log:q} > {log:q} 2>&1"
+            " --finished {params.finished:q} --log {params.run_log:q} > {log:q} 2>&1"
         )
