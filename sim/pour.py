@@ -36,7 +36,7 @@ from .release import (pile_height_bound, pile_top, release_point, source, spot_c
                       target_pile, touching)
 from .run_loop import Interrupted, stop_on_signals
 from .scene import lay_base, make_scene
-from .shapes import make_shapes
+from .shapes import shapes_by_settings
 from .timestep import check_run, dt_source
 
 log = logging.getLogger("sim")
@@ -65,10 +65,7 @@ def pile_shapes(cfg: SimConfig, seed: int):
 
 def _drawn(cfg: SimConfig, rng, n):
     """`n` polygons drawn from `rng` by the recipe of ``cfg.particles``."""
-    p = cfg.particles
-    return make_shapes(rng, n, p.corners_min, p.corners_max, p.semi_axis_mean,
-                       p.semi_axis_spread, cfg.model.density, p.min_edge_fraction,
-                       p.min_angle_deg)
+    return shapes_by_settings(rng, n, cfg.particles, cfg.model.density)
 
 
 def rough_base(cfg: SimConfig, seed: int, shapes):

@@ -35,6 +35,7 @@ from .polygon import (
 __all__ = [
     "Shapes",
     "make_shapes",
+    "shapes_by_settings",
     "shapes_from_nodes",
 ]
 
@@ -271,6 +272,15 @@ def make_shapes(
     shapes.semi_a = semi_a
     shapes.semi_b = semi_b
     return shapes
+
+
+def shapes_by_settings(rng, n, particles: ParticleParams, density):
+    """``n`` polygons drawn from ``rng`` by :func:`make_shapes` with every setting of
+    ``particles`` (a pile's ``particles`` section) at the given ``density``: the one
+    place that turns the settings into arguments, for the pour and the bench alike."""
+    return make_shapes(rng, n, particles.corners_min, particles.corners_max, particles.semi_axis_mean,
+                       particles.semi_axis_spread, density, particles.min_edge_fraction,
+                       particles.min_angle_deg, particles.aspect_ratio)
 
 
 def shapes_from_nodes(

@@ -41,7 +41,7 @@ from ..step import KERNELS_PARALLEL, KERNELS_SERIAL
 from ..integrators import INTEGRATORS
 from ..io import load_simulation, read_state, save_state
 from ..relax import RelaxationError, relax
-from ..shapes import make_shapes
+from ..shapes import shapes_by_settings
 from . import lammps_peer, lammps_polygons
 
 log = logging.getLogger("sim")
@@ -61,10 +61,7 @@ PEERS = ("lammps", "lammps-polygons")
 
 def _shapes(rng, n, model, particles=None):
     """``n`` of the study's particles (or of ``particles``) at ``model.density``."""
-    pp = particles or ParticleParams()
-    return make_shapes(rng, n, pp.corners_min, pp.corners_max, pp.semi_axis_mean,
-                       pp.semi_axis_spread, model.density, pp.min_edge_fraction,
-                       pp.min_angle_deg)
+    return shapes_by_settings(rng, n, particles or ParticleParams(), model.density)
 
 
 def dense_packing(n, seed=0, model=None, particles=None):
