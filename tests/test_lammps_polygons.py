@@ -9,6 +9,7 @@ from shapely.geometry import Point, Polygon
 from sim.config import ModelParams
 from sim.numerics import lammps_polygons as lp
 from sim.numerics.bench import _shapes
+from sim.numerics import lammps_peer
 from sim.numerics.lammps_peer import PeerUnavailable
 
 
@@ -188,7 +189,7 @@ def test_ratios_pair_rows_with_the_peer_of_the_same_n_and_parallelism():
              "ns_per_contact": 175.0}]
     peers = [{"n_particles": 3000, "ranks": 1, "lammps_polygons_ns_per_particle_step": 600.0,
               "lammps_polygons_ns_per_contact": 340.0}]
-    out = lp.ratios(rows, peers)
+    out = lammps_peer.ratios(rows, peers, "lammps_polygons")
     assert out[0]["ratio_to_lammps_polygons"] == pytest.approx(0.5)
     assert out[0]["ratio_to_lammps_polygons_per_contact"] == pytest.approx(0.5)
     assert out[0]["ratio_to_lammps"] == 2.0  # the disk peer's ratio stays beside it

@@ -372,7 +372,7 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
     peers = _time_peers(paths, threads, steps, repeats, cache) if "lammps" in peers_asked else []
     polygon_peers = (_time_polygon_peers(paths, threads, steps, repeats, cache)
                      if "lammps-polygons" in peers_asked else [])
-    rows = lammps_polygons.ratios(lammps_peer.ratios(rows, peers), polygon_peers)
+    rows = lammps_peer.ratios(lammps_peer.ratios(rows, peers), polygon_peers, "lammps_polygons")
     for r in rows:
         for name, key in (("disks", "ratio_to_lammps"), ("polygons", "ratio_to_lammps_polygons")):
             if key in r:

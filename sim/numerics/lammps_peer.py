@@ -242,9 +242,15 @@ def settled_peer(shapes, dt, skin, model, cache=Path(".bench")):
     return path
 
 
-def settle_time(pile):
-    """Simulated time the disks of ``pile`` settle for before the timing, s."""
-    return SETTLE_FALLS * float(np.sqrt(2.0 * pile["height"] / 9.81)) + SETTLE_EXTRA
+def settle_time(pile, falls=SETTLE_FALLS, extra=SETTLE_EXTRA):
+    """Simulated time a peer's bodies settle for before the timing, s: ``falls``
+    free-fall times of the pile's height and ``extra`` seconds (the disks' by default)."""
+    return falls * float(np.sqrt(2.0 * pile["height"] / 9.81)) + extra
+
+
+def loop_times(text):
+    """The ``Loop time`` lines of a LAMMPS log: (seconds, ranks, steps, atoms), one per ``run``."""
+    return [(float(t), int(p), int(s), int(a)) for t, p, s, a in _LOOP.findall(text)]
 
 
 def parse_log(text):
@@ -256,7 +262,7 @@ def parse_log(text):
         ``loops``: list of (seconds, ranks, steps, atoms), one per ``run``;
         ``contacts``, ``mass`` and ``steps`` from the printed marks.
     """
-    loops = [(float(t), int(p), int(s), int(a)) for t, p, s, a in _LOOP.findall(text)]
+    loops = loop_times(text)
     marks = {k.lower(): float(v) for k, v in _MARK.findall(text)}
     missing = {"contacts", "mass", "steps"} - set(marks)
     if missing or not loops:
@@ -310,7 +316,7 @@ def time_peer(shapes, ranks, dt, skin, model, steps=200, repeats=5, cache=Path("
             "mass_error": mass_error}
 
 
-def ratios(rows, peers):
+def ratios(rows, peers, peer="lammps"):
     """Each polygon row's ratio to the LAMMPS pile of the same N and threads = ranks.
 
     Parameters
@@ -318,13 +324,17 @@ def ratios(rows, peers):
     rows : list of dict
         Rows of :func:`sim.numerics.bench.measure`.
     peers : list of dict
-        Rows of :func:`time_peer`.
+        Rows of a peer's ``time_peer`` (this module's disks, or
+        :mod:`sim.numerics.lammps_polygons`), keyed ``{peer}_ns_per_particle_step``
+        and ``{peer}_ns_per_contact``.
+    peer : {"lammps", "lammps_polygons"}
+        The peer's name in the keys.
 
     Returns
     -------
     list of dict
-        The rows with ``lammps_ns_per_particle_step``, ``ratio_to_lammps``
-        (per particle-step) and ``ratio_to_lammps_per_contact`` added where a
+        The rows with ``{peer}_ns_per_particle_step``, ``ratio_to_{peer}``
+        (per particle-step) and ``ratio_to_{peer}_per_contact`` added where a
         peer of the same N and parallelism was timed.
     """
     by_key = {(p["n_particles"], p["ranks"]): p for p in peers}
@@ -334,8 +344,7 @@ def ratios(rows, peers):
         if p is None:
             out.append(dict(r))
             continue
-        out.append({**r, "lammps_ns_per_particle_step": p["lammps_ns_per_particle_step"],
-                    "ratio_to_lammps": r["ns_per_particle_step"] / p["lammps_ns_per_particle_step"],
-                    "ratio_to_lammps_per_contact":
-                        r["ns_per_contact"] / p["lammps_ns_per_contact"]})
+        out.append({**r, f"{peer}_ns_per_particle_step": p[f"{peer}_ns_per_particle_step"],
+                    f"ratio_to_{peer}": r["ns_per_particle_step"] / p[f"{peer}_ns_per_particle_step"],
+                    f"ratio_to_{peer}_per_contact": r["ns_per_contact"] / p[f"{peer}_ns_per_contact"]})
     return out

@@ -28,7 +28,7 @@ What it shares with the polygon pile:
 * **a loaded pile at rest**: like the disk peer's, on a lattice in a box of
   floor and side walls (``fix wall/body/polygon``, same ``k_n``, ``c_n``),
   :data:`ASPECT` times wider than high so that the bodies carry loads like
-  the heap's; the bodies settle under a viscous drag (:func:`settle_time`)
+  the heap's; the bodies settle under a viscous drag (:func:`sim.numerics.lammps_peer.settle_time`)
   and run :data:`FREE_TIME` without it (:func:`settled_peer`, once, kept in
   the bench's cache like the polygon piles); then the timed runs.
 
@@ -66,7 +66,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .lammps_peer import LMP, PeerUnavailable
+from .lammps_peer import LMP, PeerUnavailable, loop_times, settle_time
 
 #: Rounding radius of the bodies, as a fraction of the pile's smallest inradius.
 ROUNDING = 0.02
@@ -90,8 +90,6 @@ FREE_TIME = 0.02
 #: Environment variable naming another ``lmp`` (with the BODY package) to use.
 LMP_ENV = "LMP_POLYGONS"
 
-_LOOP = re.compile(r"^Loop time of ([0-9.eE+-]+) on (\d+) procs for (\d+) steps with (\d+) atoms",
-                   re.M)
 _MARK = re.compile(r"^(MASS|STEPS) ([0-9.eE+-]+)\s*$", re.M)
 _VERSION = re.compile(r"^LAMMPS \((.+)\)\s*$", re.M)
 _THERMO = re.compile(r"^\s+\d+\s+\d+\s+([0-9.eE+-]+)\s*$", re.M)
@@ -258,7 +256,7 @@ def lammps_input(pile, model, dt, skin, steps=200, repeats=5, stage="time"):
         Steps per timed run and timed runs.
     stage : {"settle", "time"}
         ``settle`` reads ``pile.data`` (:func:`data_file`), lets the bodies
-        settle under a drag for :func:`settle_time`, runs :data:`FREE_TIME`
+        settle under a drag for :func:`sim.numerics.lammps_peer.settle_time`, runs :data:`FREE_TIME`
         without it and writes ``settled.data``; ``time`` reads
         ``settled.data``, makes the timed runs and writes the bodies'
         vertices to ``corners.txt`` (:func:`read_corners`).
@@ -311,7 +309,7 @@ thermo 100000000
 """
     if stage == "settle":
         return setup + f"""fix settle all viscous {SETTLE_DRAG * m_mean:.8g}
-run {max(int(round(settle_time(pile) / dt)), 1)}
+run {max(int(round(settle_time(pile, SETTLE_FALLS, SETTLE_EXTRA) / dt)), 1)}
 unfix settle
 run {max(int(round(FREE_TIME / dt)), 1)}
 write_data settled.data
@@ -406,11 +404,6 @@ def _run_lmp(folder, lmp, mpirun, ranks, what):
     return log_text
 
 
-def settle_time(pile):
-    """Simulated time the bodies of ``pile`` settle for before the timing, s."""
-    return SETTLE_FALLS * float(np.sqrt(2.0 * pile["height"] / 9.81)) + SETTLE_EXTRA
-
-
 def parse_log(text):
     """Loop times and the marks of a LAMMPS log of :func:`lammps_input`.
 
@@ -422,7 +415,7 @@ def parse_log(text):
         kinetic energies of the thermo lines (LAMMPS units); ``version``:
         LAMMPS's, from the log's first line.
     """
-    loops = [(float(t), int(p), int(s), int(a)) for t, p, s, a in _LOOP.findall(text)]
+    loops = loop_times(text)
     marks = {k.lower(): float(v) for k, v in _MARK.findall(text)}
     missing = {"mass", "steps"} - set(marks)
     if missing or not loops:
@@ -521,36 +514,3 @@ def time_peer(shapes, theta, ranks, dt, skin, model, steps=200, repeats=5,
             "kinetic_energy_per_particle": [parsed["kinetic"][0] * LENGTH_UNIT ** 2 / n,
                                             parsed["kinetic"][-1] * LENGTH_UNIT ** 2 / n]}
 
-
-def ratios(rows, peers):
-    """Each row's ratio to LAMMPS's polygons of the same N, with threads = ranks.
-
-    Parameters
-    ----------
-    rows : list of dict
-        Rows of :func:`sim.numerics.bench.measure`.
-    peers : list of dict
-        Rows of :func:`time_peer`.
-
-    Returns
-    -------
-    list of dict
-        The rows with ``lammps_polygons_ns_per_particle_step``,
-        ``ratio_to_lammps_polygons`` (per particle-step) and
-        ``ratio_to_lammps_polygons_per_contact`` added where a peer of the
-        same N and parallelism was timed.
-    """
-    by_key = {(p["n_particles"], p["ranks"]): p for p in peers}
-    out = []
-    for r in rows:
-        p = by_key.get((r["n_particles"], r["threads"]))
-        if p is None:
-            out.append(dict(r))
-            continue
-        out.append({**r, "lammps_polygons_ns_per_particle_step":
-                    p["lammps_polygons_ns_per_particle_step"],
-                    "ratio_to_lammps_polygons":
-                        r["ns_per_particle_step"] / p["lammps_polygons_ns_per_particle_step"],
-                    "ratio_to_lammps_polygons_per_contact":
-                        r["ns_per_contact"] / p["lammps_polygons_ns_per_contact"]})
-    return out
