@@ -184,9 +184,10 @@ def test_slurm_run_survives_a_cancelled_pour_and_matches_a_local_run(cluster, lo
     # The same results as the local run, every data variable equal.
     files = netcdf_results(root)
     assert files == netcdf_results(local_root)
-    # per pile 3 states, the frames of its film, fields and base pressure; per
-    # protocol 4 ensembles; Fig. 1's pile
-    assert len(files) == 2 * 6 + 2 * 4 + 1
+    # per pile 3 states, the frames of its film, fields and base pressure, and the
+    # finished pour's copy with its frames (pour --finished); per protocol 4
+    # ensembles; Fig. 1's pile
+    assert len(files) == 2 * 8 + 2 * 4 + 1
     for name in files:
         with xr.open_dataset(root / name) as ours, xr.open_dataset(local_root / name) as theirs:
             xr.testing.assert_equal(ours, theirs)
