@@ -55,7 +55,7 @@ HEAP_SLOPE_DEG = 20.0
 #: particle by 1 s, and the bench prints the contacts per particle it times;
 #: relaxing for 3 s took that pile 23 min to build (the other core busy).
 HEAP_RELAX = RelaxParams(max_time=1.0)
-#: The peers ``--peer`` can time beside the piles.
+#: The peers ``--peer`` can time beside the piles (in this order).
 PEERS = ("lammps", "lammps-polygons")
 
 
@@ -369,9 +369,8 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
                       f"{r['ns_per_contact']:>10.1f} {r['cores_used']:>5.2f} "
                       f"{r['share_predict']:>7.0%} {r['share_pairs']:>6.0%} "
                       f"{r['share_gather']:>6.0%}", flush=True)
-    peers = _time_peers(paths, threads, steps, repeats, cache) if "lammps" in peers_asked else []
-    polygon_peers = (_time_polygon_peers(paths, threads, steps, repeats, cache)
-                     if "lammps-polygons" in peers_asked else [])
+    peers, polygon_peers = (_time_peer(name, paths, threads, steps, repeats, cache)
+                            if name in peers_asked else [] for name in PEERS)
     rows = lammps_peer.ratios(lammps_peer.ratios(rows, peers), polygon_peers, "lammps_polygons")
     for r in rows:
         for name, key in (("disks", "ratio_to_lammps"), ("polygons", "ratio_to_lammps_polygons")):
@@ -393,41 +392,34 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
     return rows
 
 
-def _time_peers(paths, threads, steps, repeats, cache):
-    """The LAMMPS disk pile of each pile's N, at its time step and skin, on each
-    thread count as MPI ranks (settled once, kept in ``cache``); printed as a table."""
-    print(f"{'N':>6} {'peer':>10} {'rk':>3} {'contacts/N':>10} {'ns/p-step':>9} "
-          f"{'ns/contact':>10}", flush=True)
-    peers = []
-    for path in paths:
-        sim = _load(path, "verlet")
-        for t in threads:
-            p = lammps_peer.time_peer(sim.shapes, t, sim.dt, sim.skin, sim.model, steps, repeats,
-                                      cache)
-            peers.append(p)
-            print(f"{p['n_particles']:>6} {'lammps':>10} {t:>3} "
-                  f"{p['contacts_per_particle']:>10.2f} "
-                  f"{p['lammps_ns_per_particle_step']:>9.1f} "
-                  f"{p['lammps_ns_per_contact']:>10.1f}", flush=True)
-    return peers
+#: How each peer of :data:`PEERS` times the pile of a :class:`Simulation` on
+#: ``t`` MPI ranks: ``timer(sim, t, steps, repeats, cache)``.
+PEER_TIMERS = {
+    "lammps": lambda sim, t, steps, repeats, cache: lammps_peer.time_peer(
+        sim.shapes, t, sim.dt, sim.skin, sim.model, steps, repeats, cache),
+    "lammps-polygons": lambda sim, t, steps, repeats, cache: lammps_polygons.time_peer(
+        sim.shapes, sim.theta, t, sim.dt, sim.skin, sim.model, steps, repeats, cache),
+}
 
 
-def _time_polygon_peers(paths, threads, steps, repeats, cache):
-    """LAMMPS's rounded polygons of each pile, at its time step and skin, on each
-    thread count as MPI ranks (settled once, kept in ``cache``); printed as a table."""
+def _time_peer(peer, paths, threads, steps, repeats, cache):
+    """The peer ``peer`` (:data:`PEER_TIMERS`) for each pile, at its time step and
+    skin, on each thread count as MPI ranks (settled once, kept in ``cache``);
+    printed as a table.  Its figures are keyed by the peer's name with ``_``
+    (``lammps_polygons_ns_per_particle_step``)."""
+    key = peer.replace("-", "_")
     print(f"{'N':>6} {'peer':>16} {'rk':>3} {'contacts/N':>10} {'ns/p-step':>9} "
           f"{'ns/contact':>10}", flush=True)
     peers = []
     for path in paths:
         sim = _load(path, "verlet")
         for t in threads:
-            p = lammps_polygons.time_peer(sim.shapes, sim.theta, t, sim.dt, sim.skin, sim.model,
-                                          steps, repeats, cache)
+            p = PEER_TIMERS[peer](sim, t, steps, repeats, cache)
             peers.append(p)
-            print(f"{p['n_particles']:>6} {'lammps-polygons':>16} {t:>3} "
+            print(f"{p['n_particles']:>6} {peer:>16} {t:>3} "
                   f"{p['contacts_per_particle']:>10.2f} "
-                  f"{p['lammps_polygons_ns_per_particle_step']:>9.1f} "
-                  f"{p['lammps_polygons_ns_per_contact']:>10.1f}", flush=True)
+                  f"{p[key + '_ns_per_particle_step']:>9.1f} "
+                  f"{p[key + '_ns_per_contact']:>10.1f}", flush=True)
     return peers
 
 

@@ -199,19 +199,46 @@ print "CONTACTS ${{pairs}}"
 """
 
 
-def _run_lmp(folder, ranks, what):
-    """Run ``lmp -in in.lammps`` in ``folder`` on ``ranks`` MPI ranks; its log's text."""
-    cmd = [find_lmp(), "-in", "in.lammps", "-log", "log.lammps", "-screen", "none"]
+#: How the disk peer starts ``lmp`` on several ranks (Debian's Open MPI, as root too).
+MPIRUN = ["mpirun", "--oversubscribe"]
+
+
+def run_lmp(folder, lmp, mpirun, ranks, what):
+    """Run ``lmp -in in.lammps`` in ``folder`` on ``ranks`` MPI ranks; its log's text.
+
+    Parameters
+    ----------
+    folder : pathlib.Path
+        Holds ``in.lammps`` and the files it reads.
+    lmp : str
+        The LAMMPS executable.
+    mpirun : list of str or None
+        The command that starts it on several ranks (``-np`` follows), or
+        None where there is none (then only one rank).
+    ranks : int
+    what : str
+        The peer and the run, for the error (``"LAMMPS peer, settling 3000 disks"``).
+
+    Raises
+    ------
+    PeerUnavailable
+        Several ranks and no ``mpirun``.
+    RuntimeError
+        LAMMPS failed: its exit status and the last lines of its log.
+    """
+    cmd = [lmp, "-in", "in.lammps", "-log", "log.lammps", "-screen", "none"]
     if ranks > 1:
-        cmd = ["mpirun", "-np", str(ranks), "--oversubscribe"] + cmd
+        if mpirun is None:
+            raise PeerUnavailable(f"{what}: no mpirun for {ranks} ranks")
+        cmd = mpirun + ["-np", str(ranks)] + cmd
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMP_NUM_THREADS="1")
     done = subprocess.run(cmd, cwd=folder, env=env, capture_output=True, text=True)
     log_text = (folder / "log.lammps").read_text() if (folder / "log.lammps").exists() else ""
     if done.returncode != 0:
-        tail = (log_text or done.stdout + done.stderr).strip().splitlines()[-5:]
-        raise RuntimeError(f"LAMMPS peer, {what} on {ranks} rank(s), failed "
-                           f"(exit {done.returncode}): " + " | ".join(tail))
+        tail = (log_text + done.stdout + done.stderr).strip().splitlines()[-5:]
+        raise RuntimeError(f"{what} on {ranks} rank(s) failed (exit {done.returncode}): "
+                           + " | ".join(tail))
     return log_text
 
 
@@ -237,7 +264,7 @@ def settled_peer(shapes, dt, skin, model, cache=Path(".bench")):
         tmp = Path(tmp)
         (tmp / "pile.data").write_text(data_file(pile))
         (tmp / "in.lammps").write_text(lammps_input(pile, model, dt, skin, stage="settle"))
-        _run_lmp(tmp, 1, f"settling {n} disks")
+        run_lmp(tmp, find_lmp(), MPIRUN, 1, f"LAMMPS peer, settling {n} disks")
         os.replace(tmp / "settled.data", path)  # whole or not at all
     return path
 
@@ -301,7 +328,7 @@ def time_peer(shapes, ranks, dt, skin, model, steps=200, repeats=5, cache=Path("
         tmp = Path(tmp)
         shutil.copy(settled, tmp / "settled.data")
         (tmp / "in.lammps").write_text(lammps_input(pile, model, dt, skin, steps, repeats))
-        log_text = _run_lmp(tmp, ranks, f"timing {n} disks")
+        log_text = run_lmp(tmp, find_lmp(), MPIRUN, ranks, f"LAMMPS peer, timing {n} disks")
     parsed = parse_log(log_text)
     mass_error = parsed["mass"] / float(pile["mass"].sum()) - 1.0
     if abs(mass_error) > 1e-6:

@@ -59,14 +59,13 @@ import hashlib
 import os
 import re
 import shutil
-import subprocess
 import tempfile
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .lammps_peer import LMP, PeerUnavailable, loop_times, settle_time
+from .lammps_peer import LMP, PeerUnavailable, loop_times, run_lmp, settle_time
 
 #: Rounding radius of the bodies, as a fraction of the pile's smallest inradius.
 ROUNDING = 0.02
@@ -385,25 +384,6 @@ def count_contacts(corners, rounding):
     return int(count)
 
 
-def _run_lmp(folder, lmp, mpirun, ranks, what):
-    """Run ``lmp -in in.lammps`` in ``folder`` on ``ranks`` MPI ranks; its log's text."""
-    cmd = [lmp, "-in", "in.lammps", "-log", "log.lammps", "-screen", "none"]
-    if ranks > 1:
-        if mpirun is None:
-            raise PeerUnavailable("bench --peer lammps-polygons: no mpirun for "
-                                  f"{ranks} ranks")
-        cmd = mpirun + ["-np", str(ranks)] + cmd
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMP_NUM_THREADS="1")
-    done = subprocess.run(cmd, cwd=folder, env=env, capture_output=True, text=True)
-    log_text = (folder / "log.lammps").read_text() if (folder / "log.lammps").exists() else ""
-    if done.returncode != 0:
-        tail = (log_text + done.stdout + done.stderr).strip().splitlines()[-5:]
-        raise RuntimeError(f"LAMMPS polygon peer, {what} on {ranks} rank(s), failed "
-                           f"(exit {done.returncode}): " + " | ".join(tail))
-    return log_text
-
-
 def parse_log(text):
     """Loop times and the marks of a LAMMPS log of :func:`lammps_input`.
 
@@ -450,7 +430,7 @@ def settled_peer(shapes, theta, dt, skin, model, cache=Path(".bench")):
         tmp = Path(tmp)
         (tmp / "pile.data").write_text(data_file(pile))
         (tmp / "in.lammps").write_text(lammps_input(pile, model, dt, skin, stage="settle"))
-        _run_lmp(tmp, lmp, mpirun, 1, f"settling {n} polygons")
+        run_lmp(tmp, lmp, mpirun, 1, f"LAMMPS polygon peer, settling {n} polygons")
         os.replace(tmp / "settled.data", path)  # whole or not at all
     return path
 
@@ -493,7 +473,7 @@ def time_peer(shapes, theta, ranks, dt, skin, model, steps=200, repeats=5,
         tmp = Path(tmp)
         shutil.copy(settled, tmp / "settled.data")
         (tmp / "in.lammps").write_text(lammps_input(pile, model, dt, skin, steps, repeats))
-        log_text = _run_lmp(tmp, lmp, mpirun, ranks, f"timing {n} polygons")
+        log_text = run_lmp(tmp, lmp, mpirun, ranks, f"LAMMPS polygon peer, timing {n} polygons")
         corners = read_corners(tmp / "corners.txt")
     parsed = parse_log(log_text)
     mass_error = parsed["mass"] / float(pile["mass"].sum()) - 1.0
