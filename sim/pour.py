@@ -59,8 +59,26 @@ class LandingError(RuntimeError):
 
 
 def pile_shapes(cfg: SimConfig, seed: int):
-    """The shapes of a pile's particles, drawn reproducibly from its seed."""
-    return _drawn(cfg, np.random.default_rng([seed, 0]), cfg.pour.n_particles)
+    """The shapes of a pile's particles, drawn reproducibly from its seed.
+
+    Raises
+    ------
+    sim.config.ConfigError
+        When the ``particles`` recipe draws no valid polygon (too flat an
+        ellipse for the corners' minimum angle and edge), naming the settings.
+    """
+    try:
+        return _drawn(cfg, np.random.default_rng([seed, 0]), cfg.pour.n_particles)
+    except ValueError as exc:
+        q = cfg.particles
+        raise ConfigError(
+            f"particles: semi_axis_mean = {q.semi_axis_mean:.4g} m, semi_axis_spread = "
+            f"{q.semi_axis_spread:.4g}, aspect_ratio = {q.aspect_ratio}, corners "
+            f"{q.corners_min}-{q.corners_max}, min_angle_deg = {q.min_angle_deg:.4g} and "
+            f"min_edge_fraction = {q.min_edge_fraction:.4g} draw no valid polygon (seed {seed}); "
+            f"allowed: a recipe whose ellipses hold such polygons (a smaller semi_axis_spread "
+            f"or aspect_ratio, fewer corners or a smaller min_angle_deg). The draw said: {exc}"
+        ) from None
 
 
 def _drawn(cfg: SimConfig, rng, n):

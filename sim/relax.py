@@ -331,14 +331,44 @@ def check_stage(cfg: SimConfig, sim, what, extra_time=0.0, gravity=None):
     sim.config.ConfigError
         In one line naming the settings.
     """
-    r = cfg.relax
     g = max(float(np.hypot(*sim.gravity)), gravity or 0.0)
     if sim.n:
         v0 = float(np.max(np.hypot(*sim.velocity.T)))
         top = max(float(np.max(sim.position[:, 1] + sim.shapes.radius[:sim.n])), 0.0)
     else:
         v0 = top = 0.0
-    check_run(sim.scene, what, duration=extra_time + r.max_time,
+    check_stage_run(cfg, sim.scene, what, v0, top, g, extra_time, kept="the input file")
+
+
+def check_stage_run(cfg: SimConfig, scene, what, v0, top, g, extra_time=0.0, kept=None):
+    """:func:`check_stage`'s rule for a pile described by its numbers, not its state.
+
+    Parameters
+    ----------
+    cfg : SimConfig
+    scene : sim.scene.Scene
+        The pile's particles, time step and integrator.
+    what : str
+        The stage, leading the message.
+    v0 : float
+        The fastest particle's speed, m/s.
+    top : float
+        The height of the pile's top above the support, m.
+    g : float
+        The strongest gravity of the stage, m/s².
+    extra_time : float
+        Simulated time before the relaxation, s.
+    kept : str, optional
+        Where the time step comes from when it is not the settings' own
+        (:func:`sim.timestep.dt_source`).
+
+    Raises
+    ------
+    sim.config.ConfigError
+        In one line naming the settings.
+    """
+    r = cfg.relax
+    check_run(scene, what, duration=extra_time + r.max_time,
               speed=math.hypot(v0, math.sqrt(2.0 * g * top)), drag=max(r.drag, r.rocking_drag),
               sources={
                   "duration": f"relax.max_time = {r.max_time!r} s"
@@ -347,7 +377,7 @@ def check_stage(cfg: SimConfig, sim, what, extra_time=0.0, gravity=None):
                            f"under gravity {g:.3g} m/s^2)",
                   "drag": f"relax.drag = {r.drag!r} 1/s and relax.rocking_drag = "
                           f"{r.rocking_drag!r} 1/s",
-                  "dt": dt_source(cfg.model, kept="the input file")})
+                  "dt": dt_source(cfg.model, kept=kept)})
 
 
 def run_stage(cfg: SimConfig, sim, ds, out, stage, what, work, extra_time=0.0, gravity=None):
