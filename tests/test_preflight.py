@@ -9,6 +9,9 @@ pass.
 """
 
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -16,6 +19,7 @@ from sim.config import SimConfig
 from sim.pour import pour
 from sim.preflight import check_piles
 
+REPO = Path(__file__).resolve().parents[1]
 SMALL = {"pour": {"n_particles": 40}}
 
 
@@ -63,3 +67,24 @@ def test_a_relaxation_longer_than_the_step_rule_allows_is_refused():
                                     {"particles": {"aspect_ratio": 2.0}}])
 def test_the_study_settings_and_its_levers_pass(change):
     check_piles(_cfg(change), ["wedge", "layered"], 1)
+
+
+@pytest.mark.parametrize("case", ["too flat a recipe", "a fall from 100 m", "a step above the limit"])
+def test_the_workflow_refuses_them_before_its_first_job(case, tmp_path):
+    """Over the smoke piles each of these passed ``snakemake -n`` and failed in the
+    pour or after it; now the dry run stops on the preflight's line, and no
+    results folder is made."""
+    change, words = POURS_REFUSE[case]
+    overlay = tmp_path / "overlay.yaml"
+    results = f"results/test_preflight_{tmp_path.name}"
+    overlay.write_text(json.dumps({**change, "results": results}))
+    proc = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--cores", "1", "--configfile",
+                           str(REPO / "config" / "smoke.yaml"), str(overlay)], cwd=REPO,
+                          capture_output=True, text=True, timeout=300)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode != 0
+    line = next((ln for ln in out.splitlines() if words[0] in ln), None)
+    assert line is not None, out[-3000:]
+    assert all(w in line for w in words), line
+    assert "Traceback" not in out and "Job stats" not in out
+    assert not (REPO / results).exists()

@@ -10,7 +10,9 @@ names and files are those of docs/formats.md#state-files.
 import json
 import re
 
-from sim.config import BOOKKEEPING, result_settings
+from sim.config import BOOKKEEPING, SimConfig, result_settings
+from sim.preflight import check_piles
+from workflow.validation import SIM_SECTIONS
 
 #: The two protocols the simulator knows, in the workflow's fixed order.
 ALL_PROTOCOLS = ("wedge", "layered")
@@ -337,6 +339,31 @@ class Piles:
                 f"outside 'reduced' / 'reducedNN': keep each level in [0.005, 0.995)"
             )
         return problems
+
+    def preflight(self):
+        """The simulator's own refusals of these piles, before any job runs.
+
+        :func:`sim.preflight.check_piles` on the first seed (a time step that
+        cannot carry the fall from the release height or the relaxation of
+        the tallest pile the particles can make, particles the shape recipe
+        cannot draw): what the pour or the relaxation would otherwise refuse
+        only when it starts, after other jobs. It draws that seed's particles
+        (about a second for 3500).
+
+        Returns
+        -------
+        list of str
+            The refusal, one line naming the settings, their values and what
+            is allowed; empty when the piles can run (or there is none).
+        """
+        first = [self.seeds(p)[0] for p in self.protocols if self.seeds(p)]
+        if not first:
+            return []
+        try:
+            check_piles(SimConfig.from_dict({k: self.config[k] for k in SIM_SECTIONS}), self.protocols, first[0])
+        except ValueError as exc:  # sim.config.ConfigError, or the step rule's refusal of model.dt
+            return [str(exc)]
+        return []
 
     def _stretch_problems(self):
         """A support stretch (probe.stretch) without a support, or without its friction."""

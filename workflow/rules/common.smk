@@ -44,6 +44,7 @@ REPO = Path(workflow.basedir).resolve()
 # --- the piles (workflow/piles.py) -----------------------------------------
 piles = Piles(config)
 check_problems(piles.problems())
+check_problems(piles.preflight())
 PROTOCOLS, seeds, results_path, RESULTS = piles.protocols, piles.seeds, piles.results_path, piles.results
 pile, pour_log, pour_checkpoint = piles.pile, piles.pour_log, piles.pour_checkpoint
 stage_log, stage_benchmark = piles.stage_log, piles.stage_benchmark
