@@ -124,23 +124,15 @@ def configurations(draw):
     return config, names
 
 
-#: The preflight (:meth:`workflow.piles.Piles.preflight`) draws every particle of a
-#: pile, about 0.3 ms each: above this many the drawn configuration skips it,
-#: so that a drawn ``pour.n_particles`` near the schema's 1e6 costs no minutes
-#: (tests/test_preflight.py runs it through ``snakemake -n``).
-PREFLIGHT_PARTICLES = 5000
-
-
 def plan(config):
     """What workflow/rules/common.smk does with a configuration before any rule:
-    validate it, build every object the rules read (the preflight up to
-    :data:`PREFLIGHT_PARTICLES`) and ask them for the scene's targets and each
-    stage's resources; raises ``ValueError`` for a refused one."""
+    validate it, build every object the rules read and ask them for the
+    scene's targets and each stage's resources; raises ``ValueError`` for a
+    refused one."""
     validate_config(config)
     piles = Piles(config)
     check_problems(piles.problems())
-    if config["pour"]["n_particles"] <= PREFLIGHT_PARTICLES:
-        check_problems(piles.preflight())
+    check_problems(piles.preflight())
     resources = SimResources(config)
     resources.check_size(None, True, warn=lambda text: None)
     scene = Scene(piles)
