@@ -22,7 +22,7 @@ from sim.digest import code_digest
 
 from . import __version__, draw, film, vtk
 from .errors import AnalysisError, InputError, ParamError
-from .fields import QUANTITIES
+from .fields import QUANTITIES, check_units
 from .params import parse_params
 from .paths import check_paths, labelled
 
@@ -31,13 +31,17 @@ def _log(msg: str) -> None:
     print(f"[analysis] {msg}", file=sys.stderr, flush=True)
 
 
-def _read(path: str):
+def _read(path: str, check=None):
+    """The netCDF file ``path``, loaded and verified (:func:`analysis.netcdf.read_dataset`, with ``check``);
+    fields files are read with :func:`analysis.fields.check_units` as ``check``."""
     from .netcdf import read_dataset
 
     if not os.path.exists(path):
         raise InputError(f"{path}: no such file")
     try:
-        return read_dataset(path)
+        return read_dataset(path, check)
+    except AnalysisError:
+        raise
     except (OSError, ValueError) as exc:
         raise InputError(f"{path}: cannot be read as netCDF ({exc})") from exc
 
@@ -189,7 +193,7 @@ def cmd_general_fit(args, params) -> None:
     piles = [_read(p) for p in args.probes]
     for ds, p in zip(piles, args.probes):
         _require(ds, p, ("stress_increment", "strain_increment", "probe"))
-    ensemble = _read(args.ensemble) if args.ensemble else None
+    ensemble = _read(args.ensemble, check_units) if args.ensemble else None
     check_distinct_piles(([(args.ensemble, ensemble.attrs)] if ensemble is not None else [])
                          + [(p, ds.attrs) for p, ds in zip(args.probes, piles)], "--probes")
     ds = general_fit_dataset(piles, params, ensemble)
@@ -207,7 +211,7 @@ def cmd_ensemble(args, params) -> None:
 
     dss = []
     for p in args.fields:
-        ds = _read(p)
+        ds = _read(p, check_units)
         _require(ds, p, ("stress", "n_particles", "solid_fraction"))
         dss.append(ds)
     check_distinct_piles([(p, ds.attrs) for p, ds in zip(args.fields, dss)], "--fields")
@@ -223,11 +227,11 @@ def cmd_moduli(args, params) -> None:
     from .netcdf import write_dataset
     from .states import check_distinct_piles
 
-    ens = _read(args.ensemble)
+    ens = _read(args.ensemble, check_units)
     _require(ens, args.ensemble, ("stress_increment", "strain_increment"))
     piles = []
     for p in args.fields or []:
-        ds = _read(p)
+        ds = _read(p, check_units)
         _require(ds, p, ("stress_increment", "strain_increment"))
         piles.append(ds)
     check_distinct_piles([(args.ensemble, ens.attrs)] + [(p, ds.attrs) for p, ds in zip(args.fields or [], piles)],
@@ -246,7 +250,7 @@ def cmd_voigt(args, params) -> None:
 
     out = {}
     for p in args.fields:
-        ds = _read(p)
+        ds = _read(p, check_units)
         _require(ds, p, ("voigt_bulk_modulus", "voigt_shear_modulus", "stress_increment", "strain_increment"))
         out[p] = compare_with_fit(ds, moduli_dataset(ds, [], params), {"x": args.core_x, "y": args.core_y})
         row = out[p]["average/m5"]
@@ -291,7 +295,7 @@ def cmd_invariants(args, params) -> None:
     from .invariants import invariants_dataset
     from .netcdf import write_dataset
 
-    ens = _read(args.ensemble)
+    ens = _read(args.ensemble, check_units)
     _require(ens, args.ensemble, ("stress_increment", "strain_increment", "depth"))
     out = invariants_dataset(ens, params)
     write_dataset(out, args.out, title=f"stress and strain invariants, protocol {out.attrs.get('protocol', '')}",
@@ -371,7 +375,7 @@ def cmd_figure(args, params) -> None:
     from . import figures
 
     inputs = _labelled(args.inputs)
-    data = {lab: _read(p) for lab, p in inputs.items()}
+    data = {lab: _read(p, check_units) for lab, p in inputs.items()}  # fields' variables in convergence too
     first_lab, first = next(iter(data.items()))
     f = params["figures"]
     dpi = f["dpi"]

@@ -23,7 +23,7 @@ import xarray as xr
 from . import rve as _rve
 from .errors import InputError, ParamError
 from .fabric import deviatoric_fraction, fabric_trace, particle_fabric, rve_fabric
-from .netcdf import tensor_coords, var
+from .netcdf import read_dataset, tensor_coords, var
 from .orientation import axis_angle_difference, axis_angle_from_vertical
 from .solid_fraction import solid_fraction as _solid_fraction
 from .states import State, check_same_particles, pile_attributes
@@ -83,6 +83,45 @@ META: dict[str, tuple[str, str]] = {
     "voigt_shear_modulus": ("isotropic projection G = (C11 + C22 - C12 - C21 + 2 C33)/8 of voigt_stiffness",
                             "N m-1"),
 }
+
+
+def check_units(ds: xr.Dataset, path: str | None = None) -> None:
+    """Refuse a fields file whose variables are not in the units :data:`META` writes them in.
+
+    Every variable of :data:`META` in ``ds``, and its standard error
+    ``<name>_sem`` in an ensemble, must carry exactly that ``units``: a copy
+    converted to other units (the stress in kPa) would otherwise be computed
+    with as if it were in the writer's.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A per-pile or ensemble fields file as read.
+    path : str, optional
+        The file, named in the error; by default the file ``ds`` was opened
+        from (``ds.encoding["source"]``).
+
+    Raises
+    ------
+    InputError
+        Naming the file, the variable, the unit found (or its absence) and
+        the unit expected.
+    """
+    for name, v in ds.data_vars.items():
+        expected = META.get(str(name).removesuffix("_sem"), (None, None))[1]
+        if expected is not None and v.attrs.get("units") != expected:
+            found = f"units {v.attrs['units']!r}" if "units" in v.attrs else "no units attribute"
+            where = path or ds.encoding.get("source", "<dataset>")
+            raise InputError(f"{where}: variable {name} has {found}, expected {expected!r} "
+                             "(docs/formats.md#fields); the analysis reads fields files only in the units "
+                             "python -m analysis fields writes: compute them again from the states")
+
+
+def read_fields(path: str) -> xr.Dataset:
+    """A per-pile or ensemble fields file, loaded, in the units of its writer
+    (:func:`check_units`) and as written (its ``data_digest``,
+    :func:`analysis.netcdf.read_dataset`)."""
+    return read_dataset(path, check_units)
 
 
 def check_quantities(quantities, has_reduced: bool) -> tuple[str, ...]:

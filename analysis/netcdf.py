@@ -6,7 +6,9 @@ parameters as JSON text) and ``software`` (the versions that computed it);
 every variable and coordinate must carry ``units`` and ``long_name``
 (checked before writing). Files are written to a temporary
 name in the destination folder and renamed, so a killed job never leaves a
-complete-looking file. The simulator has its own (sim/io.py), not this one:
+complete-looking file. Each carries ``data_digest``, the digest of its content
+as read back (:func:`analysis.states.content_digest`), which
+:func:`read_dataset` verifies. The simulator has its own (sim/io.py), not this one:
 analysis and sim import nothing of each other (they meet only in the state
 files) and the fixed top level has no room for a third package.
 """
@@ -19,7 +21,7 @@ import functools
 import json
 import os
 import sys
-from typing import Any, Iterator
+from typing import Any, Callable, Iterator
 
 import numpy as np
 import xarray as xr
@@ -139,6 +141,19 @@ def write_dataset(ds: xr.Dataset, path: str, *, title: str, params: dict[str, An
             encoding[name] = {"zlib": True, "complevel": 4, "_FillValue": None}
     with atomic_path(path) as tmp:
         ds.to_netcdf(tmp, format="NETCDF4", engine="netcdf4", encoding=encoding)
+        _write_digest(tmp)
+
+
+def _write_digest(path: str) -> None:
+    """Add to the file ``path`` the global attribute ``data_digest``: the digest of its content as
+    :func:`read_dataset` reads it back, so that the reader's computation gives it again bit for bit."""
+    import netCDF4
+
+    from .states import content_digest
+
+    digest = content_digest(read_dataset(path))
+    with netCDF4.Dataset(path, "a") as nc:
+        nc.setncattr("data_digest", digest)
 
 
 def write_json(obj: Any, path: str) -> None:
@@ -162,10 +177,32 @@ def _json_default(o: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
-def read_dataset(path: str) -> xr.Dataset:
-    """Open a netCDF file, load it into memory and close it."""
+def read_dataset(path: str, check: Callable[[xr.Dataset, str], None] | None = None) -> xr.Dataset:
+    """Open a netCDF file, load it into memory, close it and verify its ``data_digest``.
+
+    Parameters
+    ----------
+    path : str
+    check : callable, optional
+        ``check(ds, path)``, run before the digest is verified: a reader's own
+        check (:func:`analysis.fields.check_units`), whose refusal names the
+        cause (a copy converted to other units) where the digest would only
+        say that the file changed.
+
+    Raises
+    ------
+    InputError
+        From ``check``, or when the content no longer matches the digest
+        written with it (:func:`analysis.states.check_digest`).
+    """
+    from .states import check_digest
+
     with xr.open_dataset(path) as ds:
-        return ds.load()
+        ds = ds.load()
+    if check is not None:
+        check(ds, path)
+    check_digest(ds, path)
+    return ds
 
 
 def var(dims: tuple[str, ...] | str, data: Any, long_name: str, units: str, **attrs: Any) -> xr.Variable:

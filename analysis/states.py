@@ -129,6 +129,33 @@ def content_digest(ds: xr.Dataset) -> str:
     return h.hexdigest()
 
 
+def check_digest(ds: xr.Dataset, path: str, error: type[InputError] = InputError) -> None:
+    """Refuse a file whose content no longer matches the ``data_digest`` written with it.
+
+    Every file the simulator or the analysis writes carries one
+    (docs/formats.md#conventions); a file without one (written before it
+    existed, or by hand) passes.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The file as read.
+    path : str
+        The file, named in the error.
+    error : type
+        The exception to raise: :class:`StateError` for state files.
+
+    Raises
+    ------
+    InputError
+        (or ``error``) Naming the file: its data or global attributes were
+        changed after it was written (:func:`content_digest`).
+    """
+    if "data_digest" in ds.attrs and content_digest(ds) != ds.attrs["data_digest"]:
+        raise error(f"{path}: its content does not match the digest written with it (attribute data_digest): "
+                    "the file was damaged after it was written; delete it and run the step that writes it again")
+
+
 def state_from_dataset(ds: xr.Dataset, path: str = "<dataset>") -> State:
     """Validate a contract dataset and return it as a :class:`State`.
 
@@ -166,10 +193,7 @@ def state_from_dataset(ds: xr.Dataset, path: str = "<dataset>") -> State:
         else:
             a = a.astype(np.float64)
         arrays[name] = a
-    if "data_digest" in ds.attrs and content_digest(ds) != ds.attrs["data_digest"]:
-        raise _fail(path, "its content does not match the digest written with it (attribute data_digest): "
-                          "the file was damaged after it was written; delete it and run the step that writes "
-                          "it again")
+    check_digest(ds, path, StateError)
     for a in REQUIRED_ATTRS:
         if a not in ds.attrs:
             raise _fail(path, f"missing global attribute {a!r} required by docs/formats.md#state-files")

@@ -53,6 +53,7 @@ import numpy as np
 import xarray as xr
 import yaml
 
+from analysis.fields import read_fields
 from analysis.growth import OLD, growth
 from analysis.history import mean_sem, pile_stress_contrasts
 from analysis.params import parse_params
@@ -174,8 +175,7 @@ def run_pile(cal: dict, arm: str, seed: int, records: Path) -> Path:
     params = parse_params(json.dumps(cfg["analysis"]))
     path = {k: work / v for k, v in files.items()}
     q = pile_quantities(path["summary"], path["fields"], path["base_pressure"], params)
-    with xr.open_dataset(path["fields"]) as f:
-        f = f.load()
+    f = read_fields(str(path["fields"]))
     q["stress_column"] = pile_stress_contrasts(f, params)["stress_column"]
     q.update(flank_fabric(f, params["history"]))
     record = {"arm": arm, "protocol": protocol, "seed": seed, "n_particles": cfg["pour"]["n_particles"],

@@ -81,6 +81,7 @@ import xarray as xr
 
 
 from analysis.elastic import mask_counts
+from analysis.fields import read_fields
 from analysis.ensemble import leave_out_slips
 from analysis.history import (UNITS, compare, holm, pile_history, pile_stress_contrasts,
                               piles_for_power, mean_sem, primary_names, t_threshold, welch, windows)
@@ -408,7 +409,7 @@ def history_values(fields, bases, params, heights):
     for item in fields:
         p, path = item.split("=", 1)
         bp_path = by_seed.get((p, Path(path).name.split(".")[0]))
-        with xr.open_dataset(path) as ds:
+        with read_fields(path) as ds:
             bp = xr.open_dataset(bp_path) if bp_path else None
             try:
                 out.setdefault(p, []).append(pile_history(ds.load(), params, heights, bp))
@@ -669,8 +670,8 @@ def report_checks(fields_items, bases_items, convergence_paths, invariants, para
     contrasts = {}
     for p, paths in piles.items():
         for path in paths:
-            with xr.open_dataset(path) as ds:
-                c = pile_stress_contrasts(ds.load(), params)
+            with read_fields(path) as ds:
+                c = pile_stress_contrasts(ds, params)
                 c["secant_low"], c["secant_high"], c["secant_low_strain"] = pile_secants(ds, params)
             contrasts.setdefault(p, []).append(c)
     values = history_values(fields_items, bases_items, params, [h["primary_height"]])
@@ -764,7 +765,7 @@ def main(argv=None):
            "Made by `workflow/scripts/reproduction_numbers.py` from the ensembles (`make reproduction`); "
            "mean ± standard error over piles.", ""]
     for p in args.protocols:
-        with xr.open_dataset(f"{args.ensemble}/{p}/fields.nc") as ds:
+        with read_fields(f"{args.ensemble}/{p}/fields.nc") as ds:
             n = int(ds.attrs.get("n_seeds", 0))
             out += [f"## {p} ({_piles(n)})", "", f"Slips: {slips(ds)}.", "", "Vertical strain increment u_yy (Fig. 2):", "",
                     f"| y (cm) | centre (|x| <= {100 * params['history']['centre']:g} cm) | shoulders "
