@@ -133,7 +133,8 @@ def verdict(records: list[dict], point: str, layered: str, n: int) -> dict[str, 
     -------
     dict
         Per decision and secondary statistic: the means, standard errors and
-        counts, the difference, Welch's t, df and p, Holm's adjusted p and
+        counts, the per-pile standard deviations (``sd``), the difference, its
+        two-sided 95 % t interval (``ci95``), Welch's t, df and p, Holm's adjusted p and
         rejection; the achieved power at :data:`EFFECT`; ``finding`` (one of
         ``minimum``, ``opposite``, ``none``) and ``sentence``.
 
@@ -156,7 +157,7 @@ def verdict(records: list[dict], point: str, layered: str, n: int) -> dict[str, 
             w = welch(a, b)
             half = student_t.isf(0.025, w["df"]) * math.hypot(sa, sb) if np.isfinite(w["df"]) else math.nan
             rows[key] = {"point": (ma, sa, na), "layered": (mb, sb, nb), "diff": ma - mb,
-                         "se": math.hypot(sa, sb), "ci95": (ma - mb - half, ma - mb + half), **w,
+                         "se": math.hypot(sa, sb), "sd": (da, db), "ci95": (ma - mb - half, ma - mb + half), **w,
                          "power": t_power(da, db, EFFECT, min(na, nb), len(family), LEVEL)
                          if min(na, nb) >= 2 else math.nan}
         adjusted, rejected = holm([r["p"] for r in rows.values()], LEVEL)

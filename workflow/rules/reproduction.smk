@@ -111,6 +111,7 @@ if config["committed"]:
     rule reproduction_decision:
         input:
             records=lambda wc: sorted(str(p) for p in (COMMITTED / "decision").glob("*.json")),
+            calibration=lambda wc: sorted(str(p) for p in (COMMITTED / "calibration").glob("*.json")),
             plan=str(DECISION_PLAN),
             script="workflow/scripts/decision.py",
         output:

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 import yaml
@@ -111,6 +112,17 @@ def verdict(records: Path, out: Path) -> str:
               f"| statistic | {point} | {layered} | difference | Welch t | p | Holm p | power at "
               f"{decision.EFFECT:.0%} |", "|---|---|---|---|---|---|---|---|"]
     lines += [_row(k, r) for k, r in result["decision"].items()]
+    plan_sd = decision.piles_required(read_records(DOCS / "calibration"), point, layered)["sd"]
+    lines += [""] + [f"- {k}: 95 % interval of the difference [{100 * r['ci95'][0]:+.1f} %, "
+                     f"{100 * r['ci95'][1]:+.1f} %]; per-pile scatter {r['sd'][0]:.4f} ({point}), "
+                     f"{r['sd'][1]:.4f} ({layered})" for k, r in result["decision"].items()]
+    lines += [f"- N was set from D1's pooled calibration scatter {plan_sd:.4f}; the power column is at the "
+              "ensemble's own scatter.",
+              f"- Piles: seeds {plan['seeds'][0]}-{plan['seeds'][-1]}, {have[point]} {point} and "
+              f"{have[layered]} {layered} recorded; missing: "
+              + (", ".join(f"{r['arm']} seed {r['seed']}" for r in recs
+                           if not math.isfinite(r["quantities"].get(decision.DECISION[0], math.nan))) or "none")
+              + "."]
     lines += ["", "Secondary (own Holm family, not the verdict):", "",
               "| statistic | point | layered | difference | Welch t | p | Holm p | power |",
               "|---|---|---|---|---|---|---|---|"]
