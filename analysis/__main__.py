@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from sim.atomic import OutputError, atomic_path
 from sim.digest import code_digest
 
 from . import __version__, draw, film, vtk
@@ -107,7 +108,6 @@ def _relaxed_and_probes(relaxed_path: str, probes: dict[str, str], option: str) 
 
 # ------------------------------------------------------------------ commands
 def cmd_run_times(args, params) -> None:
-    from .netcdf import atomic_path
     from .run_times import job_label, run_times_html
 
     missing = [p for p in args.benchmarks if not os.path.exists(p)]
@@ -515,7 +515,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         args.func(args, params)
-    except AnalysisError as exc:
+    except (AnalysisError, OutputError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     return 0

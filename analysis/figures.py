@@ -17,8 +17,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
+from sim.atomic import atomic_path  # noqa: E402
+
 from .elastic import mask_counts  # noqa: E402
-from .netcdf import atomic_path  # noqa: E402
 
 COMPONENTS = (("x", "x", "xx"), ("y", "y", "yy"), ("x", "y", "xy"))
 

@@ -32,8 +32,10 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.atomic import atomic_path
+
 from .errors import InputError
-from .netcdf import atomic_path, check_writable
+from .netcdf import check_writable
 
 #: Frames per second of the film by default.
 FPS = 10

@@ -6,25 +6,27 @@ parameters as JSON text) and ``software`` (the versions that computed it);
 every variable and coordinate must carry ``units`` and ``long_name``
 (checked before writing). Files are written to a temporary
 name in the destination folder and renamed, so a killed job never leaves a
-complete-looking file. Each carries ``data_digest``, the digest of its content
-as read back (:func:`analysis.states.content_digest`), which
-:func:`read_dataset` verifies. The simulator has its own (sim/io.py), not this one:
-analysis and sim import nothing of each other (they meet only in the state
-files) and the fixed top level has no room for a third package.
+complete-looking file: :func:`sim.atomic.atomic_path`, the project's one
+atomic write, shared with the simulator like its check of paths (a failed
+write is an :class:`sim.atomic.OutputError`, the same line from either
+command line). Each file carries ``data_digest``, the digest of its content as
+read back (:func:`analysis.states.content_digest`), which :func:`read_dataset`
+verifies.
 """
 
 from __future__ import annotations
 
-import contextlib
 import datetime as _dt
 import functools
 import json
 import os
 import sys
-from typing import Any, Callable, Iterator
+from typing import Any, Callable
 
 import numpy as np
 import xarray as xr
+
+from sim.atomic import atomic_path
 
 from . import __version__
 
@@ -103,28 +105,6 @@ def check_writable(path: str, option: str) -> None:
         raise InputError(f"{option} {path}: cannot be written ({exc.strerror or exc}); nothing was made") from None
 
 
-@contextlib.contextmanager
-def atomic_path(path: str) -> Iterator[str]:
-    """A temporary path next to ``path`` that becomes ``path`` when the block ends.
-
-    The folder is created; the temporary file (a hidden name with the process
-    id and the same extension, so that writers that go by the extension still
-    see it) is renamed onto ``path`` only when the block ends without an
-    exception, and removed in any case, so that a killed or failed writer
-    never leaves a complete-looking file.
-    """
-    d, b = os.path.split(os.path.abspath(path))
-    os.makedirs(d, exist_ok=True)
-    stem, ext = os.path.splitext(b)
-    tmp = os.path.join(d, f".{stem}.{os.getpid()}.tmp{ext}")
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-
-
 def write_dataset(ds: xr.Dataset, path: str, *, title: str, params: dict[str, Any] | None,
                   command: str | None = None) -> None:
     """Finalise ``ds`` and write it to ``path`` atomically (temporary name, then rename)."""
@@ -152,7 +132,7 @@ def _write_digest(path: str) -> None:
     from .states import content_digest
 
     digest = content_digest(read_dataset(path))
-    with netCDF4.Dataset(path, "a") as nc:
+    with netCDF4.Dataset(str(path), "a") as nc:
         nc.setncattr("data_digest", digest)
 
 

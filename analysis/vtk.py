@@ -132,9 +132,10 @@ import os
 
 import numpy as np
 
+from sim.atomic import OutputError, atomic_path
+
 from .draw import force_segments, particle_pressure
 from .errors import InputError
-from .netcdf import atomic_path
 from .states import State, load_state
 from .stress import particle_stress
 
@@ -380,13 +381,10 @@ def export_state(path_in: str, path_out: str) -> tuple[str, str]:
     state = load_state(path_in)
     particles, contacts = particle_mesh(state), contact_mesh(state)
     path_c = contacts_path(path_out)
-    try:
-        # Nested: both are renamed only once both are complete.
-        with atomic_path(path_out) as tmp_p, atomic_path(path_c) as tmp_c:
-            meshio.write(tmp_p, particles, file_format="vtu")
-            meshio.write(tmp_c, contacts, file_format="vtu")
-    except OSError as err:
-        raise InputError(f"{path_out}: cannot be written ({err})") from err
+    # Nested: both are renamed only once both are complete.
+    with atomic_path(path_out) as tmp_p, atomic_path(path_c) as tmp_c:
+        meshio.write(tmp_p, particles, file_format="vtu")
+        meshio.write(tmp_c, contacts, file_format="vtu")
     return path_out, path_c
 
 
@@ -507,6 +505,8 @@ def export_frames(path_in: str, path_out: str) -> tuple[str, list[str]]:
         with atomic_path(path_out) as tmp_pvd:
             with open(tmp_pvd, "w", encoding="utf-8") as fh:
                 fh.write(_pvd_text([f"{stem}/{name}" for name in names], times))
+    except OutputError:
+        raise
     except OSError as err:
         raise InputError(f"--vtk {path_out}: cannot be written ({err})") from err
     finally:

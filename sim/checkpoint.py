@@ -22,9 +22,10 @@ import shutil
 import time as _time
 from pathlib import Path
 
+from .atomic import atomic_path, stale_temporaries
 from .config import result_settings
 from .frames import partial_path
-from .io import (POUR_SECTIONS, StateFileError, atomic_path, code_version, load_simulation,
+from .io import (POUR_SECTIONS, StateFileError, code_version, load_simulation,
                  save_state)
 
 log = logging.getLogger("sim")
@@ -52,7 +53,7 @@ def remove_temporaries(checkpoint, *outputs):
     under the same lock); only the holder of the pour's lock may."""
     paths = [checkpoint, partial_path(checkpoint), *(Path(o) for o in outputs if o)]
     for path in paths:
-        for stale in path.parent.glob(f".{path.name}.*.tmp"):
+        for stale in stale_temporaries(path):
             stale.unlink()
 
 
@@ -135,7 +136,7 @@ def remove_checkpoint(checkpoint):
 
 
 def _copy(source, path):
-    """Write a copy of the file `source` to `path` atomically (:func:`sim.io.atomic_path`).
+    """Write a copy of the file `source` to `path` atomically (:func:`sim.atomic.atomic_path`).
 
     A copy, not a hard link: a hard link would make the two one file, which
     :func:`sim.paths.check_distinct_paths` refuses as ``--out`` and ``--finished``.

@@ -30,7 +30,8 @@ from . import __version__
 from .config import BOOKKEEPING, ConfigError, SimConfig
 from .checkpoint import last_good_path
 from .frames import partial_path
-from .io import OutputError, code_version, model_from_attrs, read_state
+from .atomic import OutputError
+from .io import code_version, model_from_attrs, read_state
 from .lock import lock_path
 from .paths import PathRoles, at_file, check_distinct_paths
 from .settings_file import SettingsFileError, merge_settings, read_settings

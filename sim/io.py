@@ -8,23 +8,17 @@ each contact); the global attribute ``code_version`` (:func:`code_version`)
 names the simulator code that wrote it.  Files are written to a temporary name and renamed when
 complete, so a killed job never leaves a file that looks whole.
 
-This module also holds what every file that ``sim`` writes shares: the one
-atomic write (:func:`atomic_path`, with :func:`atomic_write` for netCDF,
-:func:`atomic_text` and :func:`atomic_figure`) and the CF global attributes
-(:func:`cf_attributes`).  The analysis has its own (analysis/netcdf.py), not
-this one: sim and analysis import nothing of each other (they meet only in the
-state files) and the fixed top level has no room for a third package.
+This module also holds what every file that ``sim`` writes shares: the
+writers over the project's one atomic write (:func:`sim.atomic.atomic_path`:
+:func:`atomic_write` for netCDF, :func:`atomic_text` and :func:`atomic_figure`)
+and the CF global attributes (:func:`cf_attributes`).
 """
 
 from __future__ import annotations
 
-import contextlib
-import errno
 import functools
 import hashlib
 import json
-import os
-import shutil
 import time as _time
 from pathlib import Path
 
@@ -32,6 +26,7 @@ import numpy as np
 import xarray as xr
 
 from . import __version__
+from .atomic import atomic_path
 from .config import ModelParams, result_settings
 from .digest import code_digest
 from .engine import Simulation
@@ -221,77 +216,8 @@ def software_versions() -> str:
                      + [f"{name} {version(name)}" for name in ("numpy", "numba", "llvmlite", "xarray", "netCDF4")])
 
 
-@contextlib.contextmanager
-def atomic_path(path):
-    """A temporary path beside ``path``, renamed to ``path`` when the block succeeds.
-
-    The temporary file ``.{name}.{pid}.tmp`` lies in the same folder (created
-    if missing), so the rename is atomic: a killed job never leaves a file
-    under ``path`` that looks whole.  If the block raises, the temporary file
-    is removed and ``path`` is left as it was; a failure to write (a read-only
-    file system, a full disk: :class:`OSError` or netCDF's :class:`RuntimeError`)
-    becomes an :class:`OutputError` saying so in one line.
-
-    Parameters
-    ----------
-    path : str or Path
-
-    Yields
-    ------
-    pathlib.Path
-        The temporary path to write to.
-    """
-    path = Path(path)
-    existed = path.exists()
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        yield tmp
-        os.replace(tmp, path)
-    except (OSError, RuntimeError) as exc:
-        written = tmp.stat().st_size if tmp.exists() else 0
-        _remove(tmp)
-        raise OutputError(_write_failure(path, exc, written, existed)) from None
-    finally:
-        _remove(tmp)
-
-
-def _remove(tmp: Path) -> None:
-    """Remove ``tmp`` if it is there (a read-only file system refuses even that: then nothing is there)."""
-    with contextlib.suppress(OSError):
-        tmp.unlink(missing_ok=True)
-
-
-class OutputError(OSError):
-    """A file could not be written; the message says why and that nothing was lost."""
-
-
-def _write_failure(path: Path, exc: BaseException, written: int, existed: bool) -> str:
-    """One line on a failed write of ``path``: why (read-only, full disk, other) and what is left.
-
-    netCDF reports a full disk as "HDF error" or even "Permission denied", so a
-    folder with under 1 MiB (or under twice what was written) free is named full.
-    """
-    folder = next((d for d in [path.parent, *path.parent.parents] if d.exists()), path.parent)
-    try:
-        free = shutil.disk_usage(folder).free
-        read_only = bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
-    except OSError:
-        free, read_only = None, False
-    code = getattr(exc, "errno", None)
-    if code == errno.EROFS or read_only:
-        why = f"the file system holding {folder} is read-only"
-    elif code == errno.ENOSPC or (free is not None and free < max(2**20, 2 * written)):
-        why = f"the disk holding {folder} is full ({free} bytes free" + (
-            f" after {written} bytes of it were written)" if written else ")")
-    else:
-        why = f"{type(exc).__name__}: {getattr(exc, 'strerror', None) or exc}"
-    kept = "is as it was" if existed else "was not created"
-    return f"cannot write {path}: {why}; nothing was lost: {path} {kept} and the partial file was removed"
-
-
 def atomic_write(ds: xr.Dataset, path) -> None:
-    """Write a dataset to ``path`` (netCDF-4) atomically (:func:`atomic_path`).
+    """Write a dataset to ``path`` (netCDF-4) atomically (:func:`sim.atomic.atomic_path`).
 
     Parameters
     ----------
@@ -303,18 +229,17 @@ def atomic_write(ds: xr.Dataset, path) -> None:
 
 
 def atomic_text(text: str, path) -> None:
-    """Write ``text`` to ``path`` atomically (:func:`atomic_path`)."""
+    """Write ``text`` to ``path`` atomically (:func:`sim.atomic.atomic_path`)."""
     with atomic_path(path) as tmp:
         tmp.write_text(text)
 
 
 def atomic_figure(fig, path, **kwargs) -> None:
-    """Save a matplotlib figure to ``path`` atomically (:func:`atomic_path`).
+    """Save a matplotlib figure to ``path`` atomically (:func:`sim.atomic.atomic_path`).
 
-    The format is that of ``path``'s suffix (the temporary name ends in
-    ``.tmp``) unless ``format`` is given; ``kwargs`` go to ``fig.savefig``.
+    The format is that of ``path``'s suffix (the temporary name keeps it)
+    unless ``format`` is given; ``kwargs`` go to ``fig.savefig``.
     """
-    kwargs.setdefault("format", Path(path).suffix.lstrip(".") or "png")
     with atomic_path(path) as tmp:
         fig.savefig(tmp, **kwargs)
 

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import pytest
 
+from sim.atomic import temporary_path
 from sim.config import SimConfig
 from sim.engine import Simulation
 from sim.pour import pour
@@ -72,7 +73,7 @@ def test_a_finished_pour_is_kept_and_taken_instead_of_pouring_again(tmp_path, ca
     assert (tmp_path / "fin.nc").read_bytes() == first["poured.nc"]
     assert (tmp_path / "fin.frames.nc").read_bytes() == first["frames.nc"]
     deleted(paths)
-    (tmp_path / ".poured.nc.7.tmp").write_bytes(b"CDF half copied")   # a killed copy's
+    temporary_path(tmp_path / "poured.nc", 7).write_bytes(b"CDF half copied")   # a killed copy's
     monkeypatch.setattr(Simulation, "run", no_step)
     caplog.set_level("INFO", logger="sim")
     poured(tmp_path)

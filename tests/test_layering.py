@@ -4,7 +4,8 @@ simulator but its reader of settings files (it reads state files through the
 contract; settings, which precede both, are read by one reader,
 :mod:`sim.settings_file`, so that a number or a repeated key means the same to
 both) and the check that no output of a command line is an input or another
-output (:mod:`sim.paths`, one for both command lines), and no module of either package imports itself through others (no
+output (:mod:`sim.paths`, one for both command lines) and the one atomic write
+(:mod:`sim.atomic`), and no module of either package imports itself through others (no
 import cycle). Every import statement counts, also those inside functions."""
 
 import ast
@@ -48,9 +49,9 @@ def graph():
             for name, path in modules.items()}, modules
 
 
-#: What the analysis may import of the simulator: the one reader of settings and
-#: the one check of a command line's paths.
-SHARED = ("sim.settings_file", "sim.paths", "sim.digest")
+#: What the analysis may import of the simulator: the one reader of settings, the
+#: one check of a command line's paths, the one code digest and the one atomic write.
+SHARED = ("sim.settings_file", "sim.paths", "sim.digest", "sim.atomic")
 
 
 @pytest.mark.parametrize("package,forbidden", [("sim", ("analysis", "workflow")), ("analysis", ("sim", "workflow"))])

@@ -17,6 +17,7 @@ import pytest
 import xarray as xr
 
 from sim import checkpoint
+from sim.atomic import temporary_path
 from sim.config import SimConfig
 from sim.engine import Simulation
 from sim.io import StateFileError, read_state, save_state
@@ -191,12 +192,12 @@ def test_the_piles_log_gains_each_run_that_holds_the_lock_and_no_other(tmp_path,
 
 def test_a_run_killed_while_writing_its_results_leaves_no_temporary_file(tmp_path, whole):
     """Killed while writing the poured state or its film (after the last
-    checkpoint, before the rename), a run leaves ``.NAME.PID.tmp`` files; the
-    next run, holding the lock, removes them with the checkpoint's and pours
-    the same pile."""
+    checkpoint, before the rename), a run leaves hidden temporary files
+    (:func:`sim.atomic.temporary_path`); the next run, holding the lock,
+    removes them with the checkpoint's and pours the same pile."""
     ckpt = tmp_path / "pour.checkpoint.nc"
-    left = [tmp_path / f".{name}.{pid}.tmp" for name in ("poured.nc", "frames.nc",
-                                                          "pour.checkpoint.nc") for pid in (7, 8)]
+    left = [temporary_path(tmp_path / name, pid) for name in ("poured.nc", "frames.nc",
+                                                              "pour.checkpoint.nc") for pid in (7, 8)]
     for path in left:
         path.write_bytes(b"CDF half written")
     pour(tiny(), "wedge", 3, tmp_path / "poured.nc", checkpoint=ckpt,

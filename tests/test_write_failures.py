@@ -1,5 +1,6 @@
-"""A state that cannot be written (a read-only file system, a full disk) fails in one line
-that says why and that nothing was lost (issue 28: a full disk showed only "NetCDF: HDF
+"""A state or an analysis file that cannot be written (a read-only file system, a full disk)
+fails in one line that says why and that nothing was lost, the same line from both
+command lines (one atomic write, :mod:`sim.atomic`) (issue 28: a full disk showed only "NetCDF: HDF
 error" or even "Permission denied", a read-only one a traceback). netCDF's own errors
 are made here as the library raises them on those file systems (checked by hand on a
 read-only and a full tmpfs: errno 13 from the library, errno 30 from the folder)."""
@@ -10,11 +11,14 @@ from collections import namedtuple
 
 import numpy as np
 import pytest
+from synthetic_states import step_pyramid, write_state
 
+from analysis.__main__ import main as analysis_main
 from sim.cli import main as sim_main
 from sim.config import ModelParams
+from sim.atomic import OutputError
 from sim.engine import Simulation
-from sim.io import OutputError, save_state
+from sim.io import save_state
 from sim.shapes import make_shapes
 
 
@@ -85,3 +89,20 @@ def test_the_command_line_says_it_in_one_line(tmp_path, monkeypatch, caplog):
     status = sim_main(["pour", "--params", "{}", "--protocol", "wedge", "--seed", "1", "--out", str(tmp_path / "p.nc")])
     assert status == 3
     assert f"cannot write {tmp_path / 'p.nc'}: PermissionError: Permission denied; nothing was lost" in caplog.text
+
+
+def test_the_analysis_says_the_same_line(tmp_path, monkeypatch, capsys):
+    """An analysis output on a full disk: exit status 1, the simulator's line, no partial file."""
+    state = write_state(tmp_path / "relaxed.nc", step_pyramid(21, 0.006, slope=0.6))
+    _failing_netcdf(monkeypatch)
+    Usage = namedtuple("Usage", "total used free")
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: Usage(10**6, 10**6 - 512, 512))
+    out = tmp_path / "out" / "fields.nc"
+    status = analysis_main(["fields", "--relaxed", state, "--out", str(out), "--params",
+                            '{"grid": {"x_min": -0.06, "x_max": 0.06, "y_min": 0.03, "y_max": 0.06, "spacing": 0.03}}'])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 1
+    assert err[-1] == (f"error: cannot write {out}: the disk holding {out.parent} is full (512 bytes free after "
+                       f"4096 bytes of it were written); nothing was lost: {out} was not created and the partial "
+                       "file was removed"), err
+    assert list(out.parent.iterdir()) == []
