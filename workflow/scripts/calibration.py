@@ -55,7 +55,7 @@ import yaml
 
 from analysis.fields import read_fields
 from analysis.growth import OLD, growth
-from analysis.history import mean_sem, pile_stress_contrasts
+from analysis.history import mean_sem, pile_stress_contrasts, welch
 from analysis.params import parse_params
 from analysis.pile_quantities import pile_quantities, quantities
 from sim.config import SimConfig
@@ -223,6 +223,58 @@ def table(records: list, params: dict, arms: list) -> str:
     return "\n".join(rows) + "\n"
 
 
+#: The statistics of the history comparison set side by side for each lever (exploratory).
+CONTRASTS = ("stress_column", "base_pressure_column", "solid_fraction@4.5", "strain@4.5")
+
+
+def baseline_arm(arm: str, baseline: list) -> str | None:
+    """The baseline arm a lever's arm changes one setting of: the longest baseline name it starts with."""
+    found = [b for b in baseline if arm.startswith(b + " ")]
+    return max(found, key=len) if found else None
+
+
+def lever_contrasts(records: list, baseline: list, arms: list) -> str:
+    """Markdown: per lever value (the baseline's, then each lever's), the point source − layered
+    difference of :data:`CONTRASTS` by Welch's test, and each arm's change with the lever, paired by seed.
+
+    Exploratory numbers (no test here was registered): they say which lever a registered
+    ensemble should vary, they decide nothing.
+    """
+    values = lambda arm, key: {r["seed"]: r["quantities"].get(key, math.nan)  # noqa: E731
+                               for r in records if r["arm"] == arm}
+    levers = {}
+    for arm in arms:
+        base = baseline_arm(arm, baseline)
+        if base is not None:
+            levers.setdefault(arm[len(base) + 1:], {})[base] = arm
+    out = ["| lever | arms | " + " | ".join(CONTRASTS) + " |", "|---|---|" + "---|" * len(CONTRASTS)]
+    rows = [("default", dict(zip(baseline, baseline)))] + list(levers.items())
+    for name, by_base in rows:
+        point = [a for b, a in by_base.items() if b.startswith("wedge")]
+        layered = [a for b, a in by_base.items() if b.startswith("layered")]
+        if not (point and layered and values(point[0], CONTRASTS[0]) and values(layered[0], CONTRASTS[0])):
+            continue
+        cells = []
+        for key in CONTRASTS:
+            a, b = list(values(point[0], key).values()), list(values(layered[0], key).values())
+            w = welch(a, b)
+            cells.append(f"{100 * (np.nanmean(a) - np.nanmean(b)):+.1f} % (t {w['t']:.2f}, {w['df']:.0f} df)")
+        out.append(f"| {name} | {point[0]} − {layered[0]} | " + " | ".join(cells) + " |")
+    out += ["", "Each arm's change with its lever, paired by seed (lever − default, mean ± SE over the seeds "
+            "of both):", "", "| arm | " + " | ".join(CONTRASTS) + " |", "|---|" + "---|" * len(CONTRASTS)]
+    for name, by_base in levers.items():
+        for base, arm in by_base.items():
+            if not set(values(arm, CONTRASTS[0])) & set(values(base, CONTRASTS[0])):
+                continue
+            cells = []
+            for key in CONTRASTS:
+                new, old = values(arm, key), values(base, key)
+                m, se, _, n = mean_sem([new[k] - old[k] for k in sorted(set(new) & set(old))])
+                cells.append(f"{100 * m:+.1f} ± {100 * se:.1f} % ({n})")
+            out.append(f"| {arm} | " + " | ".join(cells) + " |")
+    return "\n".join(out) + "\n"
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--config", type=Path, default=CONFIG)
@@ -233,6 +285,10 @@ def main(argv=None) -> None:
     ap.add_argument("--table", action="store_true", help="only write the table of the records (to --out)")
     ap.add_argument("--out", type=Path, default=REPO / "docs" / "reproduction" / "calibration.md",
                     help="the table's file (with --table)")
+    ap.add_argument("--baseline", type=Path, default=None,
+                    help="with --table: the records of the arms the config's arms change one setting of "
+                         "(docs/reproduction/calibration for config/levers.yaml), tabled beside them with "
+                         "the point − layered contrasts at each lever value")
     args = ap.parse_args(argv)
     cal = read_settings_file(args.config)
     arms = args.arms or list(cal["arms"])
@@ -242,13 +298,23 @@ def main(argv=None) -> None:
     if args.table:
         params = parse_params(json.dumps(read_settings_file(REPO / cal["piles"])["analysis"]))
         records = [json.loads(p.read_text()) for p in sorted(args.records.glob("*.json"))]
+        base_records = [json.loads(p.read_text()) for p in sorted(args.baseline.glob("*.json"))] \
+            if args.baseline else []
+        baseline = list(dict.fromkeys(r["arm"] for r in base_records
+                                      if any(baseline_arm(a, [r["arm"]]) for a in arms)))
+        shown = [b for b in baseline] + arms if baseline else arms
         page = (f"# The calibration of the sources: piles of {records[0]['n_particles'] if records else '?'} "
                 "particles, per arm\n\n"
                 "Made by `workflow/scripts/calibration.py --table` from the per-pile records in "
                 f"{_shown(args.records)}/ (settings: {_shown(args.config)}; what each number is: the script's "
                 "docstring); mean ± standard error over seeds, the number of piles after each arm. CPU seconds "
                 "are each job's own (Snakemake's benchmark files), with two piles side by side on a 2-core host.\n\n"
-                + table(records, params, arms))
+                + table(records + [r for r in base_records if r["arm"] in baseline], params, shown))
+        if baseline:
+            page += (f"\n## The levers, exploratory\n\nThe default arms' records are those of "
+                     f"{_shown(args.baseline)}/ (same seeds). Point source − layered, at each lever value, "
+                     "in per cent of the statistic (Welch's t; not registered, no threshold):\n\n"
+                     + lever_contrasts(records + base_records, baseline, arms))
         args.out.write_text(page)
         print(page)
         return
