@@ -2,7 +2,7 @@
 
 A checkpoint is resumed only if it was made for the same pile by the same
 code (:func:`sim.io.code_version`) under the same result-relevant settings of
-:data:`POUR_SECTIONS`; otherwise, or when it cannot be read, it is renamed
+``sim.config.STAGE_SECTIONS["pour"]``; otherwise, or when it cannot be read, it is renamed
 aside (``*.unused``) and the pour starts afresh.  The frames of a film taken
 so far are kept beside it (:func:`sim.frames.partial_path`).
 
@@ -23,9 +23,9 @@ import time as _time
 from pathlib import Path
 
 from .atomic import atomic_path, stale_temporaries
-from .config import result_settings
+from .config import STAGE_SECTIONS, result_settings
 from .frames import partial_path
-from .io import (POUR_SECTIONS, StateFileError, code_version, load_simulation,
+from .io import (StateFileError, code_version, load_simulation,
                  save_state)
 
 log = logging.getLogger("sim")
@@ -90,9 +90,9 @@ def _made_otherwise(ds, cfg, protocol, seed):
     made = {"protocol": ds.attrs.get("protocol"), "seed": int(ds.attrs.get("seed", -1)),
             "code version": ds.attrs.get("code_version"),
             "configuration": result_settings(json.loads(ds.attrs.get("config", "{}")),
-                                             POUR_SECTIONS)}
+                                             STAGE_SECTIONS["pour"])}
     now = {"protocol": protocol, "seed": seed, "code version": code_version(),
-           "configuration": cfg.result_dict(POUR_SECTIONS)}
+           "configuration": cfg.result_dict(STAGE_SECTIONS["pour"])}
     return [key for key in now if made[key] != now[key]]
 
 

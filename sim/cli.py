@@ -27,7 +27,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
-from .config import BOOKKEEPING, ConfigError, SimConfig
+from .config import BOOKKEEPING, SECTIONS, ConfigError, SimConfig
 from .checkpoint import last_good_path
 from .frames import partial_path
 from .atomic import OutputError
@@ -67,7 +67,7 @@ def _load_params(texts):
         except SettingsFileError as exc:
             raise ConfigError(str(exc)) from None
     return {k: v for k, v in data.items()
-            if k in ("model", "particles", "pour", "relax", "probe", "physics")}
+            if k in SECTIONS}
 
 
 #: Settings of ``model`` that relax and probe take from the state file they

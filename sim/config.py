@@ -38,6 +38,16 @@ class ConfigError(ValueError):
 #: passes them outside the rule params so that changing them re-runs nothing.
 BOOKKEEPING = {"pour": ("checkpoint_interval", "progress_interval", "frame_interval")}
 
+#: The settings sections of a configuration the simulator reads (the fields of :class:`SimConfig`).
+SECTIONS = ("model", "particles", "pour", "relax", "probe", "physics")
+
+#: The sections each stage's run reads, the one map of them (docs/workflow.md): the
+#: pour makes the particles and the physics; relax and probe take those from the state
+#: they start from (a changed ``physics`` re-pours, so it reaches them through it).
+STAGE_SECTIONS = {"pour": ("model", "particles", "pour", "physics"),
+                  "relax": ("model", "pour", "relax"),
+                  "probe": ("model", "pour", "relax", "probe")}
+
 #: Settings added after the study's piles were poured (issue 44), each at its
 #: default doing what the code did before it: at their default they are left
 #: out of the result settings (:func:`result_settings`), so those piles keep

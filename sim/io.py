@@ -27,7 +27,7 @@ import xarray as xr
 
 from . import __version__
 from .atomic import atomic_path
-from .config import ModelParams, result_settings
+from .config import STAGE_SECTIONS, ModelParams, result_settings
 from .digest import code_digest
 from .engine import Simulation
 from .scene import BODY_BASE, BODY_SUPPORT, place_base
@@ -62,11 +62,6 @@ class StateFileError(ValueError):
     """A state file cannot be read, is missing a variable or holds invalid values."""
 
 
-#: The configuration sections a pour reads: their result-relevant settings
-#: (:func:`sim.config.result_settings`) decide a pour's result, so they make
-#: its :func:`pour_digest` and a checkpoint is resumed only under the same.
-POUR_SECTIONS = ("model", "particles", "pour", "physics")
-
 #: Stages written by a pour itself; a state of any other stage descends from a
 #: file and carries that file's identity on (:func:`lineage`).
 POUR_STAGES = ("poured", "checkpoint")
@@ -84,9 +79,10 @@ def pour_digest(config: dict | None) -> str:
     -------
     str
         The first 16 hex digits of the SHA-256 of the sorted JSON text of its
-        result-relevant settings of :data:`POUR_SECTIONS`.
+        result-relevant settings of the pour's sections
+        (``sim.config.STAGE_SECTIONS["pour"]``), which decide its result.
     """
-    text = json.dumps(result_settings(config or {}, POUR_SECTIONS), sort_keys=True)
+    text = json.dumps(result_settings(config or {}, STAGE_SECTIONS["pour"]), sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 

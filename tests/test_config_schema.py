@@ -3,6 +3,7 @@ are filled in, and bad configs fail with a message that names the key, the
 value and what is allowed."""
 
 import copy
+import dataclasses
 import subprocess
 import sys
 from pathlib import Path
@@ -11,6 +12,8 @@ import pytest
 import yaml
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
+
+from sim.config import SECTIONS, STAGE_SECTIONS, SimConfig
 
 REPO = Path(__file__).resolve().parents[1]
 SCHEMA = str(REPO / "workflow" / "schemas" / "config.schema.yaml")
@@ -180,3 +183,13 @@ def test_the_settings_tables_of_the_docs_are_the_schemas():
     for section in ("model", "particles", "pour", "relax", "probe", "physics"):
         for key, spec in schema(SIM_SCHEMA)["$defs"][section]["properties"].items():
             assert f"| `{section}.{key}` |" in page, (section, key)
+
+
+def test_the_section_map_is_the_simulators_configuration():
+    """sim.config.SECTIONS are the sections SimConfig holds, and each stage's sections
+    (STAGE_SECTIONS, the one map the workflow reads) are among them; the pour alone
+    reads particles and physics (relax and probe take them from their state)."""
+    assert SECTIONS == tuple(f.name for f in dataclasses.fields(SimConfig))
+    assert all(set(s) <= set(SECTIONS) for s in STAGE_SECTIONS.values())
+    assert {"particles", "physics"} <= set(STAGE_SECTIONS["pour"])
+    assert not {"particles", "physics"} & (set(STAGE_SECTIONS["relax"]) | set(STAGE_SECTIONS["probe"]))

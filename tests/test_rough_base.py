@@ -15,10 +15,10 @@ import xarray as xr
 
 from analysis.base_pressure import support_force_density
 from analysis.states import load_state
-from sim.config import ConfigError, ModelParams, SimConfig
+from sim.config import STAGE_SECTIONS, ConfigError, ModelParams, SimConfig
 from sim.engine import Simulation
 from sim.geometry import polygon_overlap
-from sim.io import POUR_SECTIONS, load_simulation, pour_digest, save_state
+from sim.io import load_simulation, pour_digest, save_state
 from sim.pour import GRAVITY, pile_shapes, pour, rough_base
 from sim.relax import relax
 from sim.release import target_pile
@@ -98,7 +98,7 @@ def test_default_is_the_flat_support_bit_for_bit_with_the_same_digest(tmp_path):
             np.testing.assert_array_equal(a[v].values, b[v].values, err_msg=v)
     settings = SimConfig.from_dict(explicit).to_dict()
     before = {s: {k: v for k, v in settings[s].items() if not k.startswith("rough_base")}
-              for s in POUR_SECTIONS}
+              for s in STAGE_SECTIONS["pour"]}
     assert pour_digest(settings) == pour_digest(before)
     assert pour_digest({**settings, "physics": {**settings["physics"], "rough_base": True}}) \
         != pour_digest(before)
