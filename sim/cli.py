@@ -70,9 +70,17 @@ def _load_params(texts):
             if k in SECTIONS}
 
 
+#: Settings of ``model`` that fix the physics of a pile: relax and probe take
+#: them from the state file they read, and refuse another value in ``--params``
+#: (a stage goes on with the pile as it was poured; another modulus or friction
+#: makes another pile, which is poured again).
+PHYSICS = ("youngs_modulus", "damping", "friction", "support_friction", "density")
+
 #: Settings of ``model`` that relax and probe take from the state file they
-#: read unless ``--params`` sets them: a pile goes on as it was poured.
-INHERITED = ("integrator", "dt")
+#: read unless ``--params`` sets them: a pile goes on as it was poured.  The
+#: step and integrator may be set otherwise (a numerical choice), the
+#: :data:`PHYSICS` not.
+INHERITED = ("integrator", "dt") + PHYSICS
 
 
 def _inherit(data, input_path):
@@ -86,19 +94,33 @@ def _inherit(data, input_path):
         (:func:`sim.io.model_from_attrs`).  One log line names them.
     input_path : path
         The state file that relax or probe reads.
+
+    Raises
+    ------
+    ConfigError
+        When ``--params`` sets one of :data:`PHYSICS` to another value than
+        the file's.
     """
     model = data.get("model") or {}
     if not isinstance(model, dict):
         return  # SimConfig.from_dict names the bad section
     data["model"] = model
+    stored = model_from_attrs(read_state(input_path))
+    for k in PHYSICS:
+        if k in model and isinstance(model[k], (int, float)) and float(model[k]) != getattr(stored, k):
+            raise ConfigError(
+                f"model.{k} = {model[k]:.4g} in --params, but {input_path} was poured with "
+                f"model.{k} = {getattr(stored, k):.4g}; relax and probe go on with the physics of the pile "
+                f"they start from: leave model.{k} out of --params (it is taken from the file), or pour "
+                "the pile again with the new value")
     taken = [k for k in INHERITED if k not in model]
     if not taken:
         return
-    stored = model_from_attrs(read_state(input_path))
     model.update({k: getattr(stored, k) for k in taken})
     logging.getLogger("sim").info(
         "%s taken from the input %s (not set by --params)", ", ".join(
-            f"model.{k} = {model[k]}{' s' if k == 'dt' else ''}" for k in taken), input_path)
+            f"model.{k} = {model[k]:.4g}" if k in PHYSICS else f"model.{k} = {model[k]}{' s' if k == 'dt' else ''}"
+            for k in taken), input_path)
 
 
 def _params(text, bookkeeping=None, input_path=None):

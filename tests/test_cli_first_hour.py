@@ -95,12 +95,12 @@ def test_the_markup_of_a_docstring_becomes_its_words():
         "--params (see sim.config, sim.io.read_state)")
 
 
-def _verlet_state(path, stage):
+def _verlet_state(path, stage, **model):
     """A square at rest on the support, written by the Verlet integrator at
-    its automatic step (what a Verlet pour leaves)."""
-    cfg = SimConfig.from_dict({"model": {"integrator": "verlet"}})
+    its automatic step (what a Verlet pour leaves), with the ``model`` settings given."""
+    cfg = SimConfig.from_dict({"model": {"integrator": "verlet", **model}})
     one = scene([rectangle(4e-3, 4e-3)], [(0.0, 0.002, 0, 0, 0, 0)], gravity=(0.0, -9.81),
-                support=True, integrator="verlet")
+                support=True, integrator="verlet", **model)
     save_state(one, path, cfg.to_dict(), stage=stage, protocol="wedge", seed=1)
     return one.dt
 
@@ -125,7 +125,7 @@ def test_relax_and_probe_go_on_with_the_integrator_and_step_of_their_input(tmp_p
     assert main(["relax", "--input", str(tmp_path / "poured.nc"), "--out", str(tmp_path / "relaxed.nc")]) == 0
     assert _model(tmp_path / "relaxed.nc") == ("verlet", dt)
     taken = [r.getMessage() for r in caplog.records if "taken from the input" in r.getMessage()]
-    assert taken == [f"model.integrator = verlet, model.dt = {dt} s taken from the input "
+    assert taken == [f"model.integrator = verlet, model.dt = {dt} s, {PHYSICS} taken from the input "
                      f"{tmp_path / 'poured.nc'} (not set by --params)"]
     caplog.clear()
     assert main(["probe", "--input", str(tmp_path / "relaxed.nc"), "--level", "0.1",
@@ -134,9 +134,14 @@ def test_relax_and_probe_go_on_with_the_integrator_and_step_of_their_input(tmp_p
     assert sum("taken from the input" in r.getMessage() for r in caplog.records) == 1
 
 
+#: The physics of the pile as taken from the input (sim.cli.PHYSICS, the defaults poured with).
+PHYSICS = ("model.youngs_modulus = 1e+07, model.damping = 0.1, model.friction = 0.5, "
+           "model.support_friction = 0.5, model.density = 2500")
+
+
 def test_params_say_otherwise(tmp_path, caplog):
-    """What --params sets is not taken from the input: a dt given is used with
-    the input's integrator; both given, nothing is taken (and no line)."""
+    """What --params sets of the numerics is not taken from the input: a dt given
+    is used with the input's integrator; both given, only the physics is taken."""
     dt = _verlet_state(tmp_path / "poured.nc", "poured")
     caplog.set_level(logging.INFO, logger="sim")
     out = tmp_path / "again.nc"
@@ -144,12 +149,36 @@ def test_params_say_otherwise(tmp_path, caplog):
                  "--params", '{"model": {"dt": 5e-6}}']) == 0
     assert _model(out) == ("verlet", 5e-6)
     assert [r.getMessage().split(" taken")[0] for r in caplog.records
-            if "taken from the input" in r.getMessage()] == ["model.integrator = verlet"]
+            if "taken from the input" in r.getMessage()] == [f"model.integrator = verlet, {PHYSICS}"]
     caplog.clear()
     assert main(["relax", "--input", str(tmp_path / "poured.nc"), "--out", str(out),
                  "--params", f'{{"model": {{"integrator": "verlet", "dt": {dt / 2}}}}}']) == 0
     assert _model(out) == ("verlet", dt / 2)
-    assert not any("taken from the input" in r.getMessage() for r in caplog.records)
+    assert [r.getMessage().split(" taken")[0] for r in caplog.records
+            if "taken from the input" in r.getMessage()] == [PHYSICS]
+
+
+@pytest.mark.parametrize("setting, value", [("youngs_modulus", 2e7), ("friction", 0.3), ("density", 2000.0)])
+def test_another_physics_than_the_pour_s_is_refused(tmp_path, caplog, setting, value):
+    """Issue 47: relaxing with another modulus or friction exited 0 and wrote a
+    'relaxed' pile of physics no pour made; now one line names the setting, both
+    values and what to do, and nothing is written. The pour's own value passes."""
+    _verlet_state(tmp_path / "poured.nc", "poured")
+    out = tmp_path / "relaxed.nc"
+    assert main(["relax", "--input", str(tmp_path / "poured.nc"), "--out", str(out),
+                 "--params", f'{{"model": {{"{setting}": {value}}}}}']) == 2
+    errors = [r.getMessage() for r in caplog.records if r.levelname == "ERROR"]
+    assert len(errors) == 1 and f"model.{setting} = {value:.4g} in --params" in errors[0], errors
+    assert "leave model." in errors[0] and not out.exists()
+
+
+def test_the_pour_s_physics_is_kept_when_params_leave_it_out(tmp_path):
+    """A pile poured stiffer than the default and relaxed with --params '{}' goes on at its own modulus."""
+    _verlet_state(tmp_path / "poured.nc", "poured", youngs_modulus=2e7)
+    out = tmp_path / "relaxed.nc"
+    assert main(["relax", "--input", str(tmp_path / "poured.nc"), "--out", str(out), "--params", "{}"]) == 0
+    with xr.open_dataset(out) as ds:
+        assert float(ds.attrs["youngs_modulus"]) == 2e7
 
 
 def test_a_missing_input_is_one_line_before_anything_runs(tmp_path, caplog):
