@@ -288,7 +288,7 @@ def cmd_base_pressure(args, params) -> None:
     n = out.attrs["n_seeds"]
     write_dataset(out, args.out, title=f"forces on the support, protocol {out.attrs.get('protocol', '')}, "
                   f"{n} piles", params=params)
-    _log(f"base pressure of {n} piles -> {args.out}")
+    _log(f"base pressure of {n} pile{'s' if n != 1 else ''} -> {args.out}")
 
 
 def cmd_invariants(args, params) -> None:

@@ -119,7 +119,7 @@ def _inherit(data, input_path):
     model.update({k: getattr(stored, k) for k in taken})
     logging.getLogger("sim").info(
         "%s taken from the input %s (not set by --params)", ", ".join(
-            f"model.{k} = {model[k]:.4g}" if k in PHYSICS else f"model.{k} = {model[k]}{' s' if k == 'dt' else ''}"
+            f"model.{k} = {model[k]}" if k == "integrator" else f"model.{k} = {model[k]:.4g}{' s' if k == 'dt' else ''}"
             for k in taken), input_path)
 
 

@@ -125,7 +125,7 @@ def test_relax_and_probe_go_on_with_the_integrator_and_step_of_their_input(tmp_p
     assert main(["relax", "--input", str(tmp_path / "poured.nc"), "--out", str(tmp_path / "relaxed.nc")]) == 0
     assert _model(tmp_path / "relaxed.nc") == ("verlet", dt)
     taken = [r.getMessage() for r in caplog.records if "taken from the input" in r.getMessage()]
-    assert taken == [f"model.integrator = verlet, model.dt = {dt} s, {PHYSICS} taken from the input "
+    assert taken == [f"model.integrator = verlet, model.dt = {dt:.4g} s, {PHYSICS} taken from the input "
                      f"{tmp_path / 'poured.nc'} (not set by --params)"]
     caplog.clear()
     assert main(["probe", "--input", str(tmp_path / "relaxed.nc"), "--level", "0.1",
