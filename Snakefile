@@ -1,8 +1,14 @@
 # Sand piles of soft convex polygons: Roul, Schinner & Kassner,
 # Granular Matter (2010). Thin entry point: configuration, the rule files (common.smk
-# validates it) and the report; see README.md for the stages and docs/formats.md for the files.
+# builds `study`, workflow/study.py, which validates it) and the report; see README.md
+# for the stages and docs/formats.md for the files.
 
 from snakemake.utils import min_version
+
+import os
+import sys
+
+from snakemake.logging import logger
 
 # workflow/ is the installed package of the rules' Python (pyproject.toml), read by name.
 from workflow.reporting import (Freshness, check_report_path, configuration_files, piles_made, report_path,
@@ -37,16 +43,16 @@ include: "workflow/rules/reproduction.smk"
 # The first paragraph of the report (workflow/report/workflow.rst) names the
 # configuration files, the results folder and the piles there, the captions the
 # piles of each protocol; a --report under results/ but outside that folder is refused.
-CONFIGURATION = configuration_files(workflow.overwrite_configfiles, workflow.config_settings.config, REPO)
-check_report_path(report_path(sys.argv), RESULTS, CONFIGURATION)
+CONFIGURATION = configuration_files(workflow.overwrite_configfiles, workflow.config_settings.config, study.repo)
+check_report_path(report_path(sys.argv), study.paths.folder, CONFIGURATION)
 config["_report"] = report_words(
-    CONFIGURATION, RESULTS, piles_made(piles, analysis_seeds),
+    CONFIGURATION, study.paths.folder, piles_made(study.piles, study.analysis.analysis_seeds),
     Freshness(lambda: workflow.dag, logger.warning) if report_path(sys.argv) else "", config["protocols"])
 
 # What the scene asks for (config `outputs`; by default everything: every pile
 # stage, the picture of every relaxed pile, and the analysis), with the
 # numerical checks' files when it asks for numerics.
-SCENE_TARGETS = scene.targets(analysis_targets(), list(rules.numerics.input) + pile_numerics.targets())
+SCENE_TARGETS = study.scene.targets(study.analysis.targets(), list(rules.numerics.input) + study.numerics.targets())
 
 
 rule all:
@@ -59,7 +65,7 @@ rule all:
 rule piles:
     # The simulation part only: poured, relaxed and every gravity probe.
     input:
-        pile_targets(),
+        study.piles.targets(),
     localrule: True
 
 

@@ -1,10 +1,9 @@
 """workflow/rules/analysis.smk and its schema, driven by a stand-in Snakefile.
 
-The stand-in binds what common.smk provides to the analysis rules (the piles,
-scene and analysis inputs of workflow/piles.py, scene.py and
-analysis_inputs.py, for two piles per protocol, every output and a gravity
-probe), validates the analysis section against the schema, includes the rules
-and asks for analysis_targets(). The dry run is fast; the full run is marked slow.
+The stand-in builds what common.smk provides to the analysis rules (the
+``study`` of workflow/study.py, for two piles per protocol, every output and a
+gravity probe), validates the analysis section against the schema, includes
+the rules and asks for the analysis' targets. The dry run is fast; the full run is marked slow.
 """
 
 import glob
@@ -36,26 +35,14 @@ def _project(tmp_path, analysis_cfg=None):
         config.update(committed=None, results="results", outputs=["states", "fields", "strain", "fabric",
                       "fits", "figures"], protocols={{"wedge": {{"seeds": [1, 2]}}, "layered": {{"seeds": [1, 2]}}}},
                       probe={{"levels": [0.1], "tilts": [], "stretch": 0.0, "restore": False}})
-        from workflow.analysis_inputs import ANALYSIS_MEM_MB, AnalysisInputs, labelled
-        from workflow.commands import Commands
-        from sim.digest import code_digest
-        from workflow.piles import Piles
-        from workflow.scene import Scene
-        piles = Piles(config)
-        scene = Scene(piles)
-        analysis_inputs = AnalysisInputs(scene, Path(workflow.basedir))
-        PROTOCOLS, results_path, pile, seeds = piles.protocols, piles.results_path, piles.pile, piles.seeds
-        probe_stages, extra_probe_stages = piles.probe_stages, piles.extra_probe_stages
-        field_quantities, general_fit_protocols = scene.field_quantities, analysis_inputs.general_fit_protocols
-        ANALYSIS_PARAMS, analysis_targets = analysis_inputs.params, analysis_inputs.targets
-        ANALYSIS_DIGEST = code_digest("{REPO}/analysis")
-        py_shell = Commands("{sys.executable}", "unused").py_shell
+        from workflow.study import Study
+        study = Study(config, Path("{REPO}"), "{sys.executable}")
         wildcard_constraints:
             protocol="wedge|layered",
             seed=r"\\d+",
         include: "{REPO}/workflow/rules/analysis.smk"
         rule all:
-            input: analysis_targets()
+            input: study.analysis.targets()
     """))
     for proto in ("wedge", "layered"):
         for seed in (1, 2):

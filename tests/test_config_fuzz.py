@@ -7,7 +7,8 @@ workflow's schema (workflow/schemas/config.schema.yaml and the packages'
 schemas it refers to), its value drawn from what that setting's schema allows
 (its bounds, its enum) and from what it does not (just past a bound, 0, ±1e308,
 1e-308, NaN, text, a number written as text, a list, a mapping, null).  Each
-configuration then goes the way the Snakefile takes it (workflow/rules/common.smk):
+configuration then goes the way the Snakefile takes it (workflow/rules/common.smk
+builds the same :class:`workflow.study.Study`):
 
 * refused: the one validator (:func:`workflow.validation.validate_config`) or
   the workflow's own checks raise a ``ValueError`` whose message names a
@@ -32,12 +33,8 @@ from hypothesis import strategies as st
 from workflow_config import REPO
 
 from sim.settings_file import read_settings_file
-from workflow.analysis_inputs import AnalysisInputs
-from workflow.numerics_piles import NumericsPiles
-from workflow.piles import Piles
-from workflow.resources import SimResources
-from workflow.scene import Scene
-from workflow.validation import CONFIG_SCHEMA, _resolve, check_problems, load_schema, validate_config
+from workflow.study import Study
+from workflow.validation import CONFIG_SCHEMA, _resolve, load_schema
 
 BASE = read_settings_file(REPO / "config" / "smoke.yaml")
 #: Drawn settings are laid over these, inside results/ so that nothing leaves it.
@@ -126,23 +123,14 @@ def configurations(draw):
 
 def plan(config):
     """What workflow/rules/common.smk does with a configuration before any rule:
-    validate it, build every object the rules read and ask them for the
-    scene's targets and each stage's resources; raises ``ValueError`` for a
-    refused one."""
-    validate_config(config)
-    piles = Piles(config)
-    check_problems(piles.problems())
-    check_problems(piles.preflight())
-    resources = SimResources(config)
-    resources.check_size(None, True, warn=lambda text: None)
-    scene = Scene(piles)
-    check_problems(scene.problems(REPO), "scene")
-    numerics = NumericsPiles(piles)
-    check_problems(numerics.problems())
-    targets = scene.targets(AnalysisInputs(scene, REPO).targets(), numerics.targets())
-    for stage in piles.all_stages():
-        assert resources.stage_runtime_min(stage, 1) > 0
-        assert math.isfinite(resources.stage_cpu_s(stage))
+    build the same :class:`workflow.study.Study` (validation and every check, in
+    its order), ask it for the scene's targets and each stage's resources;
+    raises ``ValueError`` for a refused one."""
+    study = Study(config, REPO, sys.executable, warn=lambda text: None)
+    targets = study.scene.targets(study.analysis.targets(), study.numerics.targets())
+    for stage in study.stages.all_stages():
+        assert study.resources.stage_runtime_min(stage, 1) > 0
+        assert math.isfinite(study.resources.stage_cpu_s(stage))
     return targets
 
 

@@ -61,7 +61,7 @@ def touch(path, mtime=None, text=""):
 def benchmark(root, piles, protocol, seed, stage, cpu_time, wall=None):
     header = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
     wall = 2 * cpu_time if wall is None else wall
-    touch(Path(root) / piles.stage_benchmark(protocol, seed, stage),
+    touch(Path(root) / piles.paths.stage_benchmark(protocol, seed, stage),
           text=header + f"{wall}\t0:00:00\t258\t492\t187\t209\t0\t67\t50\t{cpu_time}\n")
 
 
@@ -69,8 +69,8 @@ def finished_pile(root, piles, protocol, seed, cpu, now, stages=STAGES):
     """State files, old logs and benchmarks of a finished pile of `piles` (a
     Piles) in the workflow's directory `root`; `cpu` per stage of `stages`."""
     for stage, cpu_time in zip(stages, cpu):
-        touch(Path(root) / piles.pile(protocol, seed, stage))
-        touch(Path(root) / piles.stage_log(protocol, seed, stage), mtime=now - 3600, text="done\n")
+        touch(Path(root) / piles.paths.pile(protocol, seed, stage))
+        touch(Path(root) / piles.paths.stage_log(protocol, seed, stage), mtime=now - 3600, text="done\n")
         benchmark(root, piles, protocol, seed, stage, cpu_time)
 
 
@@ -96,13 +96,13 @@ def fake_study(root, now=NOW):
     piles, root = piles_of(root), Path(root)
     for (protocol, seed), cpu in CPU.items():
         finished_pile(root, piles, protocol, seed, cpu, now)
-    touch(root / piles.pour_checkpoint("wedge", 3))
+    touch(root / piles.paths.pour_checkpoint("wedge", 3))
     live_lock(root, piles, "wedge", 3)
-    touch(root / piles.stage_log("wedge", 3, "poured"), mtime=now - 7,
+    touch(root / piles.paths.stage_log("wedge", 3, "poured"), mtime=now - 7,
           text="2026-12-01 18:30:00,000 INFO pouring 3500 particles (wedge, seed 3)\n" + ETA_LINE)
-    touch(root / piles.pile("layered", 2, "poured"))
-    touch(root / piles.stage_log("layered", 2, "poured"), mtime=now - 900, text="poured\n")
-    touch(root / piles.stage_log("layered", 2, "relaxed"), mtime=now - 60,
+    touch(root / piles.paths.pile("layered", 2, "poured"))
+    touch(root / piles.paths.stage_log("layered", 2, "poured"), mtime=now - 900, text="poured\n")
+    touch(root / piles.paths.stage_log("layered", 2, "relaxed"), mtime=now - 60,
           text="2026-12-01 18:30:00,000 INFO relaxing 3500 particles\n")
     return root
 
@@ -125,9 +125,9 @@ def states(root, now=NOW, piles=None):
 def test_the_paths_are_those_of_the_workflow(tmp_path):
     write_config(tmp_path)
     piles = piles_of(tmp_path)
-    assert piles.all_stages() == STAGES
-    assert piles.stage_benchmark("wedge", 3, "poured") == "results/study/benchmarks/pour/wedge/seed3.tsv"
-    assert piles.stage_log("layered", 1, "relaxed") == "results/study/logs/relax/layered/seed1.log"
+    assert piles.stages.all_stages() == STAGES
+    assert piles.paths.stage_benchmark("wedge", 3, "poured") == "results/study/benchmarks/pour/wedge/seed3.tsv"
+    assert piles.paths.stage_log("layered", 1, "relaxed") == "results/study/logs/relax/layered/seed1.log"
     # the lock sim.pour.pour takes beside the checkpoint it is given
     assert sp.pour_lock(piles, "wedge", 3) == "results/study/piles/wedge/seed3/pour.checkpoint.nc.lock"
 
@@ -156,7 +156,7 @@ def test_benchmark_cpu(tmp_path):
     write_config(tmp_path)
     piles = piles_of(tmp_path)
     benchmark(tmp_path, piles, "wedge", 1, "poured", 4756.78, wall=8339.04)
-    assert sp.benchmark_cpu(tmp_path / piles.stage_benchmark("wedge", 1, "poured")) == 4756.78
+    assert sp.benchmark_cpu(tmp_path / piles.paths.stage_benchmark("wedge", 1, "poured")) == 4756.78
     assert sp.benchmark_cpu(tmp_path / "missing.tsv") is None
     two = touch(tmp_path / "two.tsv", text="s\tcpu_time\n10\t4\n12\t6\n")
     assert sp.benchmark_cpu(two) == 5.0  # --benchmark-repeats: the mean
@@ -188,8 +188,8 @@ def test_killed_pour_keeps_its_eta(tmp_path, line, age):
     issue 29)."""
     write_config(tmp_path)
     piles = piles_of(tmp_path)
-    touch(tmp_path / piles.pour_checkpoint("wedge", 1))
-    touch(tmp_path / piles.stage_log("wedge", 1, "poured"), mtime=NOW - age, text=line)
+    touch(tmp_path / piles.paths.pour_checkpoint("wedge", 1))
+    touch(tmp_path / piles.paths.stage_log("wedge", 1, "poured"), mtime=NOW - age, text=line)
     pile = states(tmp_path)["wedge", 1]
     assert (pile.state, pile.eta) == ("interrupted", 397.0)
     assert pile.fraction == pytest.approx(2743 / 3500)
@@ -206,7 +206,7 @@ def test_a_pour_runs_only_while_a_live_process_holds_its_lock(tmp_path):
     piles = piles_of(tmp_path)
     interval = config_of(tmp_path)["pour"]["checkpoint_interval"]
     for seed in (1, 2):
-        touch(tmp_path / piles.pour_checkpoint("wedge", seed))
+        touch(tmp_path / piles.paths.pour_checkpoint("wedge", seed))
     live_lock(tmp_path, piles, "wedge", 1)
     gone = f"{socket.gethostname()} {dead_pid()}\n"
     touch(tmp_path / sp.pour_lock(piles, "wedge", 2), text=gone)
@@ -217,7 +217,7 @@ def test_a_pour_runs_only_while_a_live_process_holds_its_lock(tmp_path):
     touch(tmp_path / sp.pour_lock(piles, "wedge", 5), text="elsewhere.example 12\n",
           mtime=now - 3 * interval - 61)
     # a pour log written just now does not make a pour without a live lock run
-    touch(tmp_path / piles.stage_log("wedge", 6, "poured"), mtime=now, text=ETA_LINE)
+    touch(tmp_path / piles.paths.stage_log("wedge", 6, "poured"), mtime=now, text=ETA_LINE)
     assert {seed: p.state for (_, seed), p in states(tmp_path, now=now).items()} == {
         1: "running", 2: "interrupted", 3: "interrupted", 4: "running", 5: "interrupted", 6: "left"}
     line = sp.progress_line(tmp_path, config_of(tmp_path), cores=1, now=now)
@@ -258,7 +258,7 @@ def test_fraction_done_by_hand(tmp_path):
 
 def test_stale_log_without_checkpoint_is_left(tmp_path):
     write_config(tmp_path)
-    touch(tmp_path / piles_of(tmp_path).stage_log("wedge", 1, "poured"), mtime=NOW - 2 * sp.RECENT_S,
+    touch(tmp_path / piles_of(tmp_path).paths.stage_log("wedge", 1, "poured"), mtime=NOW - 2 * sp.RECENT_S,
           text=ETA_LINE)
     assert states(tmp_path)["wedge", 1].state == "left"
 
@@ -324,7 +324,7 @@ def test_cost_model_before_a_pile_has_finished(tmp_path):
         f"project's machine: {hms(cpu)} of CPU per pile)")
     root = fake_study(tmp_path)
     for seed in (1, 2):  # the finished piles' last stage gone: none has finished
-        (root / piles_of(root).pile("wedge", seed, "reduced")).unlink()
+        (root / piles_of(root).paths.pile("wedge", seed, "reduced")).unlink()
     line = sp.progress_line(root, config_of(root), cores=2, now=NOW)
     assert line.startswith("study (results/study/): 0 of 5 piles done, 2 running "
                            "(wedge 3: pour 78 %, ETA 0:06:30;")
@@ -344,7 +344,7 @@ def test_seed10_is_not_seed1(tmp_path):
     write_config(tmp_path, wedge=(1, 10), layered=())
     piles = piles_of(tmp_path)
     finished_pile(tmp_path, piles, "wedge", 10, (1000.0, 100.0, 50.0), NOW)
-    touch(tmp_path / piles.stage_log("wedge", 10, "poured"), mtime=NOW - 10, text=ETA_LINE)
+    touch(tmp_path / piles.paths.stage_log("wedge", 10, "poured"), mtime=NOW - 10, text=ETA_LINE)
     line = sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW)
     assert line.startswith("study (results/study/): 1 of 2 piles done, 0 running, 1 left; "
                            "50 % of the simulation done, about 0:19:10 left")
@@ -358,11 +358,11 @@ def test_a_scenes_probes_are_stages_of_the_piles(tmp_path):
     came from workflow/piles.py it counted as done)."""
     config = load_config([REPO / "config" / "config.yaml", REPO / "config" / "scenes" / "six_constants.yaml"])
     piles = Piles(config)
-    stages = piles.all_stages()
+    stages = piles.stages.all_stages()
     assert stages == STAGES + ["tiltp05", "tiltm05", "stretched", "restored"]
     finished_pile(tmp_path, piles, "wedge", 1, [1000.0, 100.0] + [50.0] * 5, NOW, stages)
     finished_pile(tmp_path, piles, "wedge", 2, [1000.0, 100.0, 50.0], NOW)  # the gravity probe only
-    touch(tmp_path / piles.stage_log("wedge", 2, "tiltp05"), mtime=NOW - 60, text="INFO probing\n")
+    touch(tmp_path / piles.paths.stage_log("wedge", 2, "tiltp05"), mtime=NOW - 60, text="INFO probing\n")
     pile = states(tmp_path, piles=piles)["wedge", 2]
     assert (pile.state, pile.missing) == ("running", ("tiltp05", "tiltm05", "stretched", "restored"))
     # 19 piles of 1350 s of CPU: wedge 2 needs 4 x 50 s, the 17 left all of it,
@@ -388,7 +388,7 @@ def test_no_probe_levels(tmp_path):
     path.write_text(yaml.safe_dump(config))
     piles = piles_of(tmp_path)
     for stage in ("poured", "relaxed"):
-        touch(tmp_path / piles.pile("wedge", 1, stage))
+        touch(tmp_path / piles.paths.pile("wedge", 1, stage))
     assert sp.progress_line(tmp_path, config_of(tmp_path), 2, NOW).startswith(
         "study (results/study/): 1 of 1 piles done")
 

@@ -119,7 +119,7 @@ def test_the_report_counts_the_piles_that_have_their_last_stage(tmp_path, monkey
     piles = Piles(config)
     assert piles_made(piles, None) == "0 of 4 piles of 150 particles made so far"
     for stage in ("relaxed", "reduced"):
-        path = tmp_path / piles.pile("layered", 2, stage)
+        path = tmp_path / piles.paths.pile("layered", 2, stage)
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text("")
     assert piles_made(piles, None) == "1 of 4 piles of 150 particles made so far"

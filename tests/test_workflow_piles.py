@@ -1,5 +1,5 @@
 """The piles of a configuration (workflow/piles.py): stage names of the
-probes, the files of a pile, the settings each simulation job receives, and
+probes (stages.py), the files of a pile (paths.py), the settings each simulation job receives (jobs.py), and
 the configuration's problems named with setting, value and what is allowed;
 with the command lines (workflow/commands.py) and the resources of the jobs
 (workflow/resources.py)."""
@@ -14,8 +14,10 @@ import pytest
 from workflow_config import REPO, configuration
 
 from workflow.commands import Commands
-from workflow.piles import Piles, Unrecorded, probe_input_stage, stage_rule
+from workflow.jobs import JobSettings, Unrecorded
+from workflow.piles import Piles
 from workflow.resources import ABSURD_RUNTIME_MIN, SimResources, per_attempt
+from workflow.stages import probe_input_stage, stage_rule
 from workflow.validation import check_problems, merge_configs
 
 
@@ -27,47 +29,47 @@ def piles_of(**probe):
 
 def test_the_first_level_is_reduced_and_the_others_are_named_by_their_percent():
     piles = piles_of(levels=[0.1, 0.2, 0.05])
-    assert piles.probe_stages() == ["reduced", "reduced20", "reduced05"]
-    assert [piles.level_for_stage(s) for s in piles.probe_stages()] == [0.1, 0.2, 0.05]
-    assert piles.probe_change("reduced20") == ["--level", "0.2"]
+    assert piles.stages.probe_stages() == ["reduced", "reduced20", "reduced05"]
+    assert [piles.stages.level_for_stage(s) for s in piles.stages.probe_stages()] == [0.1, 0.2, 0.05]
+    assert piles.stages.probe_change("reduced20") == ["--level", "0.2"]
 
 
 def test_a_stage_that_is_no_configured_level_is_refused_naming_the_levels():
     with pytest.raises(ValueError, match=r"'reduced30'.*probe.levels \[0.1, 0.2\] give \['reduced', 'reduced20'\]"):
-        piles_of(levels=[0.1, 0.2]).level_for_stage("reduced30")
+        piles_of(levels=[0.1, 0.2]).stages.level_for_stage("reduced30")
 
 
 def test_tilts_stretch_and_restore_are_stages_after_the_reductions_with_their_options():
     piles = piles_of(levels=[0.1], tilts=[0.05], stretch=1e-4, restore=True)
-    assert piles.extra_probe_stages() == ["tiltp05", "tiltm05", "stretched", "restored"]
-    assert piles.probe_change("tiltm05") == ["--tilt", "-0.05"]
-    assert piles.probe_change("stretched") == ["--stretch", "0.0001"]
-    assert piles.probe_change("restored") == ["--restore"]
+    assert piles.stages.extra_probe_stages() == ["tiltp05", "tiltm05", "stretched", "restored"]
+    assert piles.stages.probe_change("tiltm05") == ["--tilt", "-0.05"]
+    assert piles.stages.probe_change("stretched") == ["--stretch", "0.0001"]
+    assert piles.stages.probe_change("restored") == ["--restore"]
     assert probe_input_stage("restored") == "reduced"
     assert probe_input_stage("tiltp05") == "relaxed"
 
 
 def test_without_extra_probes_a_pile_has_poured_relaxed_and_its_reductions():
     piles = piles_of(levels=[0.1], tilts=[], stretch=0.0, restore=False)
-    assert piles.all_stages() == ["poured", "relaxed", "reduced"]
+    assert piles.stages.all_stages() == ["poured", "relaxed", "reduced"]
 
 
 def test_a_pile_is_finished_with_every_probe_or_else_relaxed():
-    assert piles_of(levels=[0.1], tilts=[0.05], stretch=0.0, restore=True).final_stages() == [
+    assert piles_of(levels=[0.1], tilts=[0.05], stretch=0.0, restore=True).stages.final_stages() == [
         "reduced", "tiltp05", "tiltm05", "restored"]
-    assert piles_of(levels=[], tilts=[], stretch=0.0, restore=False).final_stages() == ["relaxed"]
+    assert piles_of(levels=[], tilts=[], stretch=0.0, restore=False).stages.final_stages() == ["relaxed"]
 
 
 # --- files -----------------------------------------------------------------
 
 def test_every_file_of_a_pile_lies_in_the_configurations_results_folder():
     piles = Piles(configuration())        # config/smoke.yaml: results/smoke
-    assert piles.pile("wedge", 3, "relaxed") == "results/smoke/piles/wedge/seed3/relaxed.nc"
-    assert piles.pile_figure("layered", 1, "poured") == "results/smoke/figures/piles/layered_seed1_poured.png"
-    assert piles.pile_film("wedge", 2, "html") == "results/smoke/films/wedge_seed2.html"
-    assert piles.compiled_flag == "results/smoke/.numba/compiled.ok"
-    for path in (piles.pour_log("wedge", 1), piles.pour_checkpoint("wedge", 1), piles.pile_frames("wedge", 1),
-                 piles.pile_vtk("wedge", 1, "relaxed"), piles.run_times_table, *piles.pile_benchmarks()):
+    assert piles.paths.pile("wedge", 3, "relaxed") == "results/smoke/piles/wedge/seed3/relaxed.nc"
+    assert piles.paths.pile_figure("layered", 1, "poured") == "results/smoke/figures/piles/layered_seed1_poured.png"
+    assert piles.paths.pile_film("wedge", 2, "html") == "results/smoke/films/wedge_seed2.html"
+    assert piles.paths.compiled_flag == "results/smoke/.numba/compiled.ok"
+    for path in (piles.paths.pour_log("wedge", 1), piles.paths.pour_checkpoint("wedge", 1), piles.paths.pile_frames("wedge", 1),
+                 piles.paths.pile_vtk("wedge", 1, "relaxed"), piles.paths.run_times_table, *piles.benchmarks()):
         assert path.startswith("results/smoke/")
 
 
@@ -75,13 +77,13 @@ def test_the_log_and_benchmark_of_a_stages_job_are_named_by_its_rule():
     piles = Piles(configuration())        # config/smoke.yaml: results/smoke
     assert [stage_rule(s) for s in ("poured", "relaxed", "reduced", "tiltm05", "{stage}")] == [
         "pour", "relax", "probe", "probe", "probe"]
-    assert piles.stage_log("wedge", 3, "poured") == piles.pour_log("wedge", 3) == "results/smoke/logs/pour/wedge/seed3.log"
-    assert piles.stage_log("wedge", 3, "relaxed") == "results/smoke/logs/relax/wedge/seed3.log"
-    assert piles.stage_benchmark("wedge", 3, "poured") == "results/smoke/benchmarks/pour/wedge/seed3.tsv"
-    assert piles.stage_benchmark("layered", 1, "tiltm05") == "results/smoke/benchmarks/probe/layered/seed1_tiltm05.tsv"
+    assert piles.paths.stage_log("wedge", 3, "poured") == piles.paths.pour_log("wedge", 3) == "results/smoke/logs/pour/wedge/seed3.log"
+    assert piles.paths.stage_log("wedge", 3, "relaxed") == "results/smoke/logs/relax/wedge/seed3.log"
+    assert piles.paths.stage_benchmark("wedge", 3, "poured") == "results/smoke/benchmarks/pour/wedge/seed3.tsv"
+    assert piles.paths.stage_benchmark("layered", 1, "tiltm05") == "results/smoke/benchmarks/probe/layered/seed1_tiltm05.tsv"
     # with the wildcards: the patterns of rule probe's log: and benchmark:
-    assert piles.stage_log("{protocol}", "{seed}", "{stage}") == "results/smoke/logs/probe/{protocol}/seed{seed}_{stage}.log"
-    assert piles.stage_benchmark("{protocol}", "{seed}", "{stage}") == (
+    assert piles.paths.stage_log("{protocol}", "{seed}", "{stage}") == "results/smoke/logs/probe/{protocol}/seed{seed}_{stage}.log"
+    assert piles.paths.stage_benchmark("{protocol}", "{seed}", "{stage}") == (
         "results/smoke/benchmarks/probe/{protocol}/seed{seed}_{stage}.tsv")
 
 
@@ -90,40 +92,40 @@ def test_the_targets_are_every_stage_of_every_pile_wedge_first():
     piles = Piles(config)
     assert piles.protocols == ["wedge", "layered"]
     assert piles.each() == [("wedge", 7), ("layered", 4), ("layered", 2)]
-    stages = piles.all_stages()
-    assert piles.pile_targets() == [piles.pile(p, s, st) for p, s in piles.each() for st in stages]
+    stages = piles.stages.all_stages()
+    assert piles.targets() == [piles.paths.pile(p, s, st) for p, s in piles.each() for st in stages]
     # one benchmark per simulation job: pour, relax and each probe
-    assert len(piles.pile_benchmarks()) == 3 * len(stages)
+    assert len(piles.benchmarks()) == 3 * len(stages)
 
 
 # --- settings of the simulation jobs -----------------------------------------
 
 def test_a_job_receives_only_its_sections_without_the_bookkeeping():
-    piles = Piles(configuration())
-    pour = json.loads(piles.sim_params("model", "particles", "pour", "physics"))
+    jobs = JobSettings(configuration())
+    pour = json.loads(jobs.sim_params("model", "particles", "pour", "physics"))
     assert sorted(pour) == ["model", "particles", "physics", "pour"]
     assert pour["pour"]["n_particles"] == 150
     assert "checkpoint_interval" not in pour["pour"] and "frame_interval" not in pour["pour"]
-    changed = Piles(configuration({"relax": {"max_time": 2.0}}))
-    assert changed.sim_params("model", "particles", "pour", "physics") == piles.sim_params(
+    changed = JobSettings(configuration({"relax": {"max_time": 2.0}}))
+    assert changed.sim_params("model", "particles", "pour", "physics") == jobs.sim_params(
         "model", "particles", "pour", "physics")
-    assert changed.sim_params("model", "pour", "relax") != piles.sim_params("model", "pour", "relax")
+    assert changed.sim_params("model", "pour", "relax") != jobs.sim_params("model", "pour", "relax")
 
 
 def test_the_bookkeeping_travels_unrecorded():
-    bookkeeping = Piles(configuration({"pour": {"checkpoint_interval": 60.0}})).sim_bookkeeping()
+    bookkeeping = JobSettings(configuration({"pour": {"checkpoint_interval": 60.0}})).sim_bookkeeping()
     assert isinstance(bookkeeping, Unrecorded)
     assert json.loads(str(bookkeeping))["pour"]["checkpoint_interval"] == 60.0
 
 
 def test_the_stretch_and_the_gravity_probes_each_get_only_their_own_probe_settings():
-    piles = piles_of(levels=[0.1], stretch=1e-4, stretch_time=0.5)
-    stretch = json.loads(piles.probe_sim_params("stretched"))["probe"]
-    gravity = json.loads(piles.probe_sim_params("reduced"))["probe"]
+    jobs = JobSettings(configuration({"probe": {"levels": [0.1], "stretch": 1e-4, "stretch_time": 0.5}}))
+    stretch = json.loads(jobs.probe_sim_params("stretched"))["probe"]
+    gravity = json.loads(jobs.probe_sim_params("reduced"))["probe"]
     assert stretch == {"stretch": 1e-4, "stretch_time": 0.5}
     assert "levels" in gravity and "stretch" not in gravity and "stretch_time" not in gravity
     # adding the stretch changes no gravity probe's settings
-    assert piles_of(levels=[0.1]).probe_sim_params("reduced") == piles.probe_sim_params("reduced")
+    assert JobSettings(configuration({"probe": {"levels": [0.1]}})).probe_sim_params("reduced") == jobs.probe_sim_params("reduced")
 
 
 # --- problems ----------------------------------------------------------------

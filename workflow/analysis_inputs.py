@@ -56,7 +56,7 @@ class AnalysisInputs:
         self.params = params_flow_text(self.cfg)
         #: PILE_RESULTS, with the probes' increments when the piles have extra probes.
         self.pile_results = dict(PILE_RESULTS)
-        if piles.extra_probe_stages():
+        if piles.stages.extra_probe_stages():
             self.pile_results["probes"] = PROBES_RESULT
         #: Folder of committed per-pile results that the analysis reads instead
         #: of computing them from state files (config ``committed``; None: compute them).
@@ -68,7 +68,7 @@ class AnalysisInputs:
         """The file of one pile's compact result of `kind` (a key of :attr:`pile_results`)."""
         computed, committed = self.pile_results[kind]
         if self.committed is None:
-            return self.piles.results_path(f"fields/{computed.format(protocol=protocol, seed=seed)}")
+            return self.piles.paths.results_path(f"fields/{computed.format(protocol=protocol, seed=seed)}")
         return str(self.committed / committed.format(protocol=protocol, seed=seed))
 
     def recorded_seeds(self, protocol, kind):
@@ -107,7 +107,7 @@ class AnalysisInputs:
         """The protocols of the general fit: none without the extra probes; all of
         the study, or under ``committed`` those with at least one pile's probes
         file there."""
-        if not self.piles.extra_probe_stages():
+        if not self.piles.stages.extra_probe_stages():
             return []
         if self.committed is None:
             return self.piles.protocols
@@ -159,7 +159,7 @@ class AnalysisInputs:
 
     def fields_reduced(self, wildcards):
         """The reduced state of a pile's fields: with a gravity probe only (the stress increment and strain)."""
-        return self.piles.pile(wildcards.protocol, wildcards.seed, "reduced") if self.scene.has_probes() else []
+        return self.piles.paths.pile(wildcards.protocol, wildcards.seed, "reduced") if self.scene.has_probes() else []
 
     @staticmethod
     def reduced_option(wildcards, input):
@@ -170,7 +170,7 @@ class AnalysisInputs:
 
     def targets(self):
         """The final outputs of the analysis that the scene asks for (for rule ``all``)."""
-        wants, results_path = self.scene.wants, self.piles.results_path
+        wants, results_path = self.scene.wants, self.piles.paths.results_path
         names = [name for output, files in ANALYSIS_ENSEMBLE.items() if wants(output) for name in files]
         targets = [results_path(f"ensemble/{p}/{name}") for p in self.piles.protocols for name in names]
         if wants("strain"):

@@ -2,7 +2,7 @@
 environment, and ``python ...`` for the analysis and the scripts.
 
 The rule files call :meth:`Commands.sim_shell` and :meth:`Commands.py_shell`
-through the names workflow/rules/common.smk binds.
+as ``study.commands`` (:class:`workflow.study.Study`).
 """
 
 import shlex

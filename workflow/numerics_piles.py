@@ -30,7 +30,7 @@ class NumericsPiles:
         self.settings = config["numerics"]["piles"]
         self.ensemble = config["numerics"]["ensemble"]
         #: Their folder in the results folder.
-        self.folder = piles.results_path("numerics")
+        self.folder = piles.paths.results_path("numerics")
 
     def _run(self, integrator, factor, seed):
         """The folder part of one small pile: ``{integrator}/dt_factor{factor}/seed{seed}``."""
@@ -46,12 +46,12 @@ class NumericsPiles:
 
     def benchmark(self, integrator, factor, seed, step):
         """Benchmark file (wall time) of one simulation job of a small pile."""
-        return self.piles.results_path(f"benchmarks/numerics/piles/{self._run(integrator, factor, seed)}_{step}.tsv")
+        return self.piles.paths.results_path(f"benchmarks/numerics/piles/{self._run(integrator, factor, seed)}_{step}.tsv")
 
     def cpu(self, integrator, factor, seed, step):
         """CPU time (bash ``times``) of one simulation job of a small pile: unlike the
         wall time it does not grow when other processes share the cores."""
-        return self.piles.results_path(f"benchmarks/numerics/piles/{self._run(integrator, factor, seed)}_{step}.times")
+        return self.piles.paths.results_path(f"benchmarks/numerics/piles/{self._run(integrator, factor, seed)}_{step}.times")
 
     def runs(self):
         """(integrator, dt factor label, seed) of every small pile, in config order."""
@@ -63,7 +63,7 @@ class NumericsPiles:
 
         The config's sections with pour.n_particles from numerics.piles, the
         integrator of the run and its time step scaled by the dt factor; the
-        bookkeeping settings travel apart (:meth:`workflow.piles.Piles.sim_bookkeeping`).
+        bookkeeping settings travel apart (:meth:`workflow.jobs.JobSettings.sim_bookkeeping`).
 
         Parameters
         ----------
@@ -106,11 +106,11 @@ class NumericsPiles:
         benchmarks (``pour``, ``relax``, ``probe``: the gravity probes)."""
         piles, seeds = self.piles, self.piles.seeds(protocol)
         if kind == "fields":
-            return [piles.results_path(f"fields/{protocol}/seed{s}.nc") for s in seeds]
+            return [piles.paths.results_path(f"fields/{protocol}/seed{s}.nc") for s in seeds]
         if kind == "base_pressure":
-            return [piles.results_path(f"ensemble/{protocol}/base_pressure.nc")]
-        stages = {"pour": ["poured"], "relax": ["relaxed"], "probe": piles.probe_stages()}[kind]
-        return [piles.stage_benchmark(protocol, s, st) for s in seeds for st in stages]
+            return [piles.paths.results_path(f"ensemble/{protocol}/base_pressure.nc")]
+        stages = {"pour": ["poured"], "relax": ["relaxed"], "probe": piles.stages.probe_stages()}[kind]
+        return [piles.paths.stage_benchmark(protocol, s, st) for s in seeds for st in stages]
 
     def ensemble_inputs(self, kind):
         """The files of one kind (:meth:`protocol_files`) of every protocol, in protocol order."""

@@ -121,7 +121,7 @@ def piles_made(piles, analysis_seeds):
         there = sum(len(analysis_seeds(p)) for p in piles.protocols)
         return (f"from the per-pile results committed under {config['committed']}/ "
                 f"({there} of the {total} piles recorded)")
-    there = sum(all(os.path.exists(piles.pile(p, s, st)) for st in piles.final_stages())
+    there = sum(all(os.path.exists(piles.paths.pile(p, s, st)) for st in piles.stages.final_stages())
                 for p, s in piles.each())
     return f"{there} of {total} piles of {config['pour']['n_particles']} particles made so far"
 

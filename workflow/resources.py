@@ -18,7 +18,7 @@ import math
 import os
 
 from sim.timestep import MAX_STEPS
-from workflow.piles import STRETCH_STAGE
+from workflow.stages import STRETCH_STAGE
 
 # Measured on this project's 2-core machine: the full-size layered pour of the
 # study (3500 particles, velocity Verlet, 100 particles/s, one thread) took

@@ -56,13 +56,13 @@ class Scene:
             the VTK files; the films; the numerics; then `analysis`.
         """
         piles = self.piles
-        targets = piles.pile_targets() if self.wants("states") else []
+        targets = piles.targets() if self.wants("states") else []
         if self.wants("figures") and self.outputs & PILE_OUTPUTS and not self.config["committed"]:
-            targets += piles.pile_figure_targets("relaxed") + [piles.run_times_table]
+            targets += piles.figure_targets("relaxed") + [piles.paths.run_times_table]
         if self.wants("vtk"):
-            targets += [piles.pile_vtk(protocol, seed, "relaxed") for protocol, seed in piles.each()]
+            targets += [piles.paths.pile_vtk(protocol, seed, "relaxed") for protocol, seed in piles.each()]
         if self.wants("film"):
-            targets += [piles.pile_film(protocol, seed, ext) for protocol, seed in piles.each()
+            targets += [piles.paths.pile_film(protocol, seed, ext) for protocol, seed in piles.each()
                         for ext in ("mp4", "html")]
         if self.wants("numerics"):
             targets += list(numerics)
@@ -118,7 +118,7 @@ class Scene:
                 f"such a pile can hold enough particles, so the fields would be empty; pour at least "
                 f"{least} particles, lower analysis.rve.min_particles, or ask only outputs [states]"
             )
-        stage, probes = config["analysis"]["base_pressure"]["stage"], self.piles.probe_stages()
+        stage, probes = config["analysis"]["base_pressure"]["stage"], self.piles.stages.probe_stages()
         if self.wants("fields") and stage not in ["poured", "relaxed"] + probes:
             problems.append(
                 f"analysis.base_pressure.stage = {stage!r} is not a stage of this scene "

@@ -1,17 +1,6 @@
 # Analysis rules: particle states -> per-pile RVE fields -> ensembles -> fits -> figures.
 #
-# Expects from workflow/rules/common.smk:
-#   PROTOCOLS      list of protocol names of the study
-#   seeds(p)       list of int seeds of protocol p
-#   probe_stages(), extra_probe_stages()  the gravity reductions, and the tilts and restore
-#   ANALYSIS_DIGEST  digest of the analysis/*.py files (param `code`: code edits rerun the analysis)
-#   results_path(p)  p in the configuration's results folder (config `results`)
-#   py_shell       the helper that prefixes the python executable to a shell command
-#   field_quantities()  the scene's optional quantities of the fields
-#   analysis_inputs  the analysis' inputs and settings (workflow/analysis_inputs.py), with
-#                  ANALYSIS_PARAMS, ANALYSIS_MEM_MB, labelled() and the general fit's protocols
-#   and the global wildcard_constraints of protocol and seed
-# and the state files {results}/piles/{protocol}/seed{seed}/{stage}.nc (docs/formats.md#state-files).
+# The rules read `study` (workflow/study.py) and the state files {results}/piles/{protocol}/seed{seed}/{stage}.nc (docs/formats.md#state-files).
 #
 # Every rule passes config["analysis"] as sorted JSON in params, so a change of
 # an analysis setting reruns exactly the rules that read it. Figure captions
@@ -21,22 +10,25 @@
 # so under a cluster executor they run on the submitting machine (localrule)
 # instead of queueing a cluster job each.
 
+from workflow.analysis_inputs import ANALYSIS_MEM_MB, labelled
+
+
 rule analysis_fields:
     input:
-        relaxed=results_path("piles/{protocol}/seed{seed}/relaxed.nc"),
-        reduced=analysis_inputs.fields_reduced,
+        relaxed=study.paths.results_path("piles/{protocol}/seed{seed}/relaxed.nc"),
+        reduced=study.analysis.fields_reduced,
     output:
-        fields=results_path("fields/{protocol}/seed{seed}.nc"),
-        checks=results_path("fields/{protocol}/seed{seed}.checks.json"),
+        fields=study.paths.results_path("fields/{protocol}/seed{seed}.nc"),
+        checks=study.paths.results_path("fields/{protocol}/seed{seed}.checks.json"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
-        reduced=analysis_inputs.reduced_option,
-        quantities=field_quantities(),
+        code=study.code.analysis,
+        cfg=study.analysis.params,
+        reduced=study.analysis.reduced_option,
+        quantities=study.scene.field_quantities(),
     log:
-        results_path("logs/analysis/fields/{protocol}/seed{seed}.log"),
+        study.paths.results_path("logs/analysis/fields/{protocol}/seed{seed}.log"),
     benchmark:
-        results_path("benchmarks/analysis/fields/{protocol}/seed{seed}.tsv")
+        study.paths.results_path("benchmarks/analysis/fields/{protocol}/seed{seed}.tsv")
     localrule: True
     threads: 1
     resources:
@@ -45,7 +37,7 @@ rule analysis_fields:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis fields --relaxed {input.relaxed:q} {params.reduced:q} --quantities {params.quantities:q} "
             "--params {params.cfg:q} --out {output.fields:q} --checks {output.checks:q} > {log:q} 2>&1"
         )
@@ -53,14 +45,14 @@ rule analysis_fields:
 
 rule analysis_ensemble:
     input:
-        fields=analysis_inputs.fields,
+        fields=study.analysis.fields,
     output:
-        results_path("ensemble/{protocol}/fields.nc"),
+        study.paths.results_path("ensemble/{protocol}/fields.nc"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
+        code=study.code.analysis,
+        cfg=study.analysis.params,
     log:
-        results_path("logs/analysis/ensemble/{protocol}.log"),
+        study.paths.results_path("logs/analysis/ensemble/{protocol}.log"),
     localrule: True
     threads: 1
     resources:
@@ -69,22 +61,22 @@ rule analysis_ensemble:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis ensemble --fields {input.fields:q} --params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
         )
 
 
 rule analysis_moduli:
     input:
-        ensemble=results_path("ensemble/{protocol}/fields.nc"),
-        fields=analysis_inputs.fields,
+        ensemble=study.paths.results_path("ensemble/{protocol}/fields.nc"),
+        fields=study.analysis.fields,
     output:
-        results_path("ensemble/{protocol}/moduli.nc"),
+        study.paths.results_path("ensemble/{protocol}/moduli.nc"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
+        code=study.code.analysis,
+        cfg=study.analysis.params,
     log:
-        results_path("logs/analysis/moduli/{protocol}.log"),
+        study.paths.results_path("logs/analysis/moduli/{protocol}.log"),
     localrule: True
     threads: 1
     resources:
@@ -93,7 +85,7 @@ rule analysis_moduli:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis moduli --ensemble {input.ensemble:q} --fields {input.fields:q} "
             "--params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
         )
@@ -101,14 +93,14 @@ rule analysis_moduli:
 
 rule analysis_base_pressure_pile:
     input:
-        state=lambda wc: pile(wc.protocol, wc.seed, analysis_inputs.setting("base_pressure", "stage", "relaxed")),
+        state=lambda wc: study.paths.pile(wc.protocol, wc.seed, study.analysis.setting("base_pressure", "stage", "relaxed")),
     output:
-        results_path("fields/{protocol}/seed{seed}.base_pressure.nc"),
+        study.paths.results_path("fields/{protocol}/seed{seed}.base_pressure.nc"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
+        code=study.code.analysis,
+        cfg=study.analysis.params,
     log:
-        results_path("logs/analysis/base_pressure/{protocol}/seed{seed}.log"),
+        study.paths.results_path("logs/analysis/base_pressure/{protocol}/seed{seed}.log"),
     localrule: True
     threads: 1
     resources:
@@ -117,21 +109,21 @@ rule analysis_base_pressure_pile:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis base-pressure --states {input.state:q} --params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
         )
 
 
 rule analysis_base_pressure:
     input:
-        piles=analysis_inputs.base_pressure_piles,
+        piles=study.analysis.base_pressure_piles,
     output:
-        results_path("ensemble/{protocol}/base_pressure.nc"),
+        study.paths.results_path("ensemble/{protocol}/base_pressure.nc"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
+        code=study.code.analysis,
+        cfg=study.analysis.params,
     log:
-        results_path("logs/analysis/base_pressure/{protocol}.log"),
+        study.paths.results_path("logs/analysis/base_pressure/{protocol}.log"),
     localrule: True
     threads: 1
     resources:
@@ -140,21 +132,21 @@ rule analysis_base_pressure:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis base-pressure --piles {input.piles:q} --params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
         )
 
 
 rule analysis_invariants:
     input:
-        ensemble=results_path("ensemble/{protocol}/fields.nc"),
+        ensemble=study.paths.results_path("ensemble/{protocol}/fields.nc"),
     output:
-        results_path("ensemble/{protocol}/invariants.nc"),
+        study.paths.results_path("ensemble/{protocol}/invariants.nc"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
+        code=study.code.analysis,
+        cfg=study.analysis.params,
     log:
-        results_path("logs/analysis/invariants/{protocol}.log"),
+        study.paths.results_path("logs/analysis/invariants/{protocol}.log"),
     localrule: True
     threads: 1
     resources:
@@ -163,7 +155,7 @@ rule analysis_invariants:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis invariants --ensemble {input.ensemble:q} --params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
         )
 
@@ -172,15 +164,15 @@ rule analysis_convergence:
     # One pile's fields at fixed points against RVE size (Fig. 1); Fig. 1 asks
     # for it for every pile of its protocol, or for one (analysis.convergence.seed).
     input:
-        relaxed=pile("{protocol}", "{seed}", "relaxed"),
-        reduced=pile("{protocol}", "{seed}", "reduced"),
+        relaxed=study.paths.pile("{protocol}", "{seed}", "relaxed"),
+        reduced=study.paths.pile("{protocol}", "{seed}", "reduced"),
     output:
-        results_path("fields/{protocol}/seed{seed}.convergence.nc"),
+        study.paths.results_path("fields/{protocol}/seed{seed}.convergence.nc"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
+        code=study.code.analysis,
+        cfg=study.analysis.params,
     log:
-        results_path("logs/analysis/convergence/{protocol}/seed{seed}.log"),
+        study.paths.results_path("logs/analysis/convergence/{protocol}/seed{seed}.log"),
     localrule: True
     threads: 1
     resources:
@@ -189,7 +181,7 @@ rule analysis_convergence:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis convergence --relaxed {input.relaxed:q} --reduced {input.reduced:q} "
             "--params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
         )
@@ -197,18 +189,18 @@ rule analysis_convergence:
 
 rule analysis_figure_convergence:
     input:
-        data=analysis_inputs.convergence_files,
+        data=study.analysis.convergence_files,
     output:
-        png=report(results_path("figures/fig1_convergence.png"), caption="../report/analysis/fig1_convergence.rst",
+        png=report(study.paths.results_path("figures/fig1_convergence.png"), caption="../report/analysis/fig1_convergence.rst",
                    category="Analysis", subcategory="Fig. 1"),
-        pdf=results_path("figures/fig1_convergence.pdf"),
+        pdf=study.paths.results_path("figures/fig1_convergence.pdf"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
+        code=study.code.analysis,
+        cfg=study.analysis.params,
         inputs=lambda wc, input: labelled(input.data, [f"seed{s}" for s in
-                                                        analysis_inputs.convergence_seeds(analysis_inputs.figure_protocol("convergence_protocol"))]),
+                                                        study.analysis.convergence_seeds(study.analysis.figure_protocol("convergence_protocol"))]),
     log:
-        results_path("logs/analysis/figures/fig1_convergence.log"),
+        study.paths.results_path("logs/analysis/figures/fig1_convergence.log"),
     localrule: True
     threads: 1
     resources:
@@ -217,7 +209,7 @@ rule analysis_figure_convergence:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis figure convergence --inputs {params.inputs:q} --params {params.cfg:q} "
             "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
         )
@@ -225,17 +217,17 @@ rule analysis_figure_convergence:
 
 rule analysis_figure_vertical_strain:
     input:
-        data=expand(results_path("ensemble/{protocol}/fields.nc"), protocol=PROTOCOLS),
+        data=expand(study.paths.results_path("ensemble/{protocol}/fields.nc"), protocol=study.piles.protocols),
     output:
-        png=report(results_path("figures/fig2_vertical_strain.png"), caption="../report/analysis/fig2_vertical_strain.rst",
+        png=report(study.paths.results_path("figures/fig2_vertical_strain.png"), caption="../report/analysis/fig2_vertical_strain.rst",
                    category="Analysis", subcategory="Fig. 2"),
-        pdf=results_path("figures/fig2_vertical_strain.pdf"),
+        pdf=study.paths.results_path("figures/fig2_vertical_strain.pdf"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: labelled(input.data, PROTOCOLS),
+        code=study.code.analysis,
+        cfg=study.analysis.params,
+        inputs=lambda wc, input: labelled(input.data, study.piles.protocols),
     log:
-        results_path("logs/analysis/figures/fig2_vertical_strain.log"),
+        study.paths.results_path("logs/analysis/figures/fig2_vertical_strain.log"),
     localrule: True
     threads: 1
     resources:
@@ -244,7 +236,7 @@ rule analysis_figure_vertical_strain:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis figure vertical-strain --inputs {params.inputs:q} --params {params.cfg:q} "
             "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
         )
@@ -252,17 +244,17 @@ rule analysis_figure_vertical_strain:
 
 rule analysis_figure_fabric:
     input:
-        data=lambda wc: results_path(f"ensemble/{analysis_inputs.figure_protocol('fabric_protocol')}/fields.nc"),
+        data=lambda wc: study.paths.results_path(f"ensemble/{study.analysis.figure_protocol('fabric_protocol')}/fields.nc"),
     output:
-        png=report(results_path("figures/fig3_fabric.png"), caption="../report/analysis/fig3_fabric.rst",
+        png=report(study.paths.results_path("figures/fig3_fabric.png"), caption="../report/analysis/fig3_fabric.rst",
                    category="Analysis", subcategory="Fig. 3"),
-        pdf=results_path("figures/fig3_fabric.pdf"),
+        pdf=study.paths.results_path("figures/fig3_fabric.pdf"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: labelled([input.data], [analysis_inputs.figure_protocol("fabric_protocol")]),
+        code=study.code.analysis,
+        cfg=study.analysis.params,
+        inputs=lambda wc, input: labelled([input.data], [study.analysis.figure_protocol("fabric_protocol")]),
     log:
-        results_path("logs/analysis/figures/fig3_fabric.log"),
+        study.paths.results_path("logs/analysis/figures/fig3_fabric.log"),
     localrule: True
     threads: 1
     resources:
@@ -271,7 +263,7 @@ rule analysis_figure_fabric:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis figure fabric --inputs {params.inputs:q} --params {params.cfg:q} "
             "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
         )
@@ -279,17 +271,17 @@ rule analysis_figure_fabric:
 
 rule analysis_figure_moduli:
     input:
-        data=lambda wc: results_path(f"ensemble/{analysis_inputs.figure_protocol('moduli_protocol')}/moduli.nc"),
+        data=lambda wc: study.paths.results_path(f"ensemble/{study.analysis.figure_protocol('moduli_protocol')}/moduli.nc"),
     output:
-        png=report(results_path("figures/fig4_moduli.png"), caption="../report/analysis/fig4_moduli.rst",
+        png=report(study.paths.results_path("figures/fig4_moduli.png"), caption="../report/analysis/fig4_moduli.rst",
                    category="Analysis", subcategory="Fig. 4"),
-        pdf=results_path("figures/fig4_moduli.pdf"),
+        pdf=study.paths.results_path("figures/fig4_moduli.pdf"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: labelled([input.data], [analysis_inputs.figure_protocol("moduli_protocol")]),
+        code=study.code.analysis,
+        cfg=study.analysis.params,
+        inputs=lambda wc, input: labelled([input.data], [study.analysis.figure_protocol("moduli_protocol")]),
     log:
-        results_path("logs/analysis/figures/fig4_moduli.log"),
+        study.paths.results_path("logs/analysis/figures/fig4_moduli.log"),
     localrule: True
     threads: 1
     resources:
@@ -298,7 +290,7 @@ rule analysis_figure_moduli:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis figure moduli --inputs {params.inputs:q} --params {params.cfg:q} "
             "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
         )
@@ -306,17 +298,17 @@ rule analysis_figure_moduli:
 
 rule analysis_figure_invariants:
     input:
-        data=lambda wc: results_path(f"ensemble/{analysis_inputs.figure_protocol('invariants_protocol')}/invariants.nc"),
+        data=lambda wc: study.paths.results_path(f"ensemble/{study.analysis.figure_protocol('invariants_protocol')}/invariants.nc"),
     output:
-        png=report(results_path("figures/fig5_invariants.png"), caption="../report/analysis/fig5_invariants.rst",
+        png=report(study.paths.results_path("figures/fig5_invariants.png"), caption="../report/analysis/fig5_invariants.rst",
                    category="Analysis", subcategory="Fig. 5"),
-        pdf=results_path("figures/fig5_invariants.pdf"),
+        pdf=study.paths.results_path("figures/fig5_invariants.pdf"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: labelled([input.data], [analysis_inputs.figure_protocol("invariants_protocol")]),
+        code=study.code.analysis,
+        cfg=study.analysis.params,
+        inputs=lambda wc, input: labelled([input.data], [study.analysis.figure_protocol("invariants_protocol")]),
     log:
-        results_path("logs/analysis/figures/fig5_invariants.log"),
+        study.paths.results_path("logs/analysis/figures/fig5_invariants.log"),
     localrule: True
     threads: 1
     resources:
@@ -325,7 +317,7 @@ rule analysis_figure_invariants:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis figure invariants --inputs {params.inputs:q} --params {params.cfg:q} "
             "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
         )
@@ -333,17 +325,17 @@ rule analysis_figure_invariants:
 
 rule analysis_figure_base_pressure:
     input:
-        data=expand(results_path("ensemble/{protocol}/base_pressure.nc"), protocol=PROTOCOLS),
+        data=expand(study.paths.results_path("ensemble/{protocol}/base_pressure.nc"), protocol=study.piles.protocols),
     output:
-        png=report(results_path("figures/base_pressure.png"), caption="../report/analysis/base_pressure.rst",
+        png=report(study.paths.results_path("figures/base_pressure.png"), caption="../report/analysis/base_pressure.rst",
                    category="Analysis", subcategory="Base pressure"),
-        pdf=results_path("figures/base_pressure.pdf"),
+        pdf=study.paths.results_path("figures/base_pressure.pdf"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: labelled(input.data, PROTOCOLS),
+        code=study.code.analysis,
+        cfg=study.analysis.params,
+        inputs=lambda wc, input: labelled(input.data, study.piles.protocols),
     log:
-        results_path("logs/analysis/figures/base_pressure.log"),
+        study.paths.results_path("logs/analysis/figures/base_pressure.log"),
     localrule: True
     threads: 1
     resources:
@@ -352,7 +344,7 @@ rule analysis_figure_base_pressure:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis figure base-pressure --inputs {params.inputs:q} --params {params.cfg:q} "
             "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
         )
@@ -364,17 +356,17 @@ rule analysis_figure_base_pressure:
 rule analysis_probes:
     # Stress and strain increments of every probe stage of one pile, from its relaxed state.
     input:
-        relaxed=pile("{protocol}", "{seed}", "relaxed"),
-        probes=lambda wc: [pile(wc.protocol, wc.seed, st) for st in probe_stages() + extra_probe_stages()],
+        relaxed=study.paths.pile("{protocol}", "{seed}", "relaxed"),
+        probes=lambda wc: [study.paths.pile(wc.protocol, wc.seed, st) for st in study.stages.probe_stages() + study.stages.extra_probe_stages()],
     output:
-        results_path("fields/{protocol}/seed{seed}.probes.nc"),
+        study.paths.results_path("fields/{protocol}/seed{seed}.probes.nc"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
+        code=study.code.analysis,
+        cfg=study.analysis.params,
         probes=lambda wc, input: [f"{st}={path}" for st, path in
-                                  zip(probe_stages() + extra_probe_stages(), input.probes)],
+                                  zip(study.stages.probe_stages() + study.stages.extra_probe_stages(), input.probes)],
     log:
-        results_path("logs/analysis/probes/{protocol}_seed{seed}.log"),
+        study.paths.results_path("logs/analysis/probes/{protocol}_seed{seed}.log"),
     threads: 1
     resources:
         mem_mb=ANALYSIS_MEM_MB,
@@ -382,7 +374,7 @@ rule analysis_probes:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis probes --relaxed {input.relaxed:q} --probes {params.probes:q} "
             "--params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
         )
@@ -391,15 +383,15 @@ rule analysis_probes:
 rule analysis_general_fit:
     # The general 2D elastic fit of all loading probes over the piles, and reversibility.
     input:
-        probes=lambda wc: [pile_result(wc.protocol, s, "probes") for s in analysis_seeds(wc.protocol, "probes")],
-        ensemble=results_path("ensemble/{protocol}/fields.nc"),
+        probes=lambda wc: [study.analysis.pile_result(wc.protocol, s, "probes") for s in study.analysis.analysis_seeds(wc.protocol, "probes")],
+        ensemble=study.paths.results_path("ensemble/{protocol}/fields.nc"),
     output:
-        results_path("ensemble/{protocol}/general_moduli.nc"),
+        study.paths.results_path("ensemble/{protocol}/general_moduli.nc"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
+        code=study.code.analysis,
+        cfg=study.analysis.params,
     log:
-        results_path("logs/analysis/general_fit/{protocol}.log"),
+        study.paths.results_path("logs/analysis/general_fit/{protocol}.log"),
     localrule: True
     threads: 1
     resources:
@@ -408,7 +400,7 @@ rule analysis_general_fit:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis general-fit --probes {input.probes:q} --ensemble {input.ensemble:q} "
             "--params {params.cfg:q} --out {output:q} > {log:q} 2>&1"
         )
@@ -416,17 +408,17 @@ rule analysis_general_fit:
 
 rule analysis_figure_general:
     input:
-        data=expand(results_path("ensemble/{protocol}/general_moduli.nc"), protocol=general_fit_protocols()),
+        data=expand(study.paths.results_path("ensemble/{protocol}/general_moduli.nc"), protocol=study.analysis.general_fit_protocols()),
     output:
-        png=report(results_path("figures/general_fit.png"), caption="../report/analysis/general_fit.rst",
+        png=report(study.paths.results_path("figures/general_fit.png"), caption="../report/analysis/general_fit.rst",
                    category="Analysis", subcategory="General fit"),
-        pdf=results_path("figures/general_fit.pdf"),
+        pdf=study.paths.results_path("figures/general_fit.pdf"),
     params:
-        code=ANALYSIS_DIGEST,
-        cfg=ANALYSIS_PARAMS,
-        inputs=lambda wc, input: labelled(input.data, general_fit_protocols()),
+        code=study.code.analysis,
+        cfg=study.analysis.params,
+        inputs=lambda wc, input: labelled(input.data, study.analysis.general_fit_protocols()),
     log:
-        results_path("logs/analysis/figures/general_fit.log"),
+        study.paths.results_path("logs/analysis/figures/general_fit.log"),
     localrule: True
     threads: 1
     resources:
@@ -435,7 +427,7 @@ rule analysis_figure_general:
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis figure general --inputs {params.inputs:q} --params {params.cfg:q} "
             "--out {output.png:q} {output.pdf:q} > {log:q} 2>&1"
         )

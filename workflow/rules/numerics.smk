@@ -9,29 +9,29 @@
 # so changing one re-runs only that rule. Param `code`: the digests of the
 # kernels' sources sim/*.py and of the sim/numerics/ sources.
 
-NUMERICS_DIGEST = f"{SIM_DIGEST}-{code_digest(REPO / 'sim' / 'numerics')}"
+import json
 
 
 rule numerics_collisions:
     input:
-        compiled=COMPILED_FLAG,
+        compiled=study.paths.compiled_flag,
     output:
-        nc=results_path("numerics/collisions.nc"),
+        nc=study.paths.results_path("numerics/collisions.nc"),
         figure=report(
-            results_path("numerics/collisions.png"),
+            study.paths.results_path("numerics/collisions.png"),
             caption="../report/numerics_collisions.rst",
             category="Numerics",
         ),
-        table=results_path("numerics/collisions.md"),
+        table=study.paths.results_path("numerics/collisions.md"),
     params:
-        code=NUMERICS_DIGEST,
+        code=study.code.numerics,
         numerics=json.dumps(
             {"numerics": {"collisions": config["numerics"]["collisions"]}}, sort_keys=True
         ),
     log:
-        results_path("logs/numerics/collisions.log"),
+        study.paths.results_path("logs/numerics/collisions.log"),
     benchmark:
-        results_path("benchmarks/numerics/collisions.tsv")
+        study.paths.results_path("benchmarks/numerics/collisions.tsv")
     # one thread: the wall times are those of a serial run
     threads: 1
     resources:
@@ -40,7 +40,7 @@ rule numerics_collisions:
     conda:
         "../envs/polypile.yaml"
     shell:
-        sim_shell(
+        study.commands.sim_shell(
             "numerics collisions --params {params.numerics:q} --nc {output.nc:q}"
             " --figure {output.figure:q} --table {output.table:q} > {log:q} 2>&1"
         )
@@ -48,24 +48,24 @@ rule numerics_collisions:
 
 rule numerics_stability:
     input:
-        compiled=COMPILED_FLAG,
+        compiled=study.paths.compiled_flag,
     output:
-        nc=results_path("numerics/stability.nc"),
+        nc=study.paths.results_path("numerics/stability.nc"),
         figure=report(
-            results_path("numerics/stable_dt.png"),
+            study.paths.results_path("numerics/stable_dt.png"),
             caption="../report/numerics_stability.rst",
             category="Numerics",
         ),
-        table=results_path("numerics/stability.md"),
+        table=study.paths.results_path("numerics/stability.md"),
     params:
-        code=NUMERICS_DIGEST,
+        code=study.code.numerics,
         numerics=json.dumps(
             {"numerics": {"stability": config["numerics"]["stability"]}}, sort_keys=True
         ),
     log:
-        results_path("logs/numerics/stability.log"),
+        study.paths.results_path("logs/numerics/stability.log"),
     benchmark:
-        results_path("benchmarks/numerics/stability.tsv")
+        study.paths.results_path("benchmarks/numerics/stability.tsv")
     threads: 1
     resources:
         mem_mb=2000,
@@ -73,7 +73,7 @@ rule numerics_stability:
     conda:
         "../envs/polypile.yaml"
     shell:
-        sim_shell(
+        study.commands.sim_shell(
             "numerics stability --params {params.numerics:q} --nc {output.nc:q}"
             " --figure {output.figure:q} --table {output.table:q} > {log:q} 2>&1"
         )

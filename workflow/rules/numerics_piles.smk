@@ -10,10 +10,9 @@
 # Ensemble: reads the configured study's piles (protocols section), their
 # fields and base pressure, and the benchmark files of their simulations.
 #
-# Expects from common.smk: config (validated, defaults filled), sim_shell(),
-# py_shell(), results_path(), SIM_DIGEST, ANALYSIS_NUMERICS_DIGEST, COMPILED_FLAG,
-# SIM_THREADS, sim_mem_mb, sim_bookkeeping(), ANALYSIS_PARAMS, and pile_numerics,
-# NUMERICS_PILES, NUMERICS_ENSEMBLE, NUMERICS_DIR (workflow/numerics_piles.py).
+# The rules read `study` (workflow/study.py): study.numerics is workflow/numerics_piles.py.
+
+import json
 
 
 wildcard_constraints:
@@ -23,29 +22,29 @@ wildcard_constraints:
 
 rule numerics_pile_pour:
     input:
-        compiled=COMPILED_FLAG,
+        compiled=study.paths.compiled_flag,
     output:
-        state=pile_numerics.pile("{integrator}", "{factor}", "{seed}", "poured"),
-        cpu=pile_numerics.cpu("{integrator}", "{factor}", "{seed}", "pour"),
+        state=study.numerics.pile("{integrator}", "{factor}", "{seed}", "poured"),
+        cpu=study.numerics.cpu("{integrator}", "{factor}", "{seed}", "pour"),
     params:
-        code=SIM_DIGEST,
-        sim=lambda wildcards: pile_numerics.sim_params(wildcards, ("particles",)),
-        bookkeeping=sim_bookkeeping(),
-        protocol=NUMERICS_PILES["protocol"],
-        checkpoint=lambda wildcards: pile_numerics.pile(wildcards.integrator, wildcards.factor, wildcards.seed,
+        code=study.code.sim,
+        sim=lambda wildcards: study.numerics.sim_params(wildcards, ("particles",)),
+        bookkeeping=study.jobs.sim_bookkeeping(),
+        protocol=study.numerics.settings["protocol"],
+        checkpoint=lambda wildcards: study.numerics.pile(wildcards.integrator, wildcards.factor, wildcards.seed,
                                                    "pour.checkpoint"),
     log:
-        results_path("logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_pour.log"),
+        study.paths.results_path("logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_pour.log"),
     benchmark:
-        pile_numerics.benchmark("{integrator}", "{factor}", "{seed}", "pour")
-    threads: SIM_THREADS
+        study.numerics.benchmark("{integrator}", "{factor}", "{seed}", "pour")
+    threads: study.resources.threads
     resources:
-        mem_mb=sim_mem_mb,
+        mem_mb=study.resources.sim_mem_mb,
         runtime=30,
     conda:
         "../envs/polypile.yaml"
     shell:
-        sim_shell(
+        study.commands.sim_shell(
             "pour --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
             " --protocol {params.protocol:q} --seed {wildcards.seed}"
             " --out {output.state:q} --checkpoint {params.checkpoint:q} > {log:q} 2>&1"
@@ -55,27 +54,27 @@ rule numerics_pile_pour:
 
 rule numerics_pile_relax:
     input:
-        state=pile_numerics.pile("{integrator}", "{factor}", "{seed}", "poured"),
-        compiled=COMPILED_FLAG,
+        state=study.numerics.pile("{integrator}", "{factor}", "{seed}", "poured"),
+        compiled=study.paths.compiled_flag,
     output:
-        state=pile_numerics.pile("{integrator}", "{factor}", "{seed}", "relaxed"),
-        cpu=pile_numerics.cpu("{integrator}", "{factor}", "{seed}", "relax"),
+        state=study.numerics.pile("{integrator}", "{factor}", "{seed}", "relaxed"),
+        cpu=study.numerics.cpu("{integrator}", "{factor}", "{seed}", "relax"),
     params:
-        code=SIM_DIGEST,
-        sim=lambda wildcards: pile_numerics.sim_params(wildcards, ("relax",)),
-        bookkeeping=sim_bookkeeping(),
+        code=study.code.sim,
+        sim=lambda wildcards: study.numerics.sim_params(wildcards, ("relax",)),
+        bookkeeping=study.jobs.sim_bookkeeping(),
     log:
-        results_path("logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_relax.log"),
+        study.paths.results_path("logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_relax.log"),
     benchmark:
-        pile_numerics.benchmark("{integrator}", "{factor}", "{seed}", "relax")
-    threads: SIM_THREADS
+        study.numerics.benchmark("{integrator}", "{factor}", "{seed}", "relax")
+    threads: study.resources.threads
     resources:
-        mem_mb=sim_mem_mb,
+        mem_mb=study.resources.sim_mem_mb,
         runtime=30,
     conda:
         "../envs/polypile.yaml"
     shell:
-        sim_shell(
+        study.commands.sim_shell(
             "relax --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
             " --input {input.state:q} --out {output.state:q} > {log:q} 2>&1"
         )
@@ -86,43 +85,43 @@ rule numerics_pile_summary:
     # Shape of a relaxed small pile (flank angles, coordination) as the
     # simulator measures it: one JSON line.
     input:
-        state=pile_numerics.pile("{integrator}", "{factor}", "{seed}", "relaxed"),
+        state=study.numerics.pile("{integrator}", "{factor}", "{seed}", "relaxed"),
     output:
-        pile_numerics.summary("{integrator}", "{factor}", "{seed}", "relaxed"),
+        study.numerics.summary("{integrator}", "{factor}", "{seed}", "relaxed"),
     log:
-        results_path("logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_summary.log"),
+        study.paths.results_path("logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_summary.log"),
     localrule: True
     threads: 1
     conda:
         "../envs/polypile.yaml"
     shell:
-        sim_shell("summary {input.state:q} > {output:q} 2> {log:q}", numba=False)
+        study.commands.sim_shell("summary {input.state:q} > {output:q} 2> {log:q}", numba=False)
 
 
 rule numerics_piles_data:
     # Observables of every small pile and their errors against the reference.
     input:
-        states=pile_numerics.pile_inputs("states"),
-        summaries=pile_numerics.pile_inputs("summaries"),
-        pour=pile_numerics.pile_inputs("pour"),
-        relax=pile_numerics.pile_inputs("relax"),
-        pour_cpu=pile_numerics.pile_inputs("pour_cpu"),
-        relax_cpu=pile_numerics.pile_inputs("relax_cpu"),
+        states=study.numerics.pile_inputs("states"),
+        summaries=study.numerics.pile_inputs("summaries"),
+        pour=study.numerics.pile_inputs("pour"),
+        relax=study.numerics.pile_inputs("relax"),
+        pour_cpu=study.numerics.pile_inputs("pour_cpu"),
+        relax_cpu=study.numerics.pile_inputs("relax_cpu"),
     output:
-        f"{NUMERICS_DIR}/piles.nc",
+        f"{study.numerics.folder}/piles.nc",
     params:
-        code=ANALYSIS_NUMERICS_DIGEST,
-        cfg=json.dumps(NUMERICS_PILES, sort_keys=True),
+        code=study.code.analysis_numerics,
+        cfg=json.dumps(study.numerics.settings, sort_keys=True),
     log:
-        results_path("logs/numerics/piles_data.log"),
+        study.paths.results_path("logs/numerics/piles_data.log"),
     threads: 1
     resources:
-        mem_mb=sim_mem_mb,
+        mem_mb=study.resources.sim_mem_mb,
         runtime=10,
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis.numerics.pile_precision data --params {params.cfg:q} --states {input.states:q}"
             " --summaries {input.summaries:q}"
             " --pour-benchmarks {input.pour:q} --relax-benchmarks {input.relax:q}"
@@ -133,28 +132,28 @@ rule numerics_piles_data:
 rule numerics_ensemble:
     # Headline results per pile of the study, their standard error against n and compute time.
     input:
-        fields=pile_numerics.ensemble_inputs("fields"),
-        base_pressure=pile_numerics.ensemble_inputs("base_pressure"),
-        pour=pile_numerics.ensemble_inputs("pour"),
-        relax=pile_numerics.ensemble_inputs("relax"),
-        probe=pile_numerics.ensemble_inputs("probe"),
+        fields=study.numerics.ensemble_inputs("fields"),
+        base_pressure=study.numerics.ensemble_inputs("base_pressure"),
+        pour=study.numerics.ensemble_inputs("pour"),
+        relax=study.numerics.ensemble_inputs("relax"),
+        probe=study.numerics.ensemble_inputs("probe"),
     output:
-        f"{NUMERICS_DIR}/ensemble.nc",
+        f"{study.numerics.folder}/ensemble.nc",
     params:
-        code=ANALYSIS_NUMERICS_DIGEST,
-        cfg=json.dumps(NUMERICS_ENSEMBLE, sort_keys=True),
-        analysis=ANALYSIS_PARAMS,
-        protocols=pile_numerics.ensemble_args(),
+        code=study.code.analysis_numerics,
+        cfg=json.dumps(study.numerics.ensemble, sort_keys=True),
+        analysis=study.analysis.params,
+        protocols=study.numerics.ensemble_args(),
     log:
-        results_path("logs/numerics/ensemble.log"),
+        study.paths.results_path("logs/numerics/ensemble.log"),
     threads: 1
     resources:
-        mem_mb=sim_mem_mb,
+        mem_mb=study.resources.sim_mem_mb,
         runtime=10,
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis.numerics.ensemble_cost data --params {params.cfg:q} --analysis-params {params.analysis:q}"
             " {params.protocols:q} --out {output:q} > {log:q} 2>&1"
         )
@@ -162,31 +161,31 @@ rule numerics_ensemble:
 
 rule numerics_piles_figures:
     input:
-        piles=f"{NUMERICS_DIR}/piles.nc",
-        ensemble=f"{NUMERICS_DIR}/ensemble.nc",
+        piles=f"{study.numerics.folder}/piles.nc",
+        ensemble=f"{study.numerics.folder}/ensemble.nc",
     output:
-        piles=report(f"{NUMERICS_DIR}/pile_error.png", caption="../report/numerics/pile_error.rst",
+        piles=report(f"{study.numerics.folder}/pile_error.png", caption="../report/numerics/pile_error.rst",
                      category="Numerics", subcategory="Piles"),
-        piles_pdf=f"{NUMERICS_DIR}/pile_error.pdf",
-        ensemble=report(f"{NUMERICS_DIR}/ensemble_error.png", caption="../report/numerics/ensemble_error.rst",
+        piles_pdf=f"{study.numerics.folder}/pile_error.pdf",
+        ensemble=report(f"{study.numerics.folder}/ensemble_error.png", caption="../report/numerics/ensemble_error.rst",
                         category="Numerics", subcategory="Ensemble"),
-        ensemble_pdf=f"{NUMERICS_DIR}/ensemble_error.pdf",
+        ensemble_pdf=f"{study.numerics.folder}/ensemble_error.pdf",
     params:
-        code=ANALYSIS_NUMERICS_DIGEST,
+        code=study.code.analysis_numerics,
     log:
-        results_path("logs/numerics/piles_figures.log"),
+        study.paths.results_path("logs/numerics/piles_figures.log"),
     threads: 1
     resources:
-        mem_mb=sim_mem_mb,
+        mem_mb=study.resources.sim_mem_mb,
         runtime=10,
     conda:
         "../envs/polypile.yaml"
     shell:
         "("
-        + py_shell("-m analysis.numerics.pile_precision figure --data {input.piles:q} "
+        + study.commands.py_shell("-m analysis.numerics.pile_precision figure --data {input.piles:q} "
                    "--out {output.piles:q} {output.piles_pdf:q}")
         + " && "
-        + py_shell("-m analysis.numerics.ensemble_cost figure --data {input.ensemble:q} "
+        + study.commands.py_shell("-m analysis.numerics.ensemble_cost figure --data {input.ensemble:q} "
                    "--out {output.ensemble:q} {output.ensemble_pdf:q}")
         + ") > {log:q} 2>&1"
 
@@ -194,24 +193,24 @@ rule numerics_piles_figures:
 rule numerics_piles_table:
     # The markdown tables for the report.
     input:
-        piles=f"{NUMERICS_DIR}/piles.nc",
-        ensemble=f"{NUMERICS_DIR}/ensemble.nc",
+        piles=f"{study.numerics.folder}/piles.nc",
+        ensemble=f"{study.numerics.folder}/ensemble.nc",
     output:
-        report(f"{NUMERICS_DIR}/piles.md", caption="../report/numerics/piles_table.rst",
+        report(f"{study.numerics.folder}/piles.md", caption="../report/numerics/piles_table.rst",
                category="Numerics", subcategory="Tables"),
     params:
-        code=ANALYSIS_NUMERICS_DIGEST,
+        code=study.code.analysis_numerics,
         model=json.dumps(config["model"], sort_keys=True),
     log:
-        results_path("logs/numerics/piles_table.log"),
+        study.paths.results_path("logs/numerics/piles_table.log"),
     threads: 1
     resources:
-        mem_mb=sim_mem_mb,
+        mem_mb=study.resources.sim_mem_mb,
         runtime=10,
     conda:
         "../envs/polypile.yaml"
     shell:
-        py_shell(
+        study.commands.py_shell(
             "-m analysis.numerics.piles_report --piles {input.piles:q} --ensemble {input.ensemble:q}"
             " --model {params.model:q} --out {output:q} > {log:q} 2>&1"
         )
@@ -220,5 +219,5 @@ rule numerics_piles_table:
 rule numerics_piles:
     # Error of pile observables against run time and of the ensemble against compute time.
     input:
-        pile_numerics.targets(),
+        study.numerics.targets(),
     localrule: True

@@ -1,70 +1,73 @@
 # Building a pile: particles poured from a point source (wedge) or from a line
 # source following the width of the pile's top (layered).
 
+from workflow.jobs import Unrecorded
+from workflow.resources import per_attempt
+
 
 rule compile_kernels:
     # Compile (and cache in .numba_cache) every Numba kernel once, before the
     # simulation jobs fan out, so that parallel jobs do not race on the cache.
     output:
-        touch(COMPILED_FLAG),
+        touch(study.paths.compiled_flag),
     params:
-        code=SIM_DIGEST,
+        code=study.code.sim,
     log:
-        results_path("logs/compile_kernels.log"),
+        study.paths.results_path("logs/compile_kernels.log"),
     benchmark:
-        results_path("benchmarks/compile_kernels.tsv")
-    threads: SIM_THREADS
+        study.paths.results_path("benchmarks/compile_kernels.tsv")
+    threads: study.resources.threads
     resources:
-        mem_mb=sim_mem_mb,
+        mem_mb=study.resources.sim_mem_mb,
         runtime=per_attempt(15),
     conda:
         "../envs/polypile.yaml"
     shell:
-        sim_shell(
+        study.commands.sim_shell(
             "warmup > {log:q} 2>&1"
         )
 
 
 rule pour:
     input:
-        compiled=COMPILED_FLAG,
+        compiled=study.paths.compiled_flag,
     output:
-        poured=pile("{protocol}", "{seed}", "poured"),
+        poured=study.paths.pile("{protocol}", "{seed}", "poured"),
         # the frames of a film of the pour, only when the scene asks for one
-        **({"frames": pile_frames("{protocol}", "{seed}")} if wants("film") else {}),
+        **({"frames": study.paths.pile_frames("{protocol}", "{seed}")} if study.scene.wants("film") else {}),
     params:
-        code=SIM_DIGEST,
-        sim=sim_params("model", "particles", "pour", "physics"),
-        bookkeeping=sim_bookkeeping(),
-        checkpoint=lambda wildcards: pour_checkpoint(wildcards.protocol, wildcards.seed),
-        # the finished pour kept apart (Piles.pour_finished): Snakemake,
+        code=study.code.sim,
+        sim=study.jobs.sim_params("model", "particles", "pour", "physics"),
+        bookkeeping=study.jobs.sim_bookkeeping(),
+        checkpoint=lambda wildcards: study.paths.pour_checkpoint(wildcards.protocol, wildcards.seed),
+        # the finished pour kept apart (PilePaths.pour_finished): Snakemake,
         # interrupted while the pour ran, marks the outputs of the pour that
         # then finishes incomplete, and its rerun deletes them; the rerun's
         # pour takes this copy instead of pouring again.
         # Unrecorded, as run_log: where the copy lies changes no result
-        finished=lambda wildcards: Unrecorded(piles.pour_finished(wildcards.protocol, wildcards.seed)),
+        finished=lambda wildcards: Unrecorded(study.paths.pour_finished(wildcards.protocol, wildcards.seed)),
         # empty: no frames (an empty :q field vanishes, leaving --frames without
         # a value, which the simulator reads as none); Unrecorded, so that a
         # scene without film re-pours nothing that a scene with film poured
-        frames=lambda wildcards, output: Unrecorded(output.frames if wants("film") else ""),
-        # the pile's log over every run of its pour (pour_log())
-        run_log=lambda wildcards: Unrecorded(pour_log(wildcards.protocol, wildcards.seed)),
+        frames=lambda wildcards, output: Unrecorded(output.frames if study.scene.wants("film") else ""),
+        # the pile's log over every run of its pour (study.paths.pour_log())
+        run_log=lambda wildcards: Unrecorded(study.paths.pour_log(wildcards.protocol, wildcards.seed)),
     log:
         # what this job printed. Not the pile's log: Snakemake deletes a job's
         # log before the job runs, so a second run of the pour (a --nolock
         # Snakemake, a rerun beside a pour left running) deleted the running
         # pour's log before the simulator's lock refused it
-        results_path("logs/pour/{protocol}/seed{seed}.job.log"),
+        study.paths.results_path("logs/pour/{protocol}/seed{seed}.job.log"),
     benchmark:
-        stage_benchmark("{protocol}", "{seed}", "poured")
-    threads: SIM_THREADS
+        study.paths.stage_benchmark("{protocol}", "{seed}", "poured")
+    threads: study.resources.threads
     resources:
-        mem_mb=sim_mem_mb,
-        runtime=pour_runtime_min,
+        mem_mb=study.resources.sim_mem_mb,
+        runtime=study.resources.pour_runtime_min,
     conda:
         "../envs/polypile.yaml"
     shell:
-        sim_shell(
+        study.commands.sim_shell(
             "pour --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
             " --protocol {wildcards.protocol} --seed {wildcards.seed}"
             " --out {output.poured:q} --checkpoint {params.checkpoint:q} --frames {params.frames:q}"

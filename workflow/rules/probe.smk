@@ -7,32 +7,34 @@
 # relaxed pile is stretched by that strain instead (stage stretched), a load
 # that no change of gravity makes.
 
+from workflow.stages import STAGE_PATTERN, probe_input_stage
+
 
 rule probe:
     input:
-        state=lambda wc: pile(wc.protocol, wc.seed, probe_input_stage(wc.stage)),
-        compiled=COMPILED_FLAG,
+        state=lambda wc: study.paths.pile(wc.protocol, wc.seed, probe_input_stage(wc.stage)),
+        compiled=study.paths.compiled_flag,
     output:
-        pile("{protocol}", "{seed}", "{stage}"),
+        study.paths.pile("{protocol}", "{seed}", "{stage}"),
     wildcard_constraints:
         stage=STAGE_PATTERN,
     params:
-        code=SIM_DIGEST,
-        sim=lambda wildcards: probe_sim_params(wildcards.stage),
-        bookkeeping=sim_bookkeeping(),
-        change=lambda wildcards: probe_change(wildcards.stage),
+        code=study.code.sim,
+        sim=lambda wildcards: study.jobs.probe_sim_params(wildcards.stage),
+        bookkeeping=study.jobs.sim_bookkeeping(),
+        change=lambda wildcards: study.stages.probe_change(wildcards.stage),
     log:
-        stage_log("{protocol}", "{seed}", "{stage}"),
+        study.paths.stage_log("{protocol}", "{seed}", "{stage}"),
     benchmark:
-        stage_benchmark("{protocol}", "{seed}", "{stage}")
-    threads: SIM_THREADS
+        study.paths.stage_benchmark("{protocol}", "{seed}", "{stage}")
+    threads: study.resources.threads
     resources:
-        mem_mb=sim_mem_mb,
-        runtime=probe_runtime_min,
+        mem_mb=study.resources.sim_mem_mb,
+        runtime=study.resources.probe_runtime_min,
     conda:
         "../envs/polypile.yaml"
     shell:
-        sim_shell(
+        study.commands.sim_shell(
             "probe --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
             " --input {input.state:q} {params.change:q}"
             " --out {output:q} > {log:q} 2>&1"

@@ -3,26 +3,26 @@
 
 rule relax:
     input:
-        state=pile("{protocol}", "{seed}", "poured"),
-        compiled=COMPILED_FLAG,
+        state=study.paths.pile("{protocol}", "{seed}", "poured"),
+        compiled=study.paths.compiled_flag,
     output:
-        pile("{protocol}", "{seed}", "relaxed"),
+        study.paths.pile("{protocol}", "{seed}", "relaxed"),
     params:
-        code=SIM_DIGEST,
-        sim=sim_params("model", "pour", "relax"),
-        bookkeeping=sim_bookkeeping(),
+        code=study.code.sim,
+        sim=study.jobs.sim_params("model", "pour", "relax"),
+        bookkeeping=study.jobs.sim_bookkeeping(),
     log:
-        stage_log("{protocol}", "{seed}", "relaxed"),
+        study.paths.stage_log("{protocol}", "{seed}", "relaxed"),
     benchmark:
-        stage_benchmark("{protocol}", "{seed}", "relaxed")
-    threads: SIM_THREADS
+        study.paths.stage_benchmark("{protocol}", "{seed}", "relaxed")
+    threads: study.resources.threads
     resources:
-        mem_mb=sim_mem_mb,
-        runtime=relax_runtime_min,
+        mem_mb=study.resources.sim_mem_mb,
+        runtime=study.resources.relax_runtime_min,
     conda:
         "../envs/polypile.yaml"
     shell:
-        sim_shell(
+        study.commands.sim_shell(
             "relax --params {params.sim:q} --bookkeeping {params.bookkeeping:q}"
             " --input {input.state:q} --out {output:q} > {log:q} 2>&1"
         )

@@ -2,15 +2,16 @@
 # docs/reproduction/ (rule record_pile), and the ensembles, fits, figures and
 # per-pile table rebuilt from those files alone (`make reproduction`: config
 # `committed`, rule reproduction), without a state file or a simulation.
-# Expects from common.smk pile(), stage_benchmark(), probe_stages(), sim_shell, py_shell, REPO, wants(),
-# and of the analysis (workflow/analysis_inputs.py) pile_result(), PILE_RESULTS,
-# COMMITTED, ANALYSIS_FIGURES, analysis_targets(), reported_general_protocols(),
-# reported_probes() and labelled().
+# The rules read `study` (workflow/study.py).
+
+import os
+
+from workflow.analysis_inputs import ANALYSIS_FIGURES, labelled
 
 RECORD = "docs/reproduction"
-# The files of a recorded pile, under RECORD/{protocol}/: PILE_RESULTS' kinds,
+# The files of a recorded pile, under RECORD/{protocol}/: the kinds of study.analysis.pile_results,
 # the run summary and the pour's benchmark.
-RECORD_FILES = {**{kind: committed for kind, (_, committed) in PILE_RESULTS.items()},
+RECORD_FILES = {**{kind: committed for kind, (_, committed) in study.analysis.pile_results.items()},
                 "pour": "{protocol}/seed{seed}.pour.tsv"}
 
 
@@ -18,17 +19,17 @@ rule pile_summary:
     # One JSON line per stage: particles, height, width, flank angles,
     # coordination, support reaction against weight (python -m sim summary).
     input:
-        states=lambda wc: [pile(wc.protocol, wc.seed, s) for s in ["poured", "relaxed"] + probe_stages()],
+        states=lambda wc: [study.paths.pile(wc.protocol, wc.seed, s) for s in ["poured", "relaxed"] + study.stages.probe_stages()],
     output:
-        results_path("fields/{protocol}/seed{seed}.summary.json"),
+        study.paths.results_path("fields/{protocol}/seed{seed}.summary.json"),
     log:
-        results_path("logs/pile_summary/{protocol}/seed{seed}.log"),
+        study.paths.results_path("logs/pile_summary/{protocol}/seed{seed}.log"),
     localrule: True
     threads: 1
     conda:
         "../envs/polypile.yaml"
     shell:
-        sim_shell("summary {input.states:q} > {output:q} 2> {log:q}", numba=False)
+        study.commands.sim_shell("summary {input.states:q} > {output:q} 2> {log:q}", numba=False)
 
 
 if not config["committed"]:
@@ -39,12 +40,12 @@ if not config["committed"]:
         # convergence data, summary and the pour's benchmark, and with the
         # extra probes (config/scenes/elastic_probes.yaml) their increments.
         input:
-            **{kind: pile_result("{protocol}", "{seed}", kind) for kind in PILE_RESULTS},
-            pour=stage_benchmark("{protocol}", "{seed}", "poured"),
+            **{kind: study.analysis.pile_result("{protocol}", "{seed}", kind) for kind in study.analysis.pile_results},
+            pour=study.paths.stage_benchmark("{protocol}", "{seed}", "poured"),
         output:
             **{kind: f"{RECORD}/{name}" for kind, name in RECORD_FILES.items()},
         log:
-            results_path("logs/record_pile/{protocol}/seed{seed}.log"),
+            study.paths.results_path("logs/record_pile/{protocol}/seed{seed}.log"),
         localrule: True
         threads: 1
         conda:
@@ -58,36 +59,36 @@ if config["committed"]:
     # The full-size variants (issue 25): each config/variants/NAME.yaml whose
     # piles are recorded under {committed}/variants/NAME/, compared side by
     # side with the study's piles in {committed}/variants/NAME.md.
-    VARIANTS = sorted(p.stem for p in (REPO / "config" / "variants").glob("*.yaml")
-                      if any((COMMITTED / "variants" / p.stem).glob("*/seed*.summary.json")))
+    VARIANTS = sorted(p.stem for p in (study.repo / "config" / "variants").glob("*.yaml")
+                      if any((study.analysis.committed / "variants" / p.stem).glob("*/seed*.summary.json")))
 
     # The variants with a pile probed by the support stretch (config/scenes/six_constants.yaml):
     # all six elastic constants, in {committed}/variants/NAME/six_constants.md.
     from analysis.anisotropy import has_stretch  # here: reads netCDF, only `make reproduction` needs it
 
     SIX_CONSTANT_VARIANTS = [v for v in VARIANTS
-                             if any(has_stretch(f) for f in (COMMITTED / "variants" / v).glob("*/seed*.probes.nc"))]
+                             if any(has_stretch(f) for f in (study.analysis.committed / "variants" / v).glob("*/seed*.probes.nc"))]
 
     # Issue 44: the calibration of the sources (one record per pile, {committed}/calibration/)
     # and the pre-registered decision (config/decision.yaml, records in {committed}/decision/).
-    CALIBRATION_RECORDS = sorted(str(p) for p in (COMMITTED / "calibration").glob("*.json"))
-    DECISION_PLAN = REPO / "config" / "decision.yaml"
+    CALIBRATION_RECORDS = sorted(str(p) for p in (study.analysis.committed / "calibration").glob("*.json"))
+    DECISION_PLAN = study.repo / "config" / "decision.yaml"
 
     rule reproduction:
         # make reproduction: the figures and the per-pile table, from the
         # committed per-pile results only.
         input:
-            analysis_targets(),
-            figures=expand(str(COMMITTED / "figures" / "{stem}.png"),
-                           stem=[stem for stem, output in ANALYSIS_FIGURES.items() if wants(output)]
-                           + (["general_fit"] if reported_general_protocols() else [])),
-            table=str(COMMITTED / "piles.md"),
-            numbers=str(COMMITTED / "numbers.md"),
-            variants=expand(str(COMMITTED / "variants" / "{variant}.md"), variant=VARIANTS),
-            six_constants=expand(str(COMMITTED / "variants" / "{variant}" / "six_constants.md"),
+            study.analysis.targets(),
+            figures=expand(str(study.analysis.committed / "figures" / "{stem}.png"),
+                           stem=[stem for stem, output in ANALYSIS_FIGURES.items() if study.scene.wants(output)]
+                           + (["general_fit"] if study.analysis.reported_general_protocols() else [])),
+            table=str(study.analysis.committed / "piles.md"),
+            numbers=str(study.analysis.committed / "numbers.md"),
+            variants=expand(str(study.analysis.committed / "variants" / "{variant}.md"), variant=VARIANTS),
+            six_constants=expand(str(study.analysis.committed / "variants" / "{variant}" / "six_constants.md"),
                                  variant=SIX_CONSTANT_VARIANTS),
-            calibration=[str(COMMITTED / "calibration.md")] if CALIBRATION_RECORDS else [],
-            decision=[str(COMMITTED / "decision.md")] if DECISION_PLAN.exists() else [],
+            calibration=[str(study.analysis.committed / "calibration.md")] if CALIBRATION_RECORDS else [],
+            decision=[str(study.analysis.committed / "decision.md")] if DECISION_PLAN.exists() else [],
         localrule: True
 
     rule reproduction_calibration:
@@ -96,43 +97,43 @@ if config["committed"]:
             config="config/calibration.yaml",
             script="workflow/scripts/calibration.py",
         output:
-            str(COMMITTED / "calibration.md"),
+            str(study.analysis.committed / "calibration.md"),
         params:
-            records=str(COMMITTED / "calibration"),
+            records=str(study.analysis.committed / "calibration"),
         log:
-            results_path("logs/reproduction/calibration.log"),
+            study.paths.results_path("logs/reproduction/calibration.log"),
         localrule: True
         conda:
             "../envs/polypile.yaml"
         shell:
-            py_shell("{input.script:q} --table --config {input.config:q} --records {params.records:q} "
+            study.commands.py_shell("{input.script:q} --table --config {input.config:q} --records {params.records:q} "
                      "--out {output:q} > {log:q} 2>&1")
 
     rule reproduction_decision:
         input:
-            records=lambda wc: sorted(str(p) for p in (COMMITTED / "decision").glob("*.json")),
-            calibration=lambda wc: sorted(str(p) for p in (COMMITTED / "calibration").glob("*.json")),
+            records=lambda wc: sorted(str(p) for p in (study.analysis.committed / "decision").glob("*.json")),
+            calibration=lambda wc: sorted(str(p) for p in (study.analysis.committed / "calibration").glob("*.json")),
             plan=str(DECISION_PLAN),
             script="workflow/scripts/decision.py",
         output:
-            str(COMMITTED / "decision.md"),
+            str(study.analysis.committed / "decision.md"),
         params:
-            records=str(COMMITTED / "decision"),
+            records=str(study.analysis.committed / "decision"),
         log:
-            results_path("logs/reproduction/decision.log"),
+            study.paths.results_path("logs/reproduction/decision.log"),
         localrule: True
         conda:
             "../envs/polypile.yaml"
         shell:
-            py_shell("{input.script:q} verdict --records {params.records:q} --out {output:q} > {log:q} 2>&1")
+            study.commands.py_shell("{input.script:q} verdict --records {params.records:q} --out {output:q} > {log:q} 2>&1")
 
     rule reproduction_figure:
         input:
-            results_path("figures/{stem}.png"),
+            study.paths.results_path("figures/{stem}.png"),
         output:
-            str(COMMITTED / "figures" / "{stem}.png"),
+            str(study.analysis.committed / "figures" / "{stem}.png"),
         log:
-            results_path("logs/reproduction/{stem}.log"),
+            study.paths.results_path("logs/reproduction/{stem}.log"),
         localrule: True
         conda:
             "../envs/polypile.yaml"
@@ -141,53 +142,53 @@ if config["committed"]:
 
     rule reproduction_table:
         input:
-            summaries=[pile_result(p, s, "summary") for p in PROTOCOLS for s in analysis_seeds(p, "summary")],
+            summaries=[study.analysis.pile_result(p, s, "summary") for p in study.piles.protocols for s in study.analysis.analysis_seeds(p, "summary")],
             script="workflow/scripts/piles_table.py",
         output:
-            str(COMMITTED / "piles.md"),
+            str(study.analysis.committed / "piles.md"),
         log:
-            results_path("logs/reproduction/piles_table.log"),
+            study.paths.results_path("logs/reproduction/piles_table.log"),
         localrule: True
         conda:
             "../envs/polypile.yaml"
         shell:
-            py_shell("{input.script:q} {input.summaries:q} > {output:q} 2> {log:q}")
+            study.commands.py_shell("{input.script:q} {input.summaries:q} > {output:q} 2> {log:q}")
 
     rule reproduction_numbers:
         # The numbers docs/reproduction.md sets against the paper's, into the
         # committed folder: docs/reproduction/numbers.md under make reproduction.
         input:
-            ensembles=expand(results_path("ensemble/{protocol}/{name}"), protocol=PROTOCOLS,
+            ensembles=expand(study.paths.results_path("ensemble/{protocol}/{name}"), protocol=study.piles.protocols,
                              name=["fields.nc", "base_pressure.nc", "moduli.nc", "invariants.nc"]),
-            convergence=[pile_result(p, s, "convergence") for p in PROTOCOLS
-                         for s in analysis_seeds(p, "convergence")],
-            checks=[pile_result(p, s, "checks") for p in PROTOCOLS for s in analysis_seeds(p, "checks")],
-            fields=[pile_result(p, s, "fields") for p in PROTOCOLS for s in analysis_seeds(p, "fields")],
-            base_pressure=[pile_result(p, s, "base_pressure") for p in PROTOCOLS
-                           for s in analysis_seeds(p, "base_pressure")],
-            general=expand(results_path("ensemble/{protocol}/general_moduli.nc"), protocol=reported_general_protocols()),
-            probes=[path for _, path in reported_probes()],
+            convergence=[study.analysis.pile_result(p, s, "convergence") for p in study.piles.protocols
+                         for s in study.analysis.analysis_seeds(p, "convergence")],
+            checks=[study.analysis.pile_result(p, s, "checks") for p in study.piles.protocols for s in study.analysis.analysis_seeds(p, "checks")],
+            fields=[study.analysis.pile_result(p, s, "fields") for p in study.piles.protocols for s in study.analysis.analysis_seeds(p, "fields")],
+            base_pressure=[study.analysis.pile_result(p, s, "base_pressure") for p in study.piles.protocols
+                           for s in study.analysis.analysis_seeds(p, "base_pressure")],
+            general=expand(study.paths.results_path("ensemble/{protocol}/general_moduli.nc"), protocol=study.analysis.reported_general_protocols()),
+            probes=[path for _, path in study.analysis.reported_probes()],
             script="workflow/scripts/reproduction_numbers.py",
         output:
-            str(COMMITTED / "numbers.md"),
+            str(study.analysis.committed / "numbers.md"),
         params:
             # the folder of the ensembles: {results}/ensemble
             ensemble=lambda wc, input: os.path.dirname(os.path.dirname(input.ensembles[0])),
-            protocols=PROTOCOLS,
+            protocols=study.piles.protocols,
             heights=config["analysis"]["figures"]["heights"],
-            general=lambda wc, input: labelled(input.general, reported_general_protocols()),
-            probes=[f"{p}={path}" for p, path in reported_probes()],
-            fields=[f"{p}={pile_result(p, s, 'fields')}" for p in PROTOCOLS for s in analysis_seeds(p, "fields")],
-            base_pressure=[f"{p}={pile_result(p, s, 'base_pressure')}" for p in PROTOCOLS
-                           for s in analysis_seeds(p, "base_pressure")],
-            cfg=ANALYSIS_PARAMS,
+            general=lambda wc, input: labelled(input.general, study.analysis.reported_general_protocols()),
+            probes=[f"{p}={path}" for p, path in study.analysis.reported_probes()],
+            fields=[f"{p}={study.analysis.pile_result(p, s, 'fields')}" for p in study.piles.protocols for s in study.analysis.analysis_seeds(p, "fields")],
+            base_pressure=[f"{p}={study.analysis.pile_result(p, s, 'base_pressure')}" for p in study.piles.protocols
+                           for s in study.analysis.analysis_seeds(p, "base_pressure")],
+            cfg=study.analysis.params,
         log:
-            results_path("logs/reproduction/numbers.log"),
+            study.paths.results_path("logs/reproduction/numbers.log"),
         localrule: True
         conda:
             "../envs/polypile.yaml"
         shell:
-            py_shell(
+            study.commands.py_shell(
                 "{input.script:q} --ensemble {params.ensemble:q} --protocols {params.protocols:q} "
                 "--convergence {input.convergence:q} --checks {input.checks:q} --heights {params.heights:q} "
                 "--general {params.general:q} --probes {params.probes:q} --fields {params.fields:q} "
@@ -199,25 +200,25 @@ if config["committed"]:
         wildcard_constraints:
             variant="[^/]+",
         input:
-            study=lambda wc: sorted(str(f) for f in COMMITTED.glob("*/seed*.*")),
-            variant=lambda wc: sorted(str(f) for f in (COMMITTED / "variants" / wc.variant).glob("*/seed*.*")),
+            study=lambda wc: sorted(str(f) for f in study.analysis.committed.glob("*/seed*.*")),
+            variant=lambda wc: sorted(str(f) for f in (study.analysis.committed / "variants" / wc.variant).glob("*/seed*.*")),
             overlay="config/variants/{variant}.yaml",
             script="workflow/scripts/variant_table.py",
         output:
-            str(COMMITTED / "variants" / "{variant}.md"),
+            str(study.analysis.committed / "variants" / "{variant}.md"),
         params:
             # relative to the repository, as the table names them
             study=config["committed"],
             variant=lambda wc: f"{config['committed']}/variants/{wc.variant}",
-            protocols=PROTOCOLS,
-            cfg=ANALYSIS_PARAMS,
+            protocols=study.piles.protocols,
+            cfg=study.analysis.params,
         log:
-            results_path("logs/reproduction/variant_{variant}.log"),
+            study.paths.results_path("logs/reproduction/variant_{variant}.log"),
         localrule: True
         conda:
             "../envs/polypile.yaml"
         shell:
-            py_shell(
+            study.commands.py_shell(
                 "{input.script:q} --study {params.study:q} --variant {params.variant:q} --overlay {input.overlay:q} "
                 "--protocols {params.protocols:q} --params {params.cfg:q} > {output:q} 2> {log:q}"
             )
@@ -229,26 +230,26 @@ if config["committed"]:
         wildcard_constraints:
             variant="[^/]+",
         input:
-            probes=lambda wc: sorted(str(f) for f in (COMMITTED / "variants" / wc.variant).glob("*/seed*.probes.nc")),
-            fields=lambda wc: sorted(str(f) for f in (COMMITTED / "variants" / wc.variant).glob("*/seed*.fields.nc")),
-            study=lambda wc: sorted(str(f) for f in COMMITTED.glob("*/seed*.fields.nc")),
+            probes=lambda wc: sorted(str(f) for f in (study.analysis.committed / "variants" / wc.variant).glob("*/seed*.probes.nc")),
+            fields=lambda wc: sorted(str(f) for f in (study.analysis.committed / "variants" / wc.variant).glob("*/seed*.fields.nc")),
+            study=lambda wc: sorted(str(f) for f in study.analysis.committed.glob("*/seed*.fields.nc")),
             script="workflow/scripts/six_constants_table.py",
         output:
-            table=str(COMMITTED / "variants" / "{variant}" / "six_constants.md"),
-            figure=str(COMMITTED / "variants" / "{variant}" / "six_constants.png"),
+            table=str(study.analysis.committed / "variants" / "{variant}" / "six_constants.md"),
+            figure=str(study.analysis.committed / "variants" / "{variant}" / "six_constants.png"),
         params:
             # relative to the repository, as the table names them
             study=config["committed"],
             variant=lambda wc: f"{config['committed']}/variants/{wc.variant}",
-            protocols=PROTOCOLS,
-            cfg=ANALYSIS_PARAMS,
+            protocols=study.piles.protocols,
+            cfg=study.analysis.params,
         log:
-            results_path("logs/reproduction/six_constants_{variant}.log"),
+            study.paths.results_path("logs/reproduction/six_constants_{variant}.log"),
         localrule: True
         conda:
             "../envs/polypile.yaml"
         shell:
-            py_shell(
+            study.commands.py_shell(
                 "{input.script:q} --study {params.study:q} --variant {params.variant:q} "
                 "--protocols {params.protocols:q} --params {params.cfg:q} --figure {output.figure:q} "
                 "> {output.table:q} 2> {log:q}"

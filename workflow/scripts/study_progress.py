@@ -9,7 +9,7 @@ configuration's own results folder (config ``results``: ``results/study`` for
 piles of another configuration never count; the line begins with the
 configuration files and that folder. A pile is
 
-* **done** when its last stages exist (``Piles.final_stages``): every probe,
+* **done** when its last stages exist (``Stages.final_stages``): every probe,
   the gravity probes of ``probe.levels`` (``reduced.nc``, ``reducedNN.nc``)
   and those a scene adds (tilts, the support stretch, the restored gravity),
   or ``relaxed.nc`` when there is none. Before the stages came from ``Piles``
@@ -27,7 +27,7 @@ configuration files and that folder. A pile is
 The time left is the work still to do divided by the cores it can use. The
 work is counted in CPU seconds: a stage not yet run costs the mean
 ``cpu_time`` of that stage in the Snakemake benchmark files
-(``Piles.stage_benchmark``) of the finished piles; the stage
+(``PilePaths.stage_benchmark``) of the finished piles; the stage
 a running pile is in costs what the ETA of its log's last progress line
 (``sim.progress.Progress``) says instead, when there is one. The cores it
 can use are the jobs that run side by side, ``cores // threads``, but no more
@@ -67,7 +67,8 @@ from pathlib import Path
 
 from sim.durations import hms, parse_hms
 from sim.lock import PourLock
-from workflow.piles import Piles, stage_rule
+from workflow.piles import Piles
+from workflow.stages import stage_rule
 from workflow.resources import PARTICLE_STEP_S, SimResources
 from workflow.validation import load_config
 
@@ -244,7 +245,7 @@ def pour_running(root, study, protocol, seed):
 
 def pour_lock(study, protocol, seed):
     """The pour's lock file: ``<checkpoint>.lock`` beside its checkpoint (``sim.pour.pour``)."""
-    return study.pour_checkpoint(protocol, seed) + ".lock"
+    return study.paths.pour_checkpoint(protocol, seed) + ".lock"
 
 
 def pile_state(root, study, protocol, seed, now):
@@ -270,24 +271,24 @@ def pile_state(root, study, protocol, seed, now):
         interrupted pour is taken as it stands, the work its stage still
         needs when it resumes.
     """
-    root, stages = Path(root), study.all_stages()
-    missing = tuple(s for s in stages if not (root / study.pile(protocol, seed, s)).exists())
-    if not set(study.final_stages()) & set(missing):
+    root, stages = Path(root), study.stages.all_stages()
+    missing = tuple(s for s in stages if not (root / study.paths.pile(protocol, seed, s)).exists())
+    if not set(study.stages.final_stages()) & set(missing):
         return PileState(protocol, seed, "done")
     stage = missing[0]
     if stage != "poured":
-        ages = [_age(root / study.stage_log(protocol, seed, s), now) for s in stages]
+        ages = [_age(root / study.paths.stage_log(protocol, seed, s), now) for s in stages]
         state = "running" if any(a is not None and a < RECENT_S for a in ages) else "left"
     elif pour_running(root, study, protocol, seed):
         state = "running"
-    elif any((root / path).exists() for path in (study.pour_checkpoint(protocol, seed),
+    elif any((root / path).exists() for path in (study.paths.pour_checkpoint(protocol, seed),
                                                   pour_lock(study, protocol, seed))):
         state = "interrupted"
     else:
         state = "left"
     if state == "left":
         return PileState(protocol, seed, "left", missing)
-    log = root / study.stage_log(protocol, seed, stage)
+    log = root / study.paths.stage_log(protocol, seed, stage)
     progress = last_progress(log)
     if progress is None:
         return PileState(protocol, seed, state, missing)
@@ -317,10 +318,10 @@ def stage_means(root, study, piles):
         Mean CPU seconds per stage (empty when no pile counts) and the number
         of piles averaged: the done ones with a benchmark of every stage.
     """
-    rows, stages = [], study.all_stages()
+    rows, stages = [], study.stages.all_stages()
     for p in piles:
         if p.state == "done":
-            cpu = [benchmark_cpu(Path(root) / study.stage_benchmark(p.protocol, p.seed, s)) for s in stages]
+            cpu = [benchmark_cpu(Path(root) / study.paths.stage_benchmark(p.protocol, p.seed, s)) for s in stages]
             if None not in cpu:
                 rows.append(cpu)
     means = {s: sum(r[i] for r in rows) / len(rows) for i, s in enumerate(stages)} if rows else {}
@@ -439,9 +440,9 @@ def progress_line(root, config, cores, now, label="study"):
         return (f"{label} ({config['results']}/): built from the per-pile results committed under "
                 f"{config['committed']}/, nothing to simulate")
     study = Piles(config)
-    line = f"{label} ({study.results}/): " + _progress(root, study, cores, now)
+    line = f"{label} ({study.paths.folder}/): " + _progress(root, study, cores, now)
     legacy = Path(root) / "results" / "piles"
-    if not (Path(root) / study.results).is_dir() and legacy.is_dir():
+    if not (Path(root) / study.paths.folder).is_dir() and legacy.is_dir():
         line += (f"; {legacy} holds piles made before each configuration had its results folder: "
                  f"move them to {config['results']}/ (docs/workflow.md, \"Results folders\")")
     return line
@@ -493,7 +494,7 @@ def cost_model(study):
         step), times the ns per particle-step measured on the project's machine.
     """
     model = SimResources(study.config)
-    stages = study.all_stages()
+    stages = study.stages.all_stages()
     means = {s: model.stage_cpu_s(s) for s in stages}
     pour, m = study.config["pour"], study.config["model"]
     steps = sum(model.particle_steps(s) for s in stages)
