@@ -17,7 +17,7 @@ import pytest
 import yaml
 
 from sim import cli
-from sim.config import ModelParams, SimConfig
+from sim.config import SECTIONS, ModelParams, SimConfig
 from sim.engine import Simulation
 from sim.integrators import stability_limit
 from sim.io import load_simulation
@@ -28,7 +28,6 @@ from sim.shapes import make_shapes
 from sim.timestep import FREE_ZETA, drag_limit
 
 REPO = Path(__file__).resolve().parents[1]
-SECTIONS = ("model", "particles", "pour", "relax", "probe", "physics")
 
 #: A pour of 20 particles with each extreme, and what its one line must name.
 POUR_EXTREMES = [

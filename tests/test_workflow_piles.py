@@ -102,14 +102,13 @@ def test_the_targets_are_every_stage_of_every_pile_wedge_first():
 
 def test_a_job_receives_only_its_sections_without_the_bookkeeping():
     jobs = JobSettings(configuration())
-    pour = json.loads(jobs.sim_params("model", "particles", "pour", "physics"))
+    pour = json.loads(jobs.sim_params("pour"))
     assert sorted(pour) == ["model", "particles", "physics", "pour"]
     assert pour["pour"]["n_particles"] == 150
     assert "checkpoint_interval" not in pour["pour"] and "frame_interval" not in pour["pour"]
     changed = JobSettings(configuration({"relax": {"max_time": 2.0}}))
-    assert changed.sim_params("model", "particles", "pour", "physics") == jobs.sim_params(
-        "model", "particles", "pour", "physics")
-    assert changed.sim_params("model", "pour", "relax") != jobs.sim_params("model", "pour", "relax")
+    assert changed.sim_params("pour") == jobs.sim_params("pour")
+    assert changed.sim_params("relax") != jobs.sim_params("relax")
 
 
 def test_the_bookkeeping_travels_unrecorded():

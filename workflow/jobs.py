@@ -6,7 +6,7 @@ that change no result.
 
 import json
 
-from sim.config import BOOKKEEPING, result_settings
+from sim.config import BOOKKEEPING, STAGE_SECTIONS, result_settings
 from workflow.stages import STRETCH_KEYS, STRETCH_STAGE
 
 
@@ -40,27 +40,29 @@ class JobSettings:
     def __init__(self, config):
         self.config = config
 
-    def sim_params(self, *sections):
-        """The given simulator sections of the config as canonical JSON (sorted keys).
+    def sim_params(self, stage):
+        """The simulator sections the job of ``stage`` reads, as canonical JSON (sorted keys).
 
-        A simulation job receives only the sections it reads, so a changed
-        setting re-runs exactly the jobs that depend on it (pouring reads
-        model, particles, pour and physics; relaxing model, pour and relax,
-        the physics coming with the poured state; probing also probe). Adding
+        ``stage`` is ``pour``, ``relax`` or ``probe``; its sections are the
+        simulator's map of them (:data:`sim.config.STAGE_SECTIONS`). A job
+        receives only the sections it reads, so a changed setting re-runs
+        exactly the jobs that depend on it (pouring reads model, particles,
+        pour and physics; relaxing model, pour and relax, the physics coming
+        with the poured state; probing also probe). Adding
         a gravity level therefore re-runs only the probes, and a change in
         analysis or protocols no simulation. The bookkeeping settings
         (sim.config.BOOKKEEPING: checkpoint and progress intervals) change no
         result and are left out; they travel in :meth:`sim_bookkeeping`.
         """
-        return json.dumps(result_settings({k: self.config[k] for k in sections}), sort_keys=True)
+        return json.dumps(result_settings({k: self.config[k] for k in STAGE_SECTIONS[stage]}), sort_keys=True)
 
     def probe_sim_params(self, stage):
         """The simulator sections of the probe `stage` as canonical JSON
-        (``sim_params("model", "pour", "relax", "probe")``), each probe with only
+        (``sim_params("probe")``), each probe with only
         its own keys of ``probe``: the support stretch its STRETCH_KEYS, the
         gravity probes all others. So a scene that adds the stretch re-runs no
         gravity probe, and one that adds a tilt no stretch."""
-        settings = json.loads(self.sim_params("model", "pour", "relax", "probe"))
+        settings = json.loads(self.sim_params("probe"))
         stretch = stage == STRETCH_STAGE
         settings["probe"] = {k: v for k, v in settings["probe"].items() if (k in STRETCH_KEYS) == stretch}
         return json.dumps(settings, sort_keys=True)

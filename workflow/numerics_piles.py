@@ -6,7 +6,7 @@ that the ensemble's error against compute time reads.
 
 import json
 
-from sim.config import result_settings
+from sim.config import STAGE_SECTIONS, result_settings
 
 
 def factor_label(factor):
@@ -58,7 +58,7 @@ class NumericsPiles:
         p = self.settings
         return [(i, factor_label(f), int(s)) for i in p["integrators"] for f in p["dt_factors"] for s in p["seeds"]]
 
-    def sim_params(self, wildcards, sections):
+    def sim_params(self, wildcards, stage):
         """The simulator sections of one small pile as canonical JSON.
 
         The config's sections with pour.n_particles from numerics.piles, the
@@ -69,8 +69,9 @@ class NumericsPiles:
         ----------
         wildcards : snakemake.io.Wildcards
             ``integrator`` and ``factor`` of the run.
-        sections : tuple of str
-            The further sections the job reads (e.g. ``("relax",)``).
+        stage : str
+            ``pour`` or ``relax``: the job's sections are the simulator's map
+            of them (:data:`sim.config.STAGE_SECTIONS`).
 
         Returns
         -------
@@ -83,7 +84,7 @@ class NumericsPiles:
         else:
             model["dt"] = model["dt"] * factor
         cfg = {"model": model, "pour": dict(config["pour"], n_particles=self.settings["n_particles"])}
-        for k in sections:
+        for k in STAGE_SECTIONS[stage]:
             cfg.setdefault(k, config[k])
         return json.dumps(result_settings(cfg), sort_keys=True)
 

@@ -7,11 +7,10 @@ are :class:`workflow.jobs.JobSettings`. The rule files reach all of them
 through :class:`workflow.study.Study`.
 """
 
-from sim.config import SimConfig
+from sim.config import SECTIONS, SimConfig
 from sim.preflight import check_piles
 from workflow.paths import PilePaths
 from workflow.stages import Stages
-from workflow.validation import SIM_SECTIONS
 
 #: The two protocols the simulator knows, in the workflow's fixed order.
 ALL_PROTOCOLS = ("wedge", "layered")
@@ -98,7 +97,7 @@ class Piles:
         if not first or self.config["pour"]["n_particles"] > PREFLIGHT_PARTICLES:
             return []
         try:
-            check_piles(SimConfig.from_dict({k: self.config[k] for k in SIM_SECTIONS}), self.protocols, first[0])
+            check_piles(SimConfig.from_dict({k: self.config[k] for k in SECTIONS}), self.protocols, first[0])
         except ValueError as exc:  # sim.config.ConfigError, or the step rule's refusal of model.dt
             return [str(exc)]
         return []

@@ -56,7 +56,7 @@ from referencing import Registry, Resource
 from analysis.params import SCHEMA_FILE as ANALYSIS_SCHEMA
 from analysis.params import check_memory, resolve_params
 from sim.config import SCHEMA_FILE as SIM_SCHEMA
-from sim.config import SimConfig
+from sim.config import SECTIONS, SimConfig
 from sim.settings_file import SettingsFileError, number_from_text, read_settings_file
 from sim.settings_file import merge_settings as merge_configs  # the workflow's name for it
 
@@ -70,8 +70,6 @@ NUMERICS_SCHEMA = SCHEMAS / "numerics.schema.yaml"
 REFERRED_SCHEMAS = {"../../sim/config.schema.yaml": SIM_SCHEMA,
                     "../../analysis/params.schema.yaml": ANALYSIS_SCHEMA,
                     "numerics.schema.yaml": NUMERICS_SCHEMA}
-# The sections of the configuration that the simulator reads.
-SIM_SECTIONS = ("model", "particles", "pour", "relax", "probe", "physics")
 # The repository, and its folders of source (code, configuration, docs,
 # tests, CI, git): the results folder is none of them, nor inside one, nor
 # the repository itself.
@@ -305,7 +303,7 @@ def validate_config(config):
     if problem:
         raise ConfigurationError(f"invalid configuration: {problem}")
     check_results_folder(config["results"])
-    for check in (lambda: SimConfig.from_dict({k: config[k] for k in SIM_SECTIONS}),
+    for check in (lambda: SimConfig.from_dict({k: config[k] for k in SECTIONS}),
                   lambda: check_memory(resolve_params(config["analysis"]))):
         try:
             check()

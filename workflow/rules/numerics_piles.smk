@@ -28,7 +28,7 @@ rule numerics_pile_pour:
         cpu=study.numerics.cpu("{integrator}", "{factor}", "{seed}", "pour"),
     params:
         code=study.code.sim,
-        sim=lambda wildcards: study.numerics.sim_params(wildcards, ("particles",)),
+        sim=lambda wildcards: study.numerics.sim_params(wildcards, "pour"),
         bookkeeping=study.jobs.sim_bookkeeping(),
         protocol=study.numerics.settings["protocol"],
         checkpoint=lambda wildcards: study.numerics.pile(wildcards.integrator, wildcards.factor, wildcards.seed,
@@ -61,7 +61,7 @@ rule numerics_pile_relax:
         cpu=study.numerics.cpu("{integrator}", "{factor}", "{seed}", "relax"),
     params:
         code=study.code.sim,
-        sim=lambda wildcards: study.numerics.sim_params(wildcards, ("relax",)),
+        sim=lambda wildcards: study.numerics.sim_params(wildcards, "relax"),
         bookkeeping=study.jobs.sim_bookkeeping(),
     log:
         study.paths.results_path("logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_relax.log"),

@@ -37,7 +37,7 @@ rule pour:
         **({"frames": study.paths.pile_frames("{protocol}", "{seed}")} if study.scene.wants("film") else {}),
     params:
         code=study.code.sim,
-        sim=study.jobs.sim_params("model", "particles", "pour", "physics"),
+        sim=study.jobs.sim_params("pour"),
         bookkeeping=study.jobs.sim_bookkeeping(),
         checkpoint=lambda wildcards: study.paths.pour_checkpoint(wildcards.protocol, wildcards.seed),
         # the finished pour kept apart (PilePaths.pour_finished): Snakemake,

@@ -9,7 +9,7 @@ rule relax:
         study.paths.pile("{protocol}", "{seed}", "relaxed"),
     params:
         code=study.code.sim,
-        sim=study.jobs.sim_params("model", "pour", "relax"),
+        sim=study.jobs.sim_params("relax"),
         bookkeeping=study.jobs.sim_bookkeeping(),
     log:
         study.paths.stage_log("{protocol}", "{seed}", "relaxed"),
