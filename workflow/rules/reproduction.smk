@@ -72,6 +72,8 @@ if config["committed"]:
     # Issue 44: the calibration of the sources (one record per pile, {committed}/calibration/)
     # and the pre-registered decision (config/decision.yaml, records in {committed}/decision/).
     CALIBRATION_RECORDS = sorted(str(p) for p in (study.analysis.committed / "calibration").glob("*.json"))
+    # The levers (config/levers.yaml): calibration arms with one setting changed, records in {committed}/levers/.
+    LEVER_RECORDS = sorted(str(p) for p in (study.analysis.committed / "levers").glob("*.json"))
     DECISION_PLAN = study.repo / "config" / "decision.yaml"
 
     rule reproduction:
@@ -88,6 +90,7 @@ if config["committed"]:
             six_constants=expand(str(study.analysis.committed / "variants" / "{variant}" / "six_constants.md"),
                                  variant=SIX_CONSTANT_VARIANTS),
             calibration=[str(study.analysis.committed / "calibration.md")] if CALIBRATION_RECORDS else [],
+            levers=[str(study.analysis.committed / "levers.md")] if LEVER_RECORDS else [],
             decision=[str(study.analysis.committed / "decision.md")] if DECISION_PLAN.exists() else [],
         localrule: True
 
@@ -108,6 +111,26 @@ if config["committed"]:
         shell:
             study.commands.py_shell("{input.script:q} --table --config {input.config:q} --records {params.records:q} "
                      "--out {output:q} > {log:q} 2>&1")
+
+    rule reproduction_levers:
+        input:
+            records=LEVER_RECORDS,
+            baseline=CALIBRATION_RECORDS,
+            config="config/levers.yaml",
+            script="workflow/scripts/calibration.py",
+        output:
+            str(study.analysis.committed / "levers.md"),
+        params:
+            records=str(study.analysis.committed / "levers"),
+            baseline=str(study.analysis.committed / "calibration"),
+        log:
+            study.paths.results_path("logs/reproduction/levers.log"),
+        localrule: True
+        conda:
+            "../envs/polypile.yaml"
+        shell:
+            study.commands.py_shell("{input.script:q} --table --config {input.config:q} --records {params.records:q} "
+                     "--baseline {params.baseline:q} --out {output:q} > {log:q} 2>&1")
 
     rule reproduction_decision:
         input:

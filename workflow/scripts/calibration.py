@@ -303,8 +303,8 @@ def main(argv=None) -> None:
         baseline = list(dict.fromkeys(r["arm"] for r in base_records
                                       if any(baseline_arm(a, [r["arm"]]) for a in arms)))
         shown = [b for b in baseline] + arms if baseline else arms
-        page = (f"# The calibration of the sources: piles of {records[0]['n_particles'] if records else '?'} "
-                "particles, per arm\n\n"
+        page = (f"# {'Levers of the sources' if baseline else 'The calibration of the sources'}: piles of "
+                f"{records[0]['n_particles'] if records else '?'} particles, per arm\n\n"
                 "Made by `workflow/scripts/calibration.py --table` from the per-pile records in "
                 f"{_shown(args.records)}/ (settings: {_shown(args.config)}; what each number is: the script's "
                 "docstring); mean ± standard error over seeds, the number of piles after each arm. CPU seconds "
