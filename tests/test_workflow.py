@@ -442,6 +442,12 @@ def test_bad_scene_stops_before_any_job(workdir, name, override, message):
 
 # A stand-in for `python -m sim`: checks the command line the rules build
 # against the simulator's interface and writes what it was given as "output".
+#: The fake simulator's checks of the piles before any job (workflow.piles.Piles.preflight):
+#: it stands for sim/preflight.py and refuses nothing, as the fake simulator pours anything.
+FAKE_PREFLIGHT = '''def check_piles(cfg, protocols, seed):
+    """Stands for sim.preflight.check_piles: the fake simulator refuses no settings."""
+'''
+
 FAKE_SIM_MAIN = '''
 import argparse, json, os, sys
 from pathlib import Path
@@ -498,6 +504,7 @@ def ran(tmp_path_factory):
     (root / "sim" / "__init__.py").write_text("")
     (root / "sim" / "__main__.py").write_text(FAKE_SIM_MAIN)
     (root / "sim" / "kernels.py").write_text("# stands for the Numba kernels\n")
+    (root / "sim" / "preflight.py").write_text(FAKE_PREFLIGHT)
     (root / "analysis" / "__main__.py").write_text(FAKE_ANALYSIS_MAIN)
     targets = ["piles"] + [f"results/smoke/figures/piles/{p}_seed{s}_relaxed.png"
                            for p, s in smoke_piles()]
@@ -661,6 +668,7 @@ def ran_all(tmp_path_factory):
     (root / "sim" / "__init__.py").write_text("")
     (root / "sim" / "__main__.py").write_text(FAKE_SIM_MAIN)
     (root / "sim" / "kernels.py").write_text("# stands for the Numba kernels\n")
+    (root / "sim" / "preflight.py").write_text(FAKE_PREFLIGHT)
     (root / "analysis" / "__main__.py").write_text(FAKE_ANALYSIS_ANY)
     proc = snakemake(root, "--cores", "2", *SMOKE, timeout=600)
     assert proc.returncode == 0, proc.output[-5000:]
