@@ -27,7 +27,6 @@ class Unrecorded:
         return self.text
 
 
-
 class JobSettings:
     """The simulator settings of the simulation jobs of a validated configuration.
 

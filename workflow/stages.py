@@ -48,7 +48,6 @@ def probe_input_stage(stage):
     return "reduced" if stage == "restored" else "relaxed"
 
 
-
 class Stages:
     """The stages of the piles of a validated configuration (config ``probe``).
 
