@@ -4,9 +4,10 @@ The keys, defaults and ranges are those of the JSON schema
 ``analysis/params.schema.yaml`` (:data:`SCHEMA_FILE`), which ships inside the
 package and is read when this module is imported: the workflow's
 configuration schema refers to it and validates against it before anything
-runs, and :data:`DEFAULTS` and the checks here are built from it, so both agree
-by construction (tests/test_settings_single_source.py probes it).  What a schema cannot
-express (an ordered grid, a grid of at most 10^6 points, the raster pixel
+runs, and :data:`DEFAULTS` are built from it and every setting is checked
+against it by jsonschema (:func:`_check_setting`), so both agree by
+construction (tests/test_settings_single_source.py probes it).  What a schema
+cannot express (an ordered grid, a grid of at most 10^6 points, the raster pixel
 against the RVE size, the bins inside the base-pressure range, the order of the history windows) is checked in
 :func:`resolve_params`.
 
@@ -20,12 +21,12 @@ from __future__ import annotations
 import copy
 import json
 import math
-import re
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from sim.config import BOUND_OPS, schema_error, schema_types
 from sim.settings_file import SettingsDumper, SettingsFileError, read_settings
 
 from .errors import ParamError
@@ -48,105 +49,43 @@ DEFAULTS: dict[str, Any] = {
     for section, sub in _SCHEMA["properties"].items()
 }
 
-_NUM = "number"
-_INT = "integer"
-_BOOL = "boolean"
-_STR = "string"
+#: Each section's schema, ``{section: schema}``.
+_SECTIONS: dict[str, dict[str, Any]] = _SCHEMA["properties"]
+
+_NOT = {"number": "is not a finite number", "integer": "is not an integer",
+        "boolean": "is not true/false", "string": "is not a string"}
 
 
-def _spec(name: str, prop: dict[str, Any]) -> dict[str, Any]:
-    """What :func:`_check_value` checks for the setting ``name`` with the schema ``prop``:
-    ``type`` (number, integer, boolean, string, or ``points`` / ``sizes`` for the two
-    kinds of list), ``nullable``, ``min`` / ``max`` with ``exclusive`` /
-    ``max_exclusive``, ``choices`` (an enum) and ``pattern``."""
-    kinds = [prop["type"]] if isinstance(prop["type"], str) else list(prop["type"])
-    spec: dict[str, Any] = {}
-    if "null" in kinds:
-        kinds.remove("null")
-        spec["nullable"] = True
-    (kind,) = kinds
-    if kind == "array":  # the two kinds of list the checks know, exactly as the schema has them
-        items = prop["items"]
-        if items.get("type") == "array" and items.get("minItems") == items.get("maxItems") == 2 \
-                and items["items"] == {"type": "number"} and prop.get("minItems") == 1:
-            kind = "points"
-        elif items == {"type": "number", "exclusiveMinimum": 0} and prop.get("minItems") == 1:
-            kind = "sizes"
-        else:
-            raise ValueError(f"analysis.{name}: no check for the list schema {prop}")
-    spec["type"] = kind
-    if "minimum" in prop:
-        spec["min"] = prop["minimum"]
-    if "exclusiveMinimum" in prop:
-        spec["min"], spec["exclusive"] = prop["exclusiveMinimum"], True
-    if "maximum" in prop:
-        spec["max"] = prop["maximum"]
-    if "exclusiveMaximum" in prop:
-        spec["max"], spec["max_exclusive"] = prop["exclusiveMaximum"], True
-    if "enum" in prop:
-        spec["choices"] = list(prop["enum"])
-    if "pattern" in prop:
-        spec["pattern"], spec["pattern_words"] = prop["pattern"], prop["patternWords"]
-    return spec
+def _check_setting(name: str, value: Any, schema: dict[str, Any]) -> None:
+    """The analysis's one schema checker: ``value`` of the setting ``analysis.name``
+    against its JSON schema (:func:`sim.config.schema_error` decides).
 
-
-_SPEC: dict[str, dict[str, dict[str, Any]]] = {
-    section: {key: _spec(f"{section}.{key}", prop) for key, prop in sub["properties"].items()}
-    for section, sub in _SCHEMA["properties"].items()
-}
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
-def _check_value(name: str, value: Any, spec: dict[str, Any]) -> None:
-    kind = spec["type"]
+    Raises
+    ------
+    ParamError
+        Naming the setting, its value and what is allowed.
+    """
+    error = schema_error(value, schema)
+    if error is None:
+        return
+    (kind,) = [k for k in schema_types(schema) if k != "null"]
+    where = f"analysis.{name} = {value!r}"
+    if kind == "array":  # a list of [x, y] points, or of sizes
+        points = schema["items"].get("type") == "array"
+        kind, words = ("points", "[x, y] pairs") if points else ("sizes", "positive numbers")
+        if value is not None:
+            raise ParamError(f"{where} must be a non-empty list of {words} (m)")
     if value is None:
-        if spec.get("nullable"):
-            return
         raise ParamError(f"analysis.{name} = null is not allowed; expected a {kind}")
-    or_null = " or null" if spec.get("nullable") else ""
-    if kind == _NUM:
-        if not _is_number(value):
-            raise ParamError(f"analysis.{name} = {value!r} is not a finite number{or_null}")
-    elif kind == _INT:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ParamError(f"analysis.{name} = {value!r} is not an integer{or_null}")
-    elif kind == _BOOL:
-        if not isinstance(value, bool):
-            raise ParamError(f"analysis.{name} = {value!r} is not true/false")
-    elif kind == _STR:
-        if not isinstance(value, str):
-            raise ParamError(f"analysis.{name} = {value!r} is not a string")
-        if "choices" in spec and value not in spec["choices"]:
-            allowed = ", ".join(repr(c) for c in spec["choices"])
-            raise ParamError(f"analysis.{name} = {value!r} is not allowed; allowed values: {allowed}")
-        if "pattern" in spec and not re.fullmatch(spec["pattern"], value):
-            raise ParamError(f"analysis.{name} = {value!r} is not allowed; allowed: {spec['pattern_words']}")
-        return
-    elif kind == "sizes":
-        if (not isinstance(value, list) or not value
-                or not all(_is_number(v) and v > 0 for v in value)):
-            raise ParamError(f"analysis.{name} = {value!r} must be a non-empty list of positive numbers (m)")
-        return
-    elif kind == "points":
-        ok = isinstance(value, list) and value and all(
-            isinstance(p, list) and len(p) == 2 and all(_is_number(c) for c in p) for p in value)
-        if not ok:
-            raise ParamError(f"analysis.{name} = {value!r} must be a non-empty list of [x, y] pairs (m)")
-        return
-    lo, hi = spec.get("min"), spec.get("max")
-    if lo is not None:
-        if spec.get("exclusive") and not value > lo:
-            raise ParamError(f"analysis.{name} = {value!r} must be > {lo}")
-        if not spec.get("exclusive") and not value >= lo:
-            raise ParamError(f"analysis.{name} = {value!r} must be >= {lo}")
-    if hi is not None:
-        if spec.get("max_exclusive") and not value < hi:
-            raise ParamError(f"analysis.{name} = {value!r} must be < {hi}")
-        if not spec.get("max_exclusive") and not value <= hi:
-            raise ParamError(f"analysis.{name} = {value!r} must be <= {hi}")
+    if error.validator in BOUND_OPS:
+        raise ParamError(f"{where} must be {BOUND_OPS[error.validator]} {error.validator_value}")
+    if error.validator == "enum":
+        allowed = ", ".join(repr(c) for c in schema["enum"])
+        raise ParamError(f"{where} is not allowed; allowed values: {allowed}")
+    if error.validator == "pattern":
+        raise ParamError(f"{where} is not allowed; allowed: {schema['patternWords']}")
+    or_null = " or null" if "null" in schema_types(schema) and kind in ("number", "integer") else ""
+    raise ParamError(f"{where} {_NOT[kind]}{or_null}")
 
 
 def check_memory(params: dict[str, Any]) -> None:
@@ -193,20 +132,20 @@ def resolve_params(user: dict[str, Any] | None) -> dict[str, Any]:
         raise ParamError(f"the analysis parameters must be a mapping, got {type(user).__name__}")
     out = copy.deepcopy(DEFAULTS)
     for section, values in user.items():
-        if section not in _SPEC:
-            raise ParamError(f"unknown setting analysis.{section}; allowed sections: {', '.join(sorted(_SPEC))}")
+        if section not in _SECTIONS:
+            raise ParamError(f"unknown setting analysis.{section}; allowed sections: {', '.join(sorted(_SECTIONS))}")
         if values is None:
             continue
         if not isinstance(values, dict):
             raise ParamError(f"analysis.{section} must be a mapping, got {values!r}")
         for key, value in values.items():
-            if key not in _SPEC[section]:
+            if key not in _SECTIONS[section]["properties"]:
                 raise ParamError(f"unknown setting analysis.{section}.{key}; allowed keys: "
-                                 f"{', '.join(sorted(_SPEC[section]))}")
+                                 f"{', '.join(sorted(_SECTIONS[section]['properties']))}")
             out[section][key] = copy.deepcopy(value)
-    for section, keys in _SPEC.items():
-        for key, spec in keys.items():
-            _check_value(f"{section}.{key}", out[section][key], spec)
+    for section, sub in _SECTIONS.items():
+        for key, schema in sub["properties"].items():
+            _check_setting(f"{section}.{key}", out[section][key], schema)
     g = out["grid"]
     if not g["x_min"] <= g["x_max"]:
         raise ParamError(f"analysis.grid.x_min = {g['x_min']} must be <= analysis.grid.x_max = {g['x_max']}")

@@ -10,8 +10,10 @@ that holds them, the sections ``model``, ``particles``, ``pour``, ``relax``,
 ``probe`` and ``physics`` of ``sim/config.schema.yaml`` (:data:`SCHEMA_FILE`),
 which ships inside the package and which the workflow's configuration schema
 refers to, so the command line and the workflow agree by construction
-(tests/test_settings_single_source.py probes it).  What a schema cannot
-express (``corners_max >= corners_min``, ``hold_time <= max_time``, the
+(tests/test_settings_single_source.py probes it), and every setting is checked
+against it by jsonschema (:func:`check_setting`, the simulator's one schema
+checker, which also serves :mod:`sim.numerics` and the workflow's messages).
+What a schema cannot express (``corners_max >= corners_min``, ``hold_time <= max_time``, the
 walls' order and spacing) is checked in the dataclasses below.
 
 Units are SI in two dimensions: lengths in m, masses in kg, the particle
@@ -27,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
+from jsonschema import Draft202012Validator, validators
 
 
 class ConfigError(ValueError):
@@ -62,6 +65,12 @@ SCHEMA_FILE = Path(__file__).resolve().parent / "config.schema.yaml"
 
 _SCHEMA = yaml.safe_load(SCHEMA_FILE.read_text(encoding="utf-8"))
 
+#: What each list setting must be, in words, for the message when it is not a
+#: list or has the wrong length (:func:`check_setting`).
+LIST_SHAPES = {"probe.levels": "a list of numbers in (0, 1) (empty: no gravity probe)",
+               "probe.tilts": "a list of numbers in (0, 0.5) (empty: no tilted probe)",
+               "physics.walls": "null or [x_left, x_right] in m"}
+
 
 def setting_schema(section: str, name: str) -> dict:
     """The schema of the setting ``section.name`` (type, bounds, default, ...).
@@ -82,13 +91,19 @@ def setting_schema(section: str, name: str) -> dict:
         raise KeyError(f"{section}.{name} is not a setting of {SCHEMA_FILE}") from None
 
 
-def _types(schema: dict) -> list:
+def schema_types(schema: dict) -> list:
+    """The ``type`` of a JSON schema as a list (empty when it gives none)."""
     kinds = schema.get("type", [])
     return [kinds] if isinstance(kinds, str) else list(kinds)
 
 
+#: Each bound keyword of a JSON schema and its comparison, in the order the
+#: messages name them.
+BOUND_OPS = {"minimum": ">=", "exclusiveMinimum": ">", "maximum": "<=", "exclusiveMaximum": "<"}
+
+
 def setting_bounds(schema: dict) -> dict:
-    """The bounds of a numeric schema as keyword arguments of :func:`check_number`.
+    """The bounds of a numeric schema.
 
     Parameters
     ----------
@@ -98,18 +113,106 @@ def setting_bounds(schema: dict) -> dict:
     Returns
     -------
     dict
-        ``lo``, ``hi`` (None when unbounded), ``lo_open``, ``hi_open`` and
-        ``integer`` (the schema allows integers only).
+        ``lo``, ``hi`` (None when unbounded), ``lo_open`` and ``hi_open``.
     """
     for a, b in (("minimum", "exclusiveMinimum"), ("maximum", "exclusiveMaximum")):
         if a in schema and b in schema:
             raise ValueError(f"a setting's schema gives both {a} and {b}: {schema}")
-    kinds = _types(schema)
     return {"lo": schema.get("minimum", schema.get("exclusiveMinimum")),
             "hi": schema.get("maximum", schema.get("exclusiveMaximum")),
             "lo_open": "exclusiveMinimum" in schema,
-            "hi_open": "exclusiveMaximum" in schema,
-            "integer": "integer" in kinds and "number" not in kinds}
+            "hi_open": "exclusiveMaximum" in schema}
+
+
+def number_kind(schema: dict) -> str:
+    """``"an integer"`` when the schema allows integers only, else ``"a number"``."""
+    kinds = schema_types(schema)
+    return "an integer" if "integer" in kinds and "number" not in kinds else "a number"
+
+
+def bounds_text(schema: dict) -> str:
+    """A schema's bounds in words (``">= 0 and <= 10"``; empty when it has none)."""
+    return " and ".join(f"{op} {schema[key]}" for key, op in BOUND_OPS.items() if key in schema)
+
+
+def _is_real(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+# JSON schema's types as the project reads settings: a number is finite, an
+# integer is not a float (3500.0), a list may be a tuple (a dataclass's).
+_TYPES = Draft202012Validator.TYPE_CHECKER.redefine_many({
+    "number": lambda _, v: _is_real(v) and math.isfinite(v),
+    "integer": lambda _, v: isinstance(v, int) and not isinstance(v, bool),
+    "array": lambda _, v: isinstance(v, (list, tuple))})
+_SettingValidator = validators.extend(Draft202012Validator, type_checker=_TYPES)
+
+
+def schema_error(value: Any, schema: dict):
+    """The violation of ``schema`` by ``value`` that a message names, or None.
+
+    The schema decides (jsonschema, Draft 2020-12, with a number finite and an
+    integer not a float). Of several violations the first of: the value's
+    type, the list's own rules (its length), the first item's, repeated items.
+
+    Returns
+    -------
+    jsonschema.ValidationError or None
+        ``validator`` names the broken keyword; ``relative_path`` is empty,
+        or the index of the offending item (then ``schema`` and ``instance``
+        are the item's).
+    """
+    errors = _SettingValidator(schema).iter_errors(value)
+    return min(errors, key=lambda e: (e.validator == "uniqueItems", tuple(e.relative_path),
+                                      e.validator != "type"), default=None)
+
+
+def check_setting(key: str, value: Any, schema: dict, shape: str | None = None) -> None:
+    """The simulator's check of one setting against its JSON schema.
+
+    Parameters
+    ----------
+    key : str
+        The setting's dotted name, for the message (``"model.friction"``).
+    value : object
+        Its value.
+    schema : dict
+        Its schema (:func:`setting_schema`, or one written for the setting).
+    shape : str, optional
+        For a list: what it must be, in words, when it is not a list or has
+        the wrong length.
+
+    Raises
+    ------
+    ConfigError
+        ``KEY = VALUE: must be ...``: one of the ``enum``, true or false, a
+        number or an integer, finite, within the bounds (all named), a string;
+        for a list the shape, an item (``KEY[] = ITEM: ...``), or unique.
+    """
+    error = schema_error(value, schema)
+    if error is None:
+        return
+    if error.relative_path:
+        key, value, schema = f"{key}[]", error.instance, error.schema
+    elif error.validator == "uniqueItems":
+        raise ConfigError(f"{key} = {list(value)!r}: must be unique")
+    elif "array" in schema_types(schema):
+        raise ConfigError(f"{key} = {value!r}: must be {shape}")
+    kinds = schema_types(schema)
+    if "enum" in schema:
+        allowed = "one of " + ", ".join(repr(c) for c in schema["enum"])
+    elif "boolean" in kinds:
+        allowed = "true or false"
+    elif "number" not in kinds and "integer" not in kinds:
+        allowed = "a string"
+    elif error.validator in BOUND_OPS:
+        allowed = bounds_text(schema)
+    elif not _is_real(value) or (number_kind(schema) == "an integer"
+                                 and not isinstance(value, int)):
+        allowed = number_kind(schema)
+    else:
+        allowed = "finite"
+    raise ConfigError(f"{key} = {value!r}: must be {allowed}")
 
 
 def _default(section: str, name: str) -> Any:
@@ -119,54 +222,13 @@ def _default(section: str, name: str) -> Any:
     return tuple(value) if isinstance(value, list) else value
 
 
-def check_number(section: str, name: str, value: Any, lo=None, hi=None,
-                  lo_open=False, hi_open=False, integer=False) -> None:
-    """Raise :class:`ConfigError` unless ``value`` is a finite number in range."""
-    key = f"{section}.{name}"
-    kind = "an integer" if integer else "a number"
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or (
-            integer and not isinstance(value, int)):
-        raise ConfigError(f"{key} = {value!r}: must be {kind}")
-    if not math.isfinite(value):
-        raise ConfigError(f"{key} = {value!r}: must be finite")
-    lo_txt = None if lo is None else (f"> {lo}" if lo_open else f">= {lo}")
-    hi_txt = None if hi is None else (f"< {hi}" if hi_open else f"<= {hi}")
-    allowed = " and ".join(t for t in (lo_txt, hi_txt) if t)
-    if lo is not None and (value < lo or (lo_open and value == lo)):
-        raise ConfigError(f"{key} = {value!r}: must be {allowed}")
-    if hi is not None and (value > hi or (hi_open and value == hi)):
-        raise ConfigError(f"{key} = {value!r}: must be {allowed}")
-
-
-def _check_value(section: str, name: str, value: Any, schema: dict) -> None:
-    """Raise :class:`ConfigError` unless ``value`` is a scalar that ``schema`` allows
-    (null, one of an ``enum``, a boolean, a number or integer within its bounds)."""
-    kinds = _types(schema)
-    if value is None and "null" in kinds:
-        return
-    if "enum" in schema:
-        if isinstance(value, bool) or value not in schema["enum"]:
-            raise ConfigError(f"{section}.{name} = {value!r}: must be one of "
-                              + ", ".join(repr(c) for c in schema["enum"]))
-    elif "boolean" in kinds:
-        if not isinstance(value, bool):
-            raise ConfigError(f"{section}.{name} = {value!r}: must be true or false")
-    elif "number" in kinds or "integer" in kinds:
-        check_number(section, name, value, **setting_bounds(schema))
-    elif "string" in kinds:
-        if not isinstance(value, str):
-            raise ConfigError(f"{section}.{name} = {value!r}: must be a string")
-    else:
-        raise TypeError(f"{section}.{name}: no check for the schema {schema}")
-
-
 def _check_fields(params: Any, section: str) -> None:
-    """Check every scalar field of the dataclass ``params`` against the schema of
-    ``section`` (lists are checked by their dataclass)."""
+    """Check every field of the dataclass ``params`` against the schema of ``section``
+    (:func:`check_setting`, in the order of the fields)."""
     for f in dataclasses.fields(params):
-        schema = setting_schema(section, f.name)
-        if "array" not in _types(schema):
-            _check_value(section, f.name, getattr(params, f.name), schema)
+        key = f"{section}.{f.name}"
+        check_setting(key, getattr(params, f.name), setting_schema(section, f.name),
+                      LIST_SHAPES.get(key))
 
 
 @dataclass(frozen=True)
@@ -413,24 +475,12 @@ class ProbeParams:
     stretch_time: float = _default("probe", "stretch_time")
 
     def __post_init__(self):
-        self._check_numbers("levels", "in (0, 1) (empty: no gravity probe)")
-        self._check_numbers("tilts", "in (0, 0.5) (empty: no tilted probe)")
+        _check_fields(self, "probe")
+        for key in ("levels", "tilts"):
+            object.__setattr__(self, key, tuple(float(v) for v in getattr(self, key)))
         if self.restore and not self.levels:
             raise ConfigError("probe.restore = true with probe.levels = []: restoring "
                               "gravity needs a gravity reduction first (give a level)")
-        _check_fields(self, "probe")
-
-    def _check_numbers(self, key, allowed):
-        """The list setting ``probe.<key>``: unique numbers within the schema's
-        bounds of its items, kept as a tuple of floats."""
-        values = getattr(self, key)
-        if not isinstance(values, (list, tuple)):
-            raise ConfigError(f"probe.{key} = {values!r}: must be a list of numbers {allowed}")
-        for value in values:
-            _check_value("probe", f"{key}[]", value, setting_schema("probe", key)["items"])
-        if len(set(values)) != len(values):
-            raise ConfigError(f"probe.{key} = {list(values)!r}: must be unique")
-        object.__setattr__(self, key, tuple(float(v) for v in values))
 
 
 @dataclass(frozen=True)
@@ -466,13 +516,6 @@ class PhysicsParams:
             raise ConfigError("physics.rough_base = True: the base lies on the support, but "
                               "physics.support = False (allowed with a rough base: true)")
         if self.walls is not None:
-            schema = setting_schema("physics", "walls")
-            if not isinstance(self.walls, (list, tuple)) or not (
-                    schema["minItems"] <= len(self.walls) <= schema["maxItems"]):
-                raise ConfigError(f"physics.walls = {self.walls!r}: must be null or "
-                                  "[x_left, x_right] in m")
-            for w in self.walls:
-                _check_value("physics", "walls[]", w, schema["items"])
             if not self.walls[0] < self.walls[1]:
                 raise ConfigError(f"physics.walls = {list(self.walls)!r}: x_left must be "
                                   "< x_right")

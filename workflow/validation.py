@@ -56,7 +56,7 @@ from referencing import Registry, Resource
 from analysis.params import SCHEMA_FILE as ANALYSIS_SCHEMA
 from analysis.params import check_memory, resolve_params
 from sim.config import SCHEMA_FILE as SIM_SCHEMA
-from sim.config import SECTIONS, SimConfig
+from sim.config import SECTIONS, SimConfig, bounds_text, number_kind, schema_types
 from sim.settings_file import SettingsFileError, number_from_text, read_settings_file
 from sim.settings_file import merge_settings as merge_configs  # the workflow's name for it
 
@@ -155,18 +155,7 @@ def _resolve(schema, root):
 
 def _allowed(schema):
     """What a numeric schema allows, in words ("a number >= 0 and <= 10")."""
-    kinds = schema.get("type", "number")
-    kind = "an integer" if "integer" in kinds and "number" not in kinds else "a number"
-    bounds = [f"{op} {schema[key]}" for key, op in (
-        ("minimum", ">="), ("exclusiveMinimum", ">"), ("maximum", "<="),
-        ("exclusiveMaximum", "<")) if key in schema]
-    return " ".join([kind] + [" and ".join(bounds)] if bounds else [kind])
-
-
-def _types(schema):
-    """The ``type`` of a schema as a list (empty when it gives none)."""
-    kinds = schema.get("type", [])
-    return [kinds] if isinstance(kinds, str) else list(kinds)
+    return " ".join(filter(None, (number_kind(schema), bounds_text(schema))))
 
 
 def _number_slots(value, schema, root, key=""):
@@ -187,7 +176,7 @@ def _number_slots(value, schema, root, key=""):
         return
     for name, sub, where in children:
         sub, sub_root = _resolve(sub, root)
-        if not isinstance(value[name], (dict, list)) and {"number", "integer"} & set(_types(sub)):
+        if not isinstance(value[name], (dict, list)) and {"number", "integer"} & set(schema_types(sub)):
             yield value, name, where, sub
         else:
             yield from _number_slots(value[name], sub, sub_root, where)
@@ -213,7 +202,7 @@ def coerce_numbers(value, schema):
     """
     for holder, name, _, sub in _number_slots(value, schema, schema):
         number = number_from_text(holder[name])
-        if number is not None and "string" not in _types(sub):
+        if number is not None and "string" not in schema_types(sub):
             holder[name] = number
 
 
@@ -239,12 +228,12 @@ def number_problems(value, schema, root=None, key=""):
     problems = []
     for holder, name, where, sub in _number_slots(value, schema, schema if root is None else root, key):
         number = holder[name]
-        if isinstance(number, str) and "string" not in _types(sub):
+        if isinstance(number, str) and "string" not in schema_types(sub):
             problems.append(f"{where} = {number!r}: must be {_allowed(sub)}, not text (numbers are "
                             "written unquoted: 800, 0.5, 2.5e-3, 1e7)")
         elif isinstance(number, float) and not math.isfinite(number):
             problems.append(f"{where} = {number!r}: must be finite, {_allowed(sub)}")
-        elif isinstance(number, float) and "integer" in _types(sub) and "number" not in _types(sub):
+        elif isinstance(number, float) and "integer" in schema_types(sub) and "number" not in schema_types(sub):
             problems.append(f"{where} = {number!r}: must be an integer (write "
                             f"{int(number) if number.is_integer() else 'a whole number'}), "
                             f"{_allowed(sub)}")

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import xarray as xr
 
-from ..config import ConfigError, check_number
+from ..config import ConfigError, check_setting
 from ..integrators import INTEGRATORS
 from .collision_scenes import CONTACTS, OBSERVABLES, CollisionCase, measure, reference, scene
 from .command import run_numerics_check, settings_from_dict
@@ -74,15 +74,19 @@ class CollisionSettings:
                                   f"{sorted(INTEGRATORS)}")
         if not self.integrators:
             raise ConfigError(f"{s}.integrators: must name at least one integrator")
-        check_number(s, "youngs_modulus", self.youngs_modulus, lo=0, lo_open=True)
-        check_number(s, "normal_speed", self.normal_speed, lo=0, lo_open=True)
-        check_number(s, "tangential_speed", self.tangential_speed)
-        check_number(s, "largest_fraction", self.largest_fraction, lo=0, hi=1, lo_open=True)
-        check_number(s, "smallest_fraction", self.smallest_fraction, lo=1e-4,
-                      hi=self.largest_fraction)
-        check_number(s, "steps_per_decade", self.steps_per_decade, lo=1, hi=20, integer=True)
-        check_number(s, "repeats", self.repeats, lo=1, hi=100, integer=True)
-        check_number(s, "target_error", self.target_error, lo=0, hi=1, lo_open=True)
+        number = {"type": "number"}
+        fraction = {"type": "number", "exclusiveMinimum": 0, "maximum": 1}
+        check_setting(f"{s}.youngs_modulus", self.youngs_modulus, {**number, "exclusiveMinimum": 0})
+        check_setting(f"{s}.normal_speed", self.normal_speed, {**number, "exclusiveMinimum": 0})
+        check_setting(f"{s}.tangential_speed", self.tangential_speed, number)
+        check_setting(f"{s}.largest_fraction", self.largest_fraction, fraction)
+        check_setting(f"{s}.smallest_fraction", self.smallest_fraction,
+                      {**number, "minimum": 1e-4, "maximum": self.largest_fraction})
+        check_setting(f"{s}.steps_per_decade", self.steps_per_decade,
+                      {"type": "integer", "minimum": 1, "maximum": 20})
+        check_setting(f"{s}.repeats", self.repeats,
+                      {"type": "integer", "minimum": 1, "maximum": 100})
+        check_setting(f"{s}.target_error", self.target_error, fraction)
         if not self.cases:
             raise ConfigError(f"{s}.cases: must list at least one collision")
         names = [c.get("name") for c in self.cases]
@@ -96,10 +100,9 @@ class CollisionSettings:
             if c["contact"] not in CONTACTS:
                 raise ConfigError(f"{s}.cases[{c['name']}].contact = {c['contact']!r}: "
                                   f"must be one of {list(CONTACTS)}")
-            check_number(f"{s}.cases[{c['name']}]", "damping", c.get("damping", 0.0),
-                          lo=0, hi=10)
-            check_number(f"{s}.cases[{c['name']}]", "friction", c.get("friction", 0.0),
-                          lo=0, hi=10)
+            for name in ("damping", "friction"):
+                check_setting(f"{s}.cases[{c['name']}].{name}", c.get(name, 0.0),
+                              {**number, "minimum": 0, "maximum": 10})
         object.__setattr__(self, "integrators", tuple(self.integrators))
         object.__setattr__(self, "cases", tuple(dict(c) for c in self.cases))
 

@@ -44,7 +44,7 @@ import numpy as np
 import xarray as xr
 
 from ..blowup import ELASTIC_UNDERESTIMATE, BlowUpError
-from ..config import ConfigError, check_number
+from ..config import ConfigError, check_setting
 from ..integrators import INTEGRATORS
 from .command import run_numerics_check, settings_from_dict
 from .stability_cases import CASE_NAMES, case_builders, linear_spring, linear_spring_limit, packing
@@ -90,15 +90,17 @@ class StabilitySettings:
         if not self.stiffness:
             raise ConfigError(f"{s}.stiffness: must list at least one Young's modulus")
         for y in self.stiffness:
-            check_number(s, "stiffness[]", y, lo=1e3, hi=1e12)
+            check_setting(f"{s}.stiffness[]", y,
+                          {"type": "number", "minimum": 1e3, "maximum": 1e12})
         unknown = sorted(set(self.cases) - set(CASE_NAMES))
         if unknown:
             raise ConfigError(f"{s}.cases: unknown case(s) {unknown}; known: {list(CASE_NAMES)}")
-        check_number(s, "steps", self.steps, lo=10, integer=True)
-        check_number(s, "search_steps", self.search_steps, lo=10, integer=True)
-        check_number(s, "search_resolution", self.search_resolution, lo=1e-4, hi=1,
-                      lo_open=True)
-        check_number(s, "energy_tolerance", self.energy_tolerance, lo=0, hi=1, lo_open=True)
+        check_setting(f"{s}.steps", self.steps, {"type": "integer", "minimum": 10})
+        check_setting(f"{s}.search_steps", self.search_steps, {"type": "integer", "minimum": 10})
+        check_setting(f"{s}.search_resolution", self.search_resolution,
+                      {"type": "number", "exclusiveMinimum": 1e-4, "maximum": 1})
+        check_setting(f"{s}.energy_tolerance", self.energy_tolerance,
+                      {"type": "number", "exclusiveMinimum": 0, "maximum": 1})
         for name in ("integrators", "stiffness", "cases"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
 
