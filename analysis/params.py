@@ -5,9 +5,9 @@ The keys, defaults and ranges are those of the JSON schema
 package and is read when this module is imported: the workflow's
 configuration schema refers to it and validates against it before anything
 runs, and :data:`DEFAULTS` are built from it and every setting is checked
-against it by jsonschema (:func:`_check_setting`), so both agree by
-construction (tests/test_settings_single_source.py probes it).  What a schema
-cannot express (an ordered grid, a grid of at most 10^6 points, the raster pixel
+against it by jsonschema (:func:`_check_setting` on :mod:`sim.schema`), so
+both agree by construction (tests/test_settings_single_source.py probes it).
+What a schema cannot express (an ordered grid, a grid of at most 10^6 points, the raster pixel
 against the RVE size, the bins inside the base-pressure range, the order of the history windows) is checked in
 :func:`resolve_params`.
 
@@ -26,7 +26,7 @@ from typing import Any
 
 import yaml
 
-from sim.config import BOUND_OPS, schema_error, schema_types
+from sim.schema import BOUND_OPS, schema_error, schema_types
 from sim.settings_file import SettingsDumper, SettingsFileError, read_settings
 
 from .errors import ParamError
@@ -58,7 +58,7 @@ _NOT = {"number": "is not a finite number", "integer": "is not an integer",
 
 def _check_setting(name: str, value: Any, schema: dict[str, Any]) -> None:
     """The analysis's one schema checker: ``value`` of the setting ``analysis.name``
-    against its JSON schema (:func:`sim.config.schema_error` decides).
+    against its JSON schema (:func:`sim.schema.schema_error` decides).
 
     Raises
     ------

@@ -12,9 +12,9 @@ which ships inside the package and which the workflow's configuration schema
 refers to, so the command line and the workflow agree by construction
 (tests/test_settings_single_source.py probes it), and every setting is checked
 against it by jsonschema (:func:`check_setting`, the simulator's one schema
-checker, which also serves :mod:`sim.numerics` and the workflow's messages).
-What a schema cannot express (``corners_max >= corners_min``, ``hold_time <= max_time``, the
-walls' order and spacing) is checked in the dataclasses below.
+checker on :mod:`sim.schema`, which also serves :mod:`sim.numerics`).  What a
+schema cannot express (``corners_max >= corners_min``, ``hold_time <=
+max_time``, the walls' order and spacing) is checked in the dataclasses below.
 
 Units are SI in two dimensions: lengths in m, masses in kg, the particle
 Young's modulus in N/m, 2D densities in kg/m².
@@ -29,7 +29,8 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from jsonschema import Draft202012Validator, validators
+
+from .schema import BOUND_OPS, bounds_text, is_real, number_kind, schema_error, schema_types
 
 
 class ConfigError(ValueError):
@@ -91,17 +92,6 @@ def setting_schema(section: str, name: str) -> dict:
         raise KeyError(f"{section}.{name} is not a setting of {SCHEMA_FILE}") from None
 
 
-def schema_types(schema: dict) -> list:
-    """The ``type`` of a JSON schema as a list (empty when it gives none)."""
-    kinds = schema.get("type", [])
-    return [kinds] if isinstance(kinds, str) else list(kinds)
-
-
-#: Each bound keyword of a JSON schema and its comparison, in the order the
-#: messages name them.
-BOUND_OPS = {"minimum": ">=", "exclusiveMinimum": ">", "maximum": "<=", "exclusiveMaximum": "<"}
-
-
 def setting_bounds(schema: dict) -> dict:
     """The bounds of a numeric schema.
 
@@ -122,49 +112,6 @@ def setting_bounds(schema: dict) -> dict:
             "hi": schema.get("maximum", schema.get("exclusiveMaximum")),
             "lo_open": "exclusiveMinimum" in schema,
             "hi_open": "exclusiveMaximum" in schema}
-
-
-def number_kind(schema: dict) -> str:
-    """``"an integer"`` when the schema allows integers only, else ``"a number"``."""
-    kinds = schema_types(schema)
-    return "an integer" if "integer" in kinds and "number" not in kinds else "a number"
-
-
-def bounds_text(schema: dict) -> str:
-    """A schema's bounds in words (``">= 0 and <= 10"``; empty when it has none)."""
-    return " and ".join(f"{op} {schema[key]}" for key, op in BOUND_OPS.items() if key in schema)
-
-
-def _is_real(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-# JSON schema's types as the project reads settings: a number is finite, an
-# integer is not a float (3500.0), a list may be a tuple (a dataclass's).
-_TYPES = Draft202012Validator.TYPE_CHECKER.redefine_many({
-    "number": lambda _, v: _is_real(v) and math.isfinite(v),
-    "integer": lambda _, v: isinstance(v, int) and not isinstance(v, bool),
-    "array": lambda _, v: isinstance(v, (list, tuple))})
-_SettingValidator = validators.extend(Draft202012Validator, type_checker=_TYPES)
-
-
-def schema_error(value: Any, schema: dict):
-    """The violation of ``schema`` by ``value`` that a message names, or None.
-
-    The schema decides (jsonschema, Draft 2020-12, with a number finite and an
-    integer not a float). Of several violations the first of: the value's
-    type, the list's own rules (its length), the first item's, repeated items.
-
-    Returns
-    -------
-    jsonschema.ValidationError or None
-        ``validator`` names the broken keyword; ``relative_path`` is empty,
-        or the index of the offending item (then ``schema`` and ``instance``
-        are the item's).
-    """
-    errors = _SettingValidator(schema).iter_errors(value)
-    return min(errors, key=lambda e: (e.validator == "uniqueItems", tuple(e.relative_path),
-                                      e.validator != "type"), default=None)
 
 
 def check_setting(key: str, value: Any, schema: dict, shape: str | None = None) -> None:
@@ -207,7 +154,7 @@ def check_setting(key: str, value: Any, schema: dict, shape: str | None = None) 
         allowed = "a string"
     elif error.validator in BOUND_OPS:
         allowed = bounds_text(schema)
-    elif not _is_real(value) or (number_kind(schema) == "an integer"
+    elif not is_real(value) or (number_kind(schema) == "an integer"
                                  and not isinstance(value, int)):
         allowed = number_kind(schema)
     else:

@@ -56,7 +56,8 @@ from referencing import Registry, Resource
 from analysis.params import SCHEMA_FILE as ANALYSIS_SCHEMA
 from analysis.params import check_memory, resolve_params
 from sim.config import SCHEMA_FILE as SIM_SCHEMA
-from sim.config import SECTIONS, SimConfig, bounds_text, number_kind, schema_types
+from sim.config import SECTIONS, SimConfig
+from sim.schema import bounds_text, number_kind, schema_types
 from sim.settings_file import SettingsFileError, number_from_text, read_settings_file
 from sim.settings_file import merge_settings as merge_configs  # the workflow's name for it
 
