@@ -44,12 +44,12 @@ $(TEST_STAMP): $(STAMP)
 
 # The paper's study (config/config.yaml): all piles, pictures and the analysis,
 # in results/study/. While Snakemake runs, a line on the piles done, running and left and the time
-# left (workflow/scripts/study_progress.py) comes every PROGRESS_EVERY seconds,
+# left (python -m workflow.tools study_progress) comes every PROGRESS_EVERY seconds,
 # and once at the end, into the terminal and logs/make-run.log (through the
 # same tee: a second writer appending to the file would be overwritten by
 # tee). The trap stops that loop whenever the group ends; the group, and so
 # `make run`, exits with Snakemake's status.
-PROGRESS := $(PY) workflow/scripts/study_progress.py
+PROGRESS := $(PY) -m workflow.tools study_progress
 PROGRESS_EVERY := 300
 
 run: venv
@@ -62,7 +62,7 @@ run: venv
 
 # The progress line of the study, once (e.g. from another terminal during
 # `make run`); it names the configuration and counts the piles of its results
-# folder only (another: workflow/scripts/study_progress.py --configfile FILE).
+# folder only (another: python -m workflow.tools study_progress --configfile FILE).
 .PHONY: progress
 progress: venv
 	@$(PROGRESS)

@@ -24,7 +24,7 @@ the core RVEs where all six constants are pinned (the core of
 ``analysis.history``: ``|x| <= shoulder_outer``, ``y <= core_height``), and the
 centre-over-shoulders contrasts of the moduli at the primary layer
 (:func:`analysis.history.row_contrast`); the script
-``workflow/scripts/six_constants_table.py`` averages those over piles.
+``workflow/tools/six_constants_table.py`` averages those over piles.
 
 **The paper's moduli of any stiffness.**  The paper defines, for its cubic
 law, ``K = (λ1 + λ2)/2``, Young's moduli along the axes (``E_p``) and the

@@ -1,6 +1,6 @@
 """The pre-registered decision on the pressure minimum (docs/reproduction/preregistration.md).
 
-Pure functions on the per-pile records of ``workflow/scripts/calibration.py``
+Pure functions on the per-pile records of ``workflow/tools/calibration.py``
 (one JSON object per pile: ``arm``, ``protocol``, ``seed``, ``growth``,
 ``quantities``, ``cpu_s``):
 

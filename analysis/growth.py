@@ -3,8 +3,8 @@
 The film's frames (``results/README.md``: time, particles released, centre
 and speed of every released particle) say, frame by frame, how steep the
 flanks stood and how many particles of the pile were moving.  Used by the
-table of the sources (``workflow/scripts/source_growth.py``) and by the
-calibration records (``workflow/scripts/calibration.py``).
+table of the sources (``workflow/tools/source_growth.py``) and by the
+calibration records (``workflow/tools/calibration.py``).
 """
 
 from __future__ import annotations

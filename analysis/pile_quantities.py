@@ -4,8 +4,8 @@ A pile's shape (the mean of its two flank angles, its height and base width,
 from ``python -m sim summary``), the solid fraction of its core, the primary
 construction-history statistics (:mod:`analysis.history`) and the core moduli
 of its own isotropic fit.  Used by the parameter sweeps
-(``workflow/scripts/setting_sweep.py``) and by the side-by-side table of a
-full-size variant against the study (``workflow/scripts/variant_table.py``),
+(``workflow/tools/setting_sweep.py``) and by the side-by-side table of a
+full-size variant against the study (``workflow/tools/variant_table.py``),
 so that both compare the same numbers.
 """
 

@@ -1,7 +1,7 @@
 """Durations as a person reads them: ``h:mm:ss``.
 
 The progress lines of the simulator (:class:`sim.progress.Progress`) and of
-the study (``workflow/scripts/study_progress.py``) both write their times
+the study (``workflow/tools/study_progress.py``) both write their times
 left with :func:`hms`, and the study reads the simulator's back with
 :func:`parse_hms`.  This module imports nothing heavy, so that the workflow's
 scripts can use it cheaply.

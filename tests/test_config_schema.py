@@ -174,9 +174,9 @@ def test_defaults_satisfy_the_schema_and_the_simulators_own_checks():
 
 def test_the_settings_tables_of_the_docs_are_the_schemas():
     """docs/parameters.md lists every setting as the schemas define it
-    (workflow/scripts/settings_table.py made it; rerun it after a schema change)."""
-    script = REPO / "workflow" / "scripts" / "settings_table.py"
-    proc = subprocess.run([sys.executable, str(script), "--check", str(REPO / "docs" / "parameters.md")],
+    (python -m workflow.tools settings_table made it; rerun it after a schema change)."""
+    proc = subprocess.run([sys.executable, "-m", "workflow.tools", "settings_table", "--check",
+                           str(REPO / "docs" / "parameters.md")],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     page = (REPO / "docs" / "parameters.md").read_text()

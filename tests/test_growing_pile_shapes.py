@@ -1,17 +1,12 @@
-"""workflow/scripts/growing_pile_shapes.py: the particles in flight above a
+"""workflow/tools/growing_pile_shapes.py: the particles in flight above a
 growing pile do not count as its top."""
 
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 
 from sim.measure import flank_angles
 
-SCRIPT = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "growing_pile_shapes.py"
-spec = importlib.util.spec_from_file_location("growing_pile_shapes", SCRIPT)
-shapes = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(shapes)
+from workflow.tools import growing_pile_shapes as shapes
 
 
 def test_a_particle_in_flight_is_not_in_contact_and_leaves_the_flanks_alone():

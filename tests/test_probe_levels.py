@@ -1,8 +1,7 @@
-"""The probe-level study (workflow/scripts/probe_levels.py) on probe files whose
+"""The probe-level study (workflow/tools/probe_levels.py) on probe files whose
 answer is known: a pile answering in proportion to the reduction, one whose
 strain grows as its square, a partial restoration, a slip."""
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -11,10 +10,7 @@ import xarray as xr
 
 from analysis.params import resolve_params
 
-SCRIPT = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "probe_levels.py"
-spec = importlib.util.spec_from_file_location("probe_levels", SCRIPT)
-levels = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(levels)
+from workflow.tools import probe_levels as levels
 
 PARAMS = resolve_params({})
 

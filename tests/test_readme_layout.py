@@ -1,5 +1,5 @@
 """The README and the pages of docs/ stay usable: the README's layout names every
-rule file, script and workflow module by its file name, and every folder of the
+rule file, tool and workflow module by its file name, and every folder of the
 two packages, so that a newcomer finds each one there; the README keeps the two
 commands on its first screen and stays short, as does docs/performance.md (its
 measurements live in docs/performance/); and every relative link of these pages
@@ -21,10 +21,10 @@ def layout_block():
     return re.search(r"## Layout\n\n```\n(.*?)```", text, re.S).group(1)
 
 
-def test_the_layout_names_every_rule_file_script_and_package_folder():
+def test_the_layout_names_every_rule_file_tool_and_package_folder():
     block = layout_block()
     names = [p.name for p in sorted((REPO / "workflow" / "rules").glob("*.smk"))]
-    names += [p.name for p in sorted((REPO / "workflow" / "scripts").glob("*.py"))]
+    names += [p.name for p in sorted((REPO / "workflow" / "tools").glob("*.py"))]
     names += [p.name for p in sorted((REPO / "workflow").glob("*.py"))]
     folders = [f"{p.parent.relative_to(REPO).as_posix()}/" for package in ("sim", "analysis")
                for p in sorted((REPO / package).rglob("__init__.py"))]

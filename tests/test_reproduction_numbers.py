@@ -1,19 +1,14 @@
 """The extra probes' numbers of the reproduction report
-(workflow/scripts/reproduction_numbers.py) on a small general_moduli file
+(workflow/tools/reproduction_numbers.py) on a small general_moduli file
 whose medians, counts and axis angles are known by hand."""
 
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
 from analysis.general_elastic import GENERAL_FLAGS
 
-SCRIPT = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "reproduction_numbers.py"
-spec = importlib.util.spec_from_file_location("reproduction_numbers", SCRIPT)
-numbers = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(numbers)
+from workflow.tools import reproduction_numbers as numbers
 
 
 def test_axis_gap_folds_axes_half_a_turn_apart():

@@ -3,11 +3,10 @@
 First the tests of analysis.history that decide the report (Welch's t at its
 degrees of freedom, Holm's correction, the piles for a given power) against
 scipy and values worked by hand; then every number of the verdicts of
-docs/reproduction.md that workflow/scripts/reproduction_numbers.py makes,
+docs/reproduction.md that workflow/tools/reproduction_numbers.py makes,
 recomputed here from the committed per-pile files under docs/reproduction/
 and looked for in the report."""
 
-import importlib.util
 import json
 import math
 from pathlib import Path
@@ -19,13 +18,10 @@ import yaml
 from scipy import stats
 
 from analysis.history import holm, piles_for_power, t_power, t_threshold, welch
+from workflow.tools import reproduction_numbers as numbers
 
 REPO = Path(__file__).resolve().parents[1]
 RECORD = REPO / "docs" / "reproduction"
-SCRIPT = REPO / "workflow" / "scripts" / "reproduction_numbers.py"
-spec = importlib.util.spec_from_file_location("reproduction_numbers_report", SCRIPT)
-numbers = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(numbers)
 
 
 # --- the statistics -----------------------------------------------------------

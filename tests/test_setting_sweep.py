@@ -1,8 +1,7 @@
-"""The parameter studies on medium piles (workflow/scripts/setting_sweep.py):
+"""The parameter studies on medium piles (workflow/tools/setting_sweep.py):
 the settings they lay over the study, the comparison table against numbers
 worked by hand, and a bad setting refused before anything is poured."""
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -10,10 +9,7 @@ import pytest
 
 from analysis.params import resolve_params
 
-SCRIPT = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "setting_sweep.py"
-spec = importlib.util.spec_from_file_location("setting_sweep", SCRIPT)
-sweep = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(sweep)
+from workflow.tools import setting_sweep as sweep
 
 
 def test_overlay_and_merge_change_only_the_swept_setting():

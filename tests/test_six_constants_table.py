@@ -1,4 +1,4 @@
-"""The six-constant table of a variant (workflow/scripts/six_constants_table.py),
+"""The six-constant table of a variant (workflow/tools/six_constants_table.py),
 end to end on records of linear anisotropic piles of known stiffness: the
 piles it reads (only those whose probes have the stretch), all six constants
 pinned in every core RVE, the anisotropy of the known C, the Voigt stiffness
@@ -17,7 +17,7 @@ from synthetic_states import linear_probe_pile
 from analysis import general_elastic as ge
 
 REPO = Path(__file__).resolve().parents[1]
-SCRIPT = REPO / "workflow" / "scripts" / "six_constants_table.py"
+TOOL = [sys.executable, "-m", "workflow.tools", "six_constants_table"]
 X = np.round(np.arange(-0.18, 0.1801, 0.015), 6)
 Y = np.array([0.015, 0.03, 0.045, 0.06])
 
@@ -53,7 +53,7 @@ def records(tmp_path_factory):
 
 def test_the_table_of_a_known_linear_pile(records):
     root, c = records
-    out = subprocess.run([sys.executable, str(SCRIPT), "--variant", str(root / "variant"), "--study",
+    out = subprocess.run([*TOOL, "--variant", str(root / "variant"), "--study",
                           str(root / "study"), "--protocols", "wedge", "--params", '{"moduli": {"min_points": 3}}',
                           "--figure", str(root / "six.png"), "--points", "1"],
                          capture_output=True, text=True, check=True).stdout
@@ -72,10 +72,7 @@ def test_the_table_of_a_known_linear_pile(records):
 
 def test_few_piles_name_students_t_from_the_tables():
     """Two-sided 5 % points of Student's t from printed tables: 12.706 (1 degree of freedom), 4.303 (2)."""
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("six_constants_table", SCRIPT)
-    table = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(table)
+    from workflow.tools import six_constants_table as table
     assert table.few_piles({("wedge", 2): {}, ("layered", 2): {}}) == ""
     two = {(p, s): {} for p in ("wedge", "layered") for s in (2, 3)}
     assert "1 degree of freedom" in table.few_piles(two) and "beyond 12.7 standard errors" in table.few_piles(two)

@@ -1,9 +1,8 @@
-"""workflow/scripts/study_progress.py: the one-line progress of the study
+"""workflow/tools/study_progress.py: the one-line progress of the study
 (issue 15, item 4), on fake piles/, logs/ and benchmarks/ trees in the
 configuration's results folder (results/study, issue 29 item 2), at the paths
 of workflow/piles.py."""
 
-import importlib.util
 import math
 import os
 import re
@@ -16,14 +15,12 @@ from pathlib import Path
 import pytest
 import yaml
 
-REPO = Path(__file__).resolve().parents[1]
-SCRIPT = REPO / "workflow" / "scripts" / "study_progress.py"
-_spec = importlib.util.spec_from_file_location("study_progress", SCRIPT)
-sp = sys.modules["study_progress"] = importlib.util.module_from_spec(_spec)  # for its dataclass
-_spec.loader.exec_module(sp)
+from workflow.piles import Piles
+from workflow.tools import study_progress as sp
+from workflow.validation import load_config
 
-from workflow.piles import Piles  # noqa: E402  (the script put the checkout on sys.path)
-from workflow.validation import load_config  # noqa: E402
+REPO = Path(__file__).resolve().parents[1]
+TOOL = [sys.executable, "-m", "workflow.tools", "study_progress"]
 
 NOW = 1.8e9  # s since the epoch, the "now" of the pure functions
 STAGES = ["poured", "relaxed", "reduced"]
@@ -395,7 +392,7 @@ def test_no_probe_levels(tmp_path):
 
 def test_script_on_a_fake_tree(tmp_path):
     root = fake_study(tmp_path, now=time.time())
-    result = subprocess.run([sys.executable, str(SCRIPT), "--directory", str(root), "--cores", "2"],
+    result = subprocess.run([*TOOL, "--directory", str(root), "--cores", "2"],
                             capture_output=True, text=True, check=True, cwd=tmp_path)
     assert result.stderr == ""
     lines = result.stdout.splitlines()
@@ -406,7 +403,7 @@ def test_script_on_a_fake_tree(tmp_path):
         r"relax\), 1 left; 69 % of the simulation done, about 0:22:55 left at 2 jobs at a time "
         r"\(mean of 2 finished piles: 0:22:55 of CPU per pile\)", lines[0])
     other = write_config(tmp_path / "elsewhere", wedge=(1, 2), layered=())
-    result = subprocess.run([sys.executable, str(SCRIPT), "--directory", str(root),
+    result = subprocess.run([*TOOL, "--directory", str(root),
                              "--configfile", str(other)],
                             capture_output=True, text=True, check=True)
     assert result.stdout.startswith("elsewhere/config/config.yaml (results/study/): 2 of 2 piles done, "
@@ -415,7 +412,7 @@ def test_script_on_a_fake_tree(tmp_path):
 
 def test_every_prints_until_killed(tmp_path):
     root = fake_study(tmp_path, now=time.time())
-    proc = subprocess.Popen([sys.executable, str(SCRIPT), "--directory", str(root),
+    proc = subprocess.Popen([*TOOL, "--directory", str(root),
                              "--every", "0.2"], stdout=subprocess.PIPE, text=True)
     try:
         first, second = proc.stdout.readline(), proc.stdout.readline()
@@ -439,7 +436,7 @@ def test_counts_only_the_piles_of_its_own_results_folder(tmp_path):
         "study (results/study/): 0 of 2 piles done, 0 running, 2 left; 0 % of the simulation done")
     line = sp.progress_line(tmp_path, load_config([smoke]), 2, NOW, label="config/smoke.yaml")
     assert line == "config/smoke.yaml (results/smoke/): 2 of 2 piles done, 0 running, 0 left; all piles simulated"
-    result = subprocess.run([sys.executable, str(SCRIPT), "--directory", str(tmp_path), "--configfile",
+    result = subprocess.run([*TOOL, "--directory", str(tmp_path), "--configfile",
                              str(tmp_path / "config" / "config.yaml"), str(smoke)],
                             capture_output=True, text=True, check=True, cwd=tmp_path)
     assert result.stdout.startswith("config/config.yaml, config/smoke.yaml (results/smoke/): 2 of 2 piles done")

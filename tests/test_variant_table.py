@@ -1,9 +1,8 @@
 """The side-by-side table of a full-size variant against the study
-(workflow/scripts/variant_table.py): the seeds it finds, the shape numbers it
+(workflow/tools/variant_table.py): the seeds it finds, the shape numbers it
 reads against the records read here directly, and the paired difference,
 which must vanish for a variant that holds copies of the study's piles."""
 
-import importlib.util
 import json
 import shutil
 import subprocess
@@ -14,12 +13,10 @@ import numpy as np
 import pytest
 
 from analysis.params import parse_params
+from workflow.tools import variant_table
 
 REPO = Path(__file__).resolve().parents[1]
-SCRIPT = REPO / "workflow" / "scripts" / "variant_table.py"
-spec = importlib.util.spec_from_file_location("variant_table", SCRIPT)
-variant_table = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(variant_table)
+TOOL = [sys.executable, "-m", "workflow.tools", "variant_table"]
 STUDY = REPO / "docs" / "reproduction"
 
 
@@ -67,7 +64,7 @@ def test_shape_numbers_are_those_of_the_summaries(copied_variant):
 def test_copies_of_the_study_differ_from_it_by_nothing_when_paired(copied_variant, tmp_path):
     overlay = tmp_path / "copy.yaml"
     overlay.write_text("model:\n  support_friction: 0.9\nprotocols:\n  wedge:\n    seeds: [2, 3]\n")
-    out = subprocess.run([sys.executable, str(SCRIPT), "--study", str(STUDY), "--variant", str(copied_variant),
+    out = subprocess.run([*TOOL, "--study", str(STUDY), "--variant", str(copied_variant),
                           "--overlay", str(overlay)], capture_output=True, text=True, check=True).stdout
     assert out.startswith("# Variant copy: `model.support_friction` = 0.9, against the study")
     assert "variant wedge 2, 3; layered 1" in out
@@ -117,7 +114,7 @@ def test_the_paired_difference_is_the_mean_and_standard_error_of_the_per_seed_di
 def test_a_missing_folder_is_named(tmp_path):
     overlay = tmp_path / "v.yaml"
     overlay.write_text("model: {support_friction: 0.9}\n")
-    res = subprocess.run([sys.executable, str(SCRIPT), "--study", str(STUDY), "--variant", str(tmp_path / "nope"),
+    res = subprocess.run([*TOOL, "--study", str(STUDY), "--variant", str(tmp_path / "nope"),
                           "--overlay", str(overlay)], capture_output=True, text=True)
     assert res.returncode != 0 and "--variant" in res.stderr and "no such folder" in res.stderr
 

@@ -2,5 +2,5 @@
 commands, resources and reporting that the rules of ``workflow/rules/`` read by name.
 
 An installed package (``pyproject.toml``), imported as ``workflow`` by the
-Snakefile, the rule files and the scripts of ``workflow/scripts/``.
+Snakefile, the rule files and the tools of ``workflow/tools/`` (``python -m workflow.tools``).
 """

@@ -1,5 +1,5 @@
 """The command lines of the rules: ``python -m sim ...`` with the Numba
-environment, and ``python ...`` for the analysis and the scripts.
+environment, and ``python ...`` for the analysis and the tools (``-m workflow.tools``).
 
 The rule files call :meth:`Commands.sim_shell` and :meth:`Commands.py_shell`
 as ``study.commands`` (:class:`workflow.study.Study`).

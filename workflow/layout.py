@@ -5,8 +5,8 @@ Each configuration writes everything it makes into its own results folder
 ``ensemble/``, ``figures/``, ``logs/``, ``benchmarks/`` (issue 29, item 2).
 A working directory filled before that (a sweep or variant poured by an
 older clone) has them one level up: ``results/piles/``, ``results/fields/``
-and ``logs/``, ``benchmarks/`` beside ``results/``. The scripts that read
-such directories (workflow/scripts/setting_sweep.py, probe_levels.py) find
+and ``logs/``, ``benchmarks/`` beside ``results/``. The tools that read
+such directories (workflow/tools/setting_sweep.py, probe_levels.py) find
 both through :func:`folders`.
 """
 

@@ -11,7 +11,7 @@ limit asks for twice the time when --retries resubmits it (a pour resumes
 from its checkpoint, so it needs less; relaxations start again).  The same
 cost model, without the margin and the start, estimates the CPU seconds of a
 pile before any has finished (:meth:`SimResources.stage_cpu_s`, for
-workflow/scripts/study_progress.py).
+workflow/tools/study_progress.py).
 """
 
 import math

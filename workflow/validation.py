@@ -39,7 +39,7 @@ stops Snakemake before the Snakefile with a message that does not name it;
 ``python -m workflow.validation FILE ...`` checks such files alone, then their
 merged configuration, and names the file and line. :func:`load_config` reads,
 merges and validates files so (that command and
-workflow/scripts/study_progress.py use it).
+workflow/tools/study_progress.py use it).
 """
 
 from __future__ import annotations

@@ -2,7 +2,9 @@
 # docs/reproduction/ (rule record_pile), and the ensembles, fits, figures and
 # per-pile table rebuilt from those files alone (`make reproduction`: config
 # `committed`, rule reproduction), without a state file or a simulation.
-# The rules read `study` (workflow/study.py).
+# The rules read `study` (workflow/study.py). The tables and numbers are made by
+# the tools of workflow/tools/ (python -m workflow.tools NAME); each such rule's
+# input `tool` is the tool's module, so that changing it remakes its output.
 
 import os
 
@@ -98,7 +100,7 @@ if config["committed"]:
         input:
             records=CALIBRATION_RECORDS,
             config="config/calibration.yaml",
-            script="workflow/scripts/calibration.py",
+            tool="workflow/tools/calibration.py",
         output:
             str(study.analysis.committed / "calibration.md"),
         params:
@@ -109,7 +111,7 @@ if config["committed"]:
         conda:
             "../envs/polypile.yaml"
         shell:
-            study.commands.py_shell("{input.script:q} --table --config {input.config:q} --records {params.records:q} "
+            study.commands.py_shell("-m workflow.tools calibration --table --config {input.config:q} --records {params.records:q} "
                      "--out {output:q} > {log:q} 2>&1")
 
     rule reproduction_levers:
@@ -117,7 +119,7 @@ if config["committed"]:
             records=LEVER_RECORDS,
             baseline=CALIBRATION_RECORDS,
             config="config/levers.yaml",
-            script="workflow/scripts/calibration.py",
+            tool="workflow/tools/calibration.py",
         output:
             str(study.analysis.committed / "levers.md"),
         params:
@@ -129,7 +131,7 @@ if config["committed"]:
         conda:
             "../envs/polypile.yaml"
         shell:
-            study.commands.py_shell("{input.script:q} --table --config {input.config:q} --records {params.records:q} "
+            study.commands.py_shell("-m workflow.tools calibration --table --config {input.config:q} --records {params.records:q} "
                      "--baseline {params.baseline:q} --out {output:q} > {log:q} 2>&1")
 
     rule reproduction_decision:
@@ -137,7 +139,7 @@ if config["committed"]:
             records=lambda wc: sorted(str(p) for p in (study.analysis.committed / "decision").glob("*.json")),
             calibration=lambda wc: sorted(str(p) for p in (study.analysis.committed / "calibration").glob("*.json")),
             plan=str(DECISION_PLAN),
-            script="workflow/scripts/decision.py",
+            tool="workflow/tools/decision.py",
         output:
             str(study.analysis.committed / "decision.md"),
         params:
@@ -148,7 +150,7 @@ if config["committed"]:
         conda:
             "../envs/polypile.yaml"
         shell:
-            study.commands.py_shell("{input.script:q} verdict --records {params.records:q} --out {output:q} > {log:q} 2>&1")
+            study.commands.py_shell("-m workflow.tools decision verdict --records {params.records:q} --out {output:q} > {log:q} 2>&1")
 
     rule reproduction_figure:
         input:
@@ -166,7 +168,7 @@ if config["committed"]:
     rule reproduction_table:
         input:
             summaries=[study.analysis.pile_result(p, s, "summary") for p in study.piles.protocols for s in study.analysis.analysis_seeds(p, "summary")],
-            script="workflow/scripts/piles_table.py",
+            tool="workflow/tools/piles_table.py",
         output:
             str(study.analysis.committed / "piles.md"),
         log:
@@ -175,7 +177,7 @@ if config["committed"]:
         conda:
             "../envs/polypile.yaml"
         shell:
-            study.commands.py_shell("{input.script:q} {input.summaries:q} > {output:q} 2> {log:q}")
+            study.commands.py_shell("-m workflow.tools piles_table {input.summaries:q} > {output:q} 2> {log:q}")
 
     rule reproduction_numbers:
         # The numbers docs/reproduction.md sets against the paper's, into the
@@ -191,7 +193,7 @@ if config["committed"]:
                            for s in study.analysis.analysis_seeds(p, "base_pressure")],
             general=expand(study.paths.results_path("ensemble/{protocol}/general_moduli.nc"), protocol=study.analysis.reported_general_protocols()),
             probes=[path for _, path in study.analysis.reported_probes()],
-            script="workflow/scripts/reproduction_numbers.py",
+            tool="workflow/tools/reproduction_numbers.py",
         output:
             str(study.analysis.committed / "numbers.md"),
         params:
@@ -212,7 +214,7 @@ if config["committed"]:
             "../envs/polypile.yaml"
         shell:
             study.commands.py_shell(
-                "{input.script:q} --ensemble {params.ensemble:q} --protocols {params.protocols:q} "
+                "-m workflow.tools reproduction_numbers --ensemble {params.ensemble:q} --protocols {params.protocols:q} "
                 "--convergence {input.convergence:q} --checks {input.checks:q} --heights {params.heights:q} "
                 "--general {params.general:q} --probes {params.probes:q} --fields {params.fields:q} "
                 "--base-pressure {params.base_pressure:q} --params {params.cfg:q} > {output:q} 2> {log:q}"
@@ -226,7 +228,7 @@ if config["committed"]:
             study=lambda wc: sorted(str(f) for f in study.analysis.committed.glob("*/seed*.*")),
             variant=lambda wc: sorted(str(f) for f in (study.analysis.committed / "variants" / wc.variant).glob("*/seed*.*")),
             overlay="config/variants/{variant}.yaml",
-            script="workflow/scripts/variant_table.py",
+            tool="workflow/tools/variant_table.py",
         output:
             str(study.analysis.committed / "variants" / "{variant}.md"),
         params:
@@ -242,7 +244,7 @@ if config["committed"]:
             "../envs/polypile.yaml"
         shell:
             study.commands.py_shell(
-                "{input.script:q} --study {params.study:q} --variant {params.variant:q} --overlay {input.overlay:q} "
+                "-m workflow.tools variant_table --study {params.study:q} --variant {params.variant:q} --overlay {input.overlay:q} "
                 "--protocols {params.protocols:q} --params {params.cfg:q} > {output:q} 2> {log:q}"
             )
 
@@ -256,7 +258,7 @@ if config["committed"]:
             probes=lambda wc: sorted(str(f) for f in (study.analysis.committed / "variants" / wc.variant).glob("*/seed*.probes.nc")),
             fields=lambda wc: sorted(str(f) for f in (study.analysis.committed / "variants" / wc.variant).glob("*/seed*.fields.nc")),
             study=lambda wc: sorted(str(f) for f in study.analysis.committed.glob("*/seed*.fields.nc")),
-            script="workflow/scripts/six_constants_table.py",
+            tool="workflow/tools/six_constants_table.py",
         output:
             table=str(study.analysis.committed / "variants" / "{variant}" / "six_constants.md"),
             figure=str(study.analysis.committed / "variants" / "{variant}" / "six_constants.png"),
@@ -273,7 +275,7 @@ if config["committed"]:
             "../envs/polypile.yaml"
         shell:
             study.commands.py_shell(
-                "{input.script:q} --study {params.study:q} --variant {params.variant:q} "
+                "-m workflow.tools six_constants_table --study {params.study:q} --variant {params.variant:q} "
                 "--protocols {params.protocols:q} --params {params.cfg:q} --figure {output.figure:q} "
                 "> {output.table:q} 2> {log:q}"
             )

@@ -2,7 +2,7 @@
 
 Usage::
 
-    python workflow/scripts/reproduction_numbers.py --ensemble results/ensemble \\
+    python -m workflow.tools reproduction_numbers --ensemble results/ensemble \\
         --protocols wedge layered --convergence FILE... --checks FILE... --heights 0.045 0.09 ...
 
 prints Markdown (``docs/reproduction/numbers.md`` under ``make reproduction``).
@@ -762,7 +762,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     params = parse_params(args.params)
     out = ["# Numbers of the reproduction", "",
-           "Made by `workflow/scripts/reproduction_numbers.py` from the ensembles (`make reproduction`); "
+           "Made by `workflow/tools/reproduction_numbers.py` from the ensembles (`make reproduction`); "
            "mean ± standard error over piles.", ""]
     for p in args.protocols:
         with read_fields(f"{args.ensemble}/{p}/fields.nc") as ds:
@@ -810,7 +810,3 @@ def main(argv=None):
                     "|Δ(+) + Δ(−)| / (|Δ(+)| + |Δ(−)|) per RVE (0: linear), median (10 – 90 %):", "",
                     *[f"- {line}." for line in per_pile_probes(mine)], ""]
     sys.stdout.write("\n".join(out))
-
-
-if __name__ == "__main__":
-    main()

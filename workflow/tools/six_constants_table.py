@@ -37,7 +37,7 @@ and the shear moduli along the primary layer.
 
 Usage::
 
-    .venv/bin/python workflow/scripts/six_constants_table.py \\
+    .venv/bin/python -m workflow.tools six_constants_table \\
         --variant docs/reproduction/variants/support_friction_0.9 --study docs/reproduction \\
         --params '{}' --figure six_constants.png > six_constants.md
 """
@@ -243,7 +243,7 @@ def figure(per_pile: dict, params: dict, path: Path, points: int = POINTS) -> No
     plt.close(fig)
 
 
-def main() -> None:
+def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--variant", type=Path, required=True, help="the variant's records")
     ap.add_argument("--study", type=Path, required=True, help="the study's records (docs/reproduction)")
@@ -252,7 +252,7 @@ def main() -> None:
     ap.add_argument("--figure", type=Path, help="the figure (PNG)")
     ap.add_argument("--points", type=int, choices=(1, 5), default=POINTS,
                     help="the fits (RVE points) of the tables but the first (default: %(default)s)")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     for option, folder in (("--study", args.study), ("--variant", args.variant)):
         if not folder.is_dir():
             raise SystemExit(f"six_constants_table.py {option} {folder}: no such folder")
@@ -279,7 +279,7 @@ def main() -> None:
     first = next(iter(per_pile.values()))[0]
     row = float(first["y"].values[int(np.argmin(np.abs(first["y"].values - h["primary_height"])))])
     text = (f"# {args.variant.name}: all six elastic constants\n\n"
-            f"Made by `make reproduction` (`workflow/scripts/six_constants_table.py`, `analysis/anisotropy.py`) "
+            f"Made by `make reproduction` (`workflow/tools/six_constants_table.py`, `analysis/anisotropy.py`) "
             f"from the records in `{args.variant}` whose probes include the support stretch "
             f"(`config/scenes/six_constants.yaml`): "
             + "; ".join(f"{p} seed{'s' * (sum(q == p for q, _ in piles) > 1)} "
@@ -308,7 +308,3 @@ def main() -> None:
             "First, the share of the core RVEs with a fit where each law is stable.\n\n"
             + centre_table(piles, protocols, study))
     print(text, end="")
-
-
-if __name__ == "__main__":
-    main()

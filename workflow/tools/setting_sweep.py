@@ -40,10 +40,10 @@ each value records the commit of the checkout its piles came from.
 
 Usage::
 
-    .venv/bin/python workflow/scripts/setting_sweep.py --setting pour.rate \\
+    .venv/bin/python -m workflow.tools setting_sweep --setting pour.rate \\
         --values 100 200 400 --name pour_rate [--cores 2] [--keep-recorded] \\
         [--piles config/sweep_piles.yaml]
-    .venv/bin/python workflow/scripts/setting_sweep.py --piles config/sweep_piles.yaml \\
+    .venv/bin/python -m workflow.tools setting_sweep --piles config/sweep_piles.yaml \\
         --setting pour.release_height --values 0.3 --same 0.02=friction/0.5 \\
         --name release_height --from /work/sweep/results/sweeps
 """
@@ -216,7 +216,7 @@ def _configuration(piles: Path, layer: dict) -> dict:
     return merged(study, layer)
 
 
-def main() -> None:
+def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--setting", required=True, help="dotted name of the setting, e.g. pour.rate")
     ap.add_argument("--values", nargs="*", default=[], type=yaml_value,
@@ -235,7 +235,7 @@ def main() -> None:
                     help="a value whose piles are another run of the same configuration: NAME/VALUE under "
                          "the runs' folder, or an absolute folder (e.g. the study's value, poured once for "
                          "every sweep); its commit is that folder's")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if not args.values and not args.same and not args.keep_recorded:
         ap.error("--values: give at least one value (or --keep-recorded to rewrite the table)")
     piles = args.piles.resolve()
@@ -273,7 +273,7 @@ def main() -> None:
     n = {p: len(v["seeds"]) for p, v in cfg["protocols"].items()}
     runs = ", ".join(f"{k} at `{results['runs'][k]}`" for k in keys)
     text = (f"# {args.setting}: piles of {cfg['pour']['n_particles']} particles, seeds per protocol {n}\n\n"
-            f"Made by `workflow/scripts/setting_sweep.py --setting {args.setting} --name {args.name}` "
+            f"Made by `python -m workflow.tools setting_sweep --setting {args.setting} --name {args.name}` "
             f"(--piles {piles.relative_to(REPO)}); mean ± standard error over seeds; the last column is the largest "
             "difference between two values over their combined standard error (> 2: differs beyond seed "
             f"scatter). Run: {runs}." + (f" Note: {results['note']}." if results.get("note") else "")
@@ -284,7 +284,3 @@ def main() -> None:
                  "defines them): the difference of the means ± its standard error (in standard errors).\n\n" + versus)
     (out / f"{args.name}.md").write_text(text)
     print(text)
-
-
-if __name__ == "__main__":
-    main()

@@ -4,7 +4,7 @@
 applies the registered rules (:func:`analysis.decision.select_arms`,
 :func:`analysis.decision.piles_required`) and writes what they chose:
 ``config/decision.yaml`` (the two arms, the registered seeds 1001 ... 1000 + N,
-read by ``workflow/scripts/calibration.py --config config/decision.yaml
+read by ``python -m workflow.tools calibration --config config/decision.yaml
 --records docs/reproduction/decision``) and ``docs/reproduction/decision_plan.md``
 (the numbers the rules read).  Commit both before the first decision pile.
 
@@ -15,8 +15,8 @@ only how far the ensemble is (no test).
 
 Usage::
 
-    .venv/bin/python workflow/scripts/decision.py select
-    .venv/bin/python workflow/scripts/decision.py verdict
+    .venv/bin/python -m workflow.tools decision select
+    .venv/bin/python -m workflow.tools decision verdict
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ def select(records: Path) -> str:
     sel = decision.select_arms(recs)
     lines = ["# The decision's plan: what the registered rules chose",
              "",
-             "Made by `workflow/scripts/decision.py select` from the calibration records "
+             "Made by `python -m workflow.tools decision select` from the calibration records "
              f"({len(recs)} piles, docs/reproduction/calibration/) by the rules of "
              "[preregistration.md](preregistration.md).",
              "",
@@ -76,7 +76,7 @@ def select(records: Path) -> str:
         plan = {"piles": cal["piles"], "frame_interval": cal["frame_interval"],
                 "seeds": list(range(FIRST_SEED, FIRST_SEED + need["n"])),
                 "arms": {a: cal["arms"][a] for a in (sel["point"], sel["layered"])}}
-        PLAN.write_text("# The decision ensemble, written by workflow/scripts/decision.py select from the\n"
+        PLAN.write_text("# The decision ensemble, written by python -m workflow.tools decision select from the\n"
                         "# calibration records by the rules of docs/reproduction/preregistration.md.\n"
                         + yaml.dump(plan, Dumper=SettingsDumper, sort_keys=False))
     page = "\n".join(lines) + "\n"
@@ -100,7 +100,7 @@ def verdict(records: Path, out: Path) -> str:
     lines = ["# The decision: a pressure minimum under point-source piles?", "",
              f"Registered in [preregistration.md](preregistration.md); arms and N in "
              f"[decision_plan.md](decision_plan.md): {point} against {layered}, {n} piles per protocol. "
-             "Made by `workflow/scripts/decision.py verdict` from docs/reproduction/decision/.", ""]
+             "Made by `python -m workflow.tools decision verdict` from docs/reproduction/decision/.", ""]
     try:
         result = decision.verdict(recs, point, layered, n)
     except ValueError as exc:
@@ -142,7 +142,3 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     folder = args.records or DOCS / ("calibration" if args.step == "select" else "decision")
     print(select(folder) if args.step == "select" else verdict(folder, args.out))
-
-
-if __name__ == "__main__":
-    main()

@@ -19,7 +19,7 @@ one table row per source, medians over the frames of the growth (from
 
 Usage (docs/model.md, the table of the protocols)::
 
-    python workflow/scripts/source_growth.py --n 300 --seeds 1 2 --out /tmp/growth
+    python -m workflow.tools source_growth --n 300 --seeds 1 2 --out /tmp/growth
 """
 
 from __future__ import annotations
@@ -87,7 +87,3 @@ def main(argv=None):
               f"| {np.median(g[:, 4]):.0f} [{g[:, 4].max():.0f}] "
               f"| {np.mean(fluxes):.0f} / {rate:.0f} | "
               f"{' '.join(f'{a:.1f}' for a in finals)} |", flush=True)
-
-
-if __name__ == "__main__":
-    main()

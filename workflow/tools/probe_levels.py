@@ -20,7 +20,7 @@ and writes it (``--out``) with the numbers as JSON beside it.
 
 Usage::
 
-    .venv/bin/python workflow/scripts/probe_levels.py --piles config/sweep_piles.yaml \\
+    .venv/bin/python -m workflow.tools probe_levels --piles config/sweep_piles.yaml \\
         --step DIR --ramp DIR --out docs/reproduction/probe_levels.md
 """
 
@@ -129,7 +129,7 @@ def main(argv=None):
                     results[mode].setdefault(protocol, []).append(pile_levels(pr.load(), params))
     n = {p: len(v["seeds"]) for p, v in cfg["protocols"].items()}
     text = (f"# Probe levels and ramp: piles of {cfg['pour']['n_particles']} particles, seeds per protocol {n}\n\n"
-            "Made by `workflow/scripts/probe_levels.py` from the probes of `config/scenes/probe_levels.yaml` "
+            "Made by `workflow/tools/probe_levels.py` from the probes of `config/scenes/probe_levels.yaml` "
             "(step) and `config/scenes/probe_levels_ramp.yaml` (ramp); mean ± standard error over piles. "
             "Linearity: the core's median u_yy/Δ at 5 and 15 % over that at 10 %, − 1 (0: linear); compliance: "
             "the core's median u_yy/Δ at 10 %; slips: RVEs above the slip rule per probe, pile by pile; "
@@ -138,7 +138,3 @@ def main(argv=None):
     if args.out:
         args.out.write_text(text)
         args.out.with_suffix(".json").write_text(json.dumps(results, indent=1) + "\n")
-
-
-if __name__ == "__main__":
-    main()

@@ -7,8 +7,8 @@ for the ``analysis`` section) as one row: its key, default, allowed values and
 the schema's description. The schemas are the one source of the settings; this
 script writes their tables between the marker lines of the page::
 
-    python workflow/scripts/settings_table.py --write docs/parameters.md
-    python workflow/scripts/settings_table.py --check docs/parameters.md   # exit 1 if out of date
+    python -m workflow.tools settings_table --write docs/parameters.md
+    python -m workflow.tools settings_table --check docs/parameters.md   # exit 1 if out of date
 
 (``tests/test_config_schema.py`` runs the check.)
 """
@@ -23,7 +23,7 @@ import yaml
 REPO = Path(__file__).resolve().parents[2]
 SCHEMAS = REPO / "workflow" / "schemas"
 ANALYSIS_SCHEMA = REPO / "analysis" / "params.schema.yaml"
-BEGIN = "<!-- settings tables: made by workflow/scripts/settings_table.py from the schemas; do not edit -->"
+BEGIN = "<!-- settings tables: made by workflow/tools/settings_table.py from the schemas; do not edit -->"
 END = "<!-- end of the settings tables -->"
 # Top-level keys of config.schema.yaml that get no rows here: the analysis has
 # its own schema (its own table), the numerics checks have theirs (docs/numerics.md).
@@ -119,10 +119,6 @@ def main(argv=None) -> int:
         return 0
     if new != page:
         print(f"{path}: the settings tables differ from the schemas; run "
-              f"python workflow/scripts/settings_table.py --write {path}", file=sys.stderr)
+              f"python -m workflow.tools settings_table --write {path}", file=sys.stderr)
         return 1
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

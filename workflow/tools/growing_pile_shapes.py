@@ -13,7 +13,7 @@ and relaxed states (nothing flies there).
 
 Usage::
 
-    .venv/bin/python workflow/scripts/growing_pile_shapes.py STATE.nc [STATE.nc ...]
+    .venv/bin/python -m workflow.tools growing_pile_shapes STATE.nc [STATE.nc ...]
 """
 
 import argparse
@@ -59,7 +59,3 @@ def main(argv=None):
     ap.add_argument("states", nargs="+", help="state files of one pour (.nc)")
     for path in ap.parse_args(argv).states:
         print(json.dumps(growing_shape(path)), flush=True)
-
-
-if __name__ == "__main__":
-    main()

@@ -32,7 +32,7 @@ the cost, not compared.  Prints Markdown (``make reproduction`` writes it to
 
 Usage::
 
-    .venv/bin/python workflow/scripts/variant_table.py --study docs/reproduction \\
+    .venv/bin/python -m workflow.tools variant_table --study docs/reproduction \\
         --variant docs/reproduction/variants/support_friction_0.9 \\
         --overlay config/variants/support_friction_0.9.yaml --params '{}'
 """
@@ -200,14 +200,14 @@ def seeds_text(piles: dict) -> str:
     return "; ".join(f"{p} {', '.join(map(str, sorted(v))) or 'none'}" for p, v in piles.items())
 
 
-def main() -> None:
+def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--study", type=Path, required=True, help="the study's records (docs/reproduction)")
     ap.add_argument("--variant", type=Path, required=True, help="the variant's records")
     ap.add_argument("--overlay", type=Path, required=True, help="the variant's settings (config/variants/NAME.yaml)")
     ap.add_argument("--params", default="{}", help="analysis settings as JSON (the study's `analysis`)")
     ap.add_argument("--protocols", nargs="+", default=["wedge", "layered"])
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     for option, folder in (("--study", args.study), ("--variant", args.variant)):
         if not folder.is_dir():
             raise SystemExit(f"variant_table.py {option} {folder}: no such folder")
@@ -219,7 +219,7 @@ def main() -> None:
     names = {**quantities(params), **COST}
     settings = ", ".join(f"`{k}` = {v}" for k, v in changed.items())
     text = (f"# Variant {args.overlay.stem}: {settings}, against the study\n\n"
-            f"Made by `make reproduction` (`workflow/scripts/variant_table.py`) from the records in "
+            f"Made by `make reproduction` (`workflow/tools/variant_table.py`) from the records in "
             f"`{args.study}` (the study) and `{args.variant}` (the variant, `{args.overlay}`). "
             f"Piles: study {seeds_text(study)}; variant {seeds_text(variant)}. "
             "Each cell: mean ± standard error over piles (number of piles). Variant − study: the difference of "
@@ -235,7 +235,3 @@ def main() -> None:
         text += ("\nThe construction history, wedge − layered (docs/reproduction/numbers.md defines the "
                  "statistics): the difference of the means ± its standard error (in standard errors).\n\n" + versus)
     print(text, end="")
-
-
-if __name__ == "__main__":
-    main()

@@ -34,8 +34,8 @@ over seeds, per arm).
 
 Usage::
 
-    .venv/bin/python workflow/scripts/calibration.py --jobs 2 [--arms "wedge funnel"] [--records DIR]
-    .venv/bin/python workflow/scripts/calibration.py --table
+    .venv/bin/python -m workflow.tools calibration --jobs 2 [--arms "wedge funnel"] [--records DIR]
+    .venv/bin/python -m workflow.tools calibration --table
 """
 
 from __future__ import annotations
@@ -305,7 +305,7 @@ def main(argv=None) -> None:
         shown = [b for b in baseline] + arms if baseline else arms
         page = (f"# {'Levers of the sources' if baseline else 'The calibration of the sources'}: piles of "
                 f"{records[0]['n_particles'] if records else '?'} particles, per arm\n\n"
-                "Made by `workflow/scripts/calibration.py --table` from the per-pile records in "
+                "Made by `python -m workflow.tools calibration --table` from the per-pile records in "
                 f"{_shown(args.records)}/ (settings: {_shown(args.config)}; what each number is: the script's "
                 "docstring); mean ± standard error over seeds, the number of piles after each arm. CPU seconds "
                 "are each job's own (Snakemake's benchmark files), with two piles side by side on a 2-core host.\n\n"
@@ -338,7 +338,3 @@ def main(argv=None) -> None:
         list(pool.map(one, todo))
     if failed:
         raise SystemExit(f"{len(failed)} of {len(todo)} piles failed: {failed}")
-
-
-if __name__ == "__main__":
-    main()

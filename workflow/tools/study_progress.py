@@ -43,7 +43,7 @@ the analysis after them. Times are written ``h:mm:ss`` (``sim.durations.hms``).
 
 Usage::
 
-    .venv/bin/python workflow/scripts/study_progress.py [--configfile config/config.yaml [FILE ...]]
+    .venv/bin/python -m workflow.tools study_progress [--configfile config/config.yaml [FILE ...]]
         [--cores N] [--directory DIR] [--every SECONDS]
 
 Several ``--configfile`` files are merged in order, as Snakemake merges them.
@@ -577,7 +577,3 @@ def main(argv=None):
         watch(args.every, line)
     else:
         print(line(), flush=True)
-
-
-if __name__ == "__main__":
-    main()
