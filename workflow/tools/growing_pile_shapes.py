@@ -18,10 +18,8 @@ Usage::
 
 import argparse
 import json
-from pathlib import Path
 
 import numpy as np
-
 
 from sim.io import load_simulation
 from sim.measure import flank_angles
