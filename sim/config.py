@@ -23,6 +23,7 @@ Young's modulus in N/m, 2D densities in kg/m².
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -536,6 +537,35 @@ class SimConfig:
     def result_dict(self, sections=None) -> dict:
         """The settings that fix a run's result (see :func:`result_settings`)."""
         return result_settings(self.to_dict(), sections)
+
+    def job_params(self, stage: str) -> str:
+        """The ``--params`` text of a ``python -m sim STAGE`` job: the settings of
+        the sections `stage` reads (:data:`STAGE_SECTIONS`) that fix its result
+        (:meth:`result_dict`), as canonical JSON (sorted keys).
+
+        The command line reads it back with :meth:`from_dict`, so the simulator
+        writes and reads this text itself. The workflow records it as a rule
+        param: a changed setting re-runs exactly the jobs of the stages that
+        read its section, and a changed :data:`BOOKKEEPING` setting none
+        (those travel in :meth:`job_bookkeeping`).
+
+        Parameters
+        ----------
+        stage : str
+            ``pour``, ``relax`` or ``probe``.
+
+        Returns
+        -------
+        str
+        """
+        return json.dumps(self.result_dict(STAGE_SECTIONS[stage]), sort_keys=True)
+
+    def job_bookkeeping(self) -> str:
+        """The ``--bookkeeping`` text of a job: the :data:`BOOKKEEPING`
+        settings (checkpoint, progress and frame intervals) as JSON, which
+        change how a run reports and saves, never its result."""
+        return json.dumps({s: {k: getattr(getattr(self, s), k) for k in keys}
+                           for s, keys in BOOKKEEPING.items()}, sort_keys=True)
 
 
 def result_settings(settings: dict, sections=None) -> dict:

@@ -46,12 +46,12 @@ def test_every_small_pile_has_its_state_benchmark_and_cpu_time_in_the_numerics_f
 
 def test_a_small_pile_scales_the_time_step_of_its_integrator_by_its_factor():
     run = SimpleNamespace(integrator="gear", factor="0.5")
-    automatic = json.loads(numerics().sim_params(run, "relax"))
+    automatic = json.loads(numerics().job_params(run, "relax"))
     assert automatic["model"]["integrator"] == "gear"
     assert automatic["model"]["dt_safety"] == 0.25          # the default 0.5, halved
     assert automatic["pour"]["n_particles"] == 12           # numerics.piles.n_particles, not pour's 30
     assert "relax" in automatic and "particles" not in automatic
-    given = json.loads(numerics({"model": {"dt": 2e-6}}).sim_params(run, "pour"))
+    given = json.loads(numerics({"model": {"dt": 2e-6}}).job_params(run, "pour"))
     assert given["model"]["dt"] == 1e-6 and given["model"]["dt_safety"] == 0.5
     assert "particles" in given
 

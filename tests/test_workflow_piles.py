@@ -11,8 +11,10 @@ import sys
 from types import SimpleNamespace
 
 import pytest
-from workflow_config import REPO, configuration
+from workflow_config import REPO, configuration, simulator
 
+from sim.cli import _params as cli_params
+from sim.config import STAGE_SECTIONS
 from workflow.commands import Commands
 from workflow.jobs import JobSettings, Unrecorded
 from workflow.piles import Piles
@@ -101,30 +103,42 @@ def test_the_targets_are_every_stage_of_every_pile_wedge_first():
 # --- settings of the simulation jobs -----------------------------------------
 
 def test_a_job_receives_only_its_sections_without_the_bookkeeping():
-    jobs = JobSettings(configuration())
-    pour = json.loads(jobs.sim_params("pour"))
+    pour = json.loads(simulator().job_params("pour"))
     assert sorted(pour) == ["model", "particles", "physics", "pour"]
     assert pour["pour"]["n_particles"] == 150
     assert "checkpoint_interval" not in pour["pour"] and "frame_interval" not in pour["pour"]
-    changed = JobSettings(configuration({"relax": {"max_time": 2.0}}))
-    assert changed.sim_params("pour") == jobs.sim_params("pour")
-    assert changed.sim_params("relax") != jobs.sim_params("relax")
+    changed = simulator({"relax": {"max_time": 2.0}})
+    assert changed.job_params("pour") == simulator().job_params("pour")
+    assert changed.job_params("relax") != simulator().job_params("relax")
+
+
+@pytest.mark.parametrize("stage", sorted(STAGE_SECTIONS))
+def test_the_simulator_reads_a_job_s_settings_back_as_the_workflow_validated_them(stage):
+    """The text the rules record is what ``python -m sim STAGE`` reads
+    (sim.cli): every section the stage reads comes back equal, the
+    bookkeeping included, for settings away from their defaults."""
+    sim = simulator({"model": {"friction": 0.37, "youngs_modulus": 2e7},
+                     "pour": {"checkpoint_interval": 60.0}, "relax": {"max_time": 2.0}})
+    read = cli_params(sim.job_params(stage), str(JobSettings(sim).job_bookkeeping()))
+    assert read.model.friction == 0.37 and read.model.youngs_modulus == 2e7
+    for section in STAGE_SECTIONS[stage]:
+        assert getattr(read, section) == getattr(sim, section), section
 
 
 def test_the_bookkeeping_travels_unrecorded():
-    bookkeeping = JobSettings(configuration({"pour": {"checkpoint_interval": 60.0}})).sim_bookkeeping()
+    bookkeeping = JobSettings(simulator({"pour": {"checkpoint_interval": 60.0}})).job_bookkeeping()
     assert isinstance(bookkeeping, Unrecorded)
     assert json.loads(str(bookkeeping))["pour"]["checkpoint_interval"] == 60.0
 
 
 def test_the_stretch_and_the_gravity_probes_each_get_only_their_own_probe_settings():
-    jobs = JobSettings(configuration({"probe": {"levels": [0.1], "stretch": 1e-4, "stretch_time": 0.5}}))
-    stretch = json.loads(jobs.probe_sim_params("stretched"))["probe"]
-    gravity = json.loads(jobs.probe_sim_params("reduced"))["probe"]
+    jobs = JobSettings(simulator({"probe": {"levels": [0.1], "stretch": 1e-4, "stretch_time": 0.5}}))
+    stretch = json.loads(jobs.probe_job_params("stretched"))["probe"]
+    gravity = json.loads(jobs.probe_job_params("reduced"))["probe"]
     assert stretch == {"stretch": 1e-4, "stretch_time": 0.5}
     assert "levels" in gravity and "stretch" not in gravity and "stretch_time" not in gravity
     # adding the stretch changes no gravity probe's settings
-    assert JobSettings(configuration({"probe": {"levels": [0.1]}})).probe_sim_params("reduced") == jobs.probe_sim_params("reduced")
+    assert JobSettings(simulator({"probe": {"levels": [0.1]}})).probe_job_params("reduced") == jobs.probe_job_params("reduced")
 
 
 # --- problems ----------------------------------------------------------------

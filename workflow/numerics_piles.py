@@ -4,9 +4,7 @@
 that the ensemble's error against compute time reads.
 """
 
-import json
-
-from sim.config import STAGE_SECTIONS, result_settings
+from sim.config import SECTIONS, SimConfig
 
 
 def factor_label(factor):
@@ -58,20 +56,20 @@ class NumericsPiles:
         p = self.settings
         return [(i, factor_label(f), int(s)) for i in p["integrators"] for f in p["dt_factors"] for s in p["seeds"]]
 
-    def sim_params(self, wildcards, stage):
+    def job_params(self, wildcards, stage):
         """The simulator sections of one small pile as canonical JSON.
 
         The config's sections with pour.n_particles from numerics.piles, the
         integrator of the run and its time step scaled by the dt factor; the
-        bookkeeping settings travel apart (:meth:`workflow.jobs.JobSettings.sim_bookkeeping`).
+        bookkeeping settings travel apart (:meth:`workflow.jobs.JobSettings.job_bookkeeping`).
 
         Parameters
         ----------
         wildcards : snakemake.io.Wildcards
             ``integrator`` and ``factor`` of the run.
         stage : str
-            ``pour`` or ``relax``: the job's sections are the simulator's map
-            of them (:data:`sim.config.STAGE_SECTIONS`).
+            ``pour`` or ``relax``: the simulator writes the job's sections
+            (:meth:`sim.config.SimConfig.job_params`).
 
         Returns
         -------
@@ -83,10 +81,9 @@ class NumericsPiles:
             model["dt_safety"] = model["dt_safety"] * factor
         else:
             model["dt"] = model["dt"] * factor
-        cfg = {"model": model, "pour": dict(config["pour"], n_particles=self.settings["n_particles"])}
-        for k in STAGE_SECTIONS[stage]:
-            cfg.setdefault(k, config[k])
-        return json.dumps(result_settings(cfg), sort_keys=True)
+        cfg = {k: config[k] for k in SECTIONS}
+        cfg.update(model=model, pour=dict(config["pour"], n_particles=self.settings["n_particles"]))
+        return SimConfig.from_dict(cfg).job_params(stage)
 
     def pile_inputs(self, kind):
         """The files of every small pile of one kind: ``states``, ``summaries``

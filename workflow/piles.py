@@ -7,7 +7,6 @@ are :class:`workflow.jobs.JobSettings`. The rule files reach all of them
 through :class:`workflow.study.Study`.
 """
 
-from sim.config import SECTIONS, SimConfig
 from sim.preflight import check_piles
 from workflow.paths import PilePaths
 from workflow.stages import Stages
@@ -76,7 +75,7 @@ class Piles:
         """
         return self.stages.problems()
 
-    def preflight(self):
+    def preflight(self, sim):
         """The simulator's own refusals of these piles, before any job runs.
 
         :func:`sim.preflight.check_piles` on the first seed (a time step that
@@ -86,6 +85,12 @@ class Piles:
         only when it starts, after other jobs. It draws that seed's particles
         (about a second for 3500); above :data:`PREFLIGHT_PARTICLES` it is
         left to the pour, which makes the same checks when it starts.
+
+        Parameters
+        ----------
+        sim : sim.config.SimConfig
+            The simulator's sections of this configuration, as validated
+            (:func:`workflow.validation.validate_config`).
 
         Returns
         -------
@@ -97,7 +102,7 @@ class Piles:
         if not first or self.config["pour"]["n_particles"] > PREFLIGHT_PARTICLES:
             return []
         try:
-            check_piles(SimConfig.from_dict({k: self.config[k] for k in SECTIONS}), self.protocols, first[0])
+            check_piles(sim, self.protocols, first[0])
         except ValueError as exc:  # sim.config.ConfigError, or the step rule's refusal of model.dt
             return [str(exc)]
         return []

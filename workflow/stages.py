@@ -13,7 +13,7 @@ STAGE_PATTERN = r"reduced|reduced\d\d|tilt[pm]\d\d|restored|stretched"
 #: Every stage of a pile.
 PILE_STAGE_PATTERN = rf"poured|relaxed|{STAGE_PATTERN}"
 #: The support-stretch probe (config probe.stretch) and its own settings: only
-#: its job reads them, and only it gets them (:meth:`workflow.jobs.JobSettings.probe_sim_params`).
+#: its job reads them, and only it gets them (:meth:`workflow.jobs.JobSettings.probe_job_params`).
 STRETCH_STAGE = "stretched"
 STRETCH_KEYS = ("stretch", "stretch_time")
 #: The rules that make the stages no probe makes (workflow/rules/pour.smk,

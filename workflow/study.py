@@ -1,9 +1,11 @@
 """The study of a configuration: the one object the rule files read.
 
 workflow/rules/common.smk builds it (:meth:`Study.of_workflow`) before any
-rule, and every rule file calls its parts by name: ``study.piles`` (which
-piles), ``study.stages`` (their stages), ``study.paths`` (where their files
-lie), ``study.jobs`` (the settings each simulation job receives),
+rule, and every rule file calls its parts by name: ``study.sim`` (the
+simulator's settings, which write each simulation job's ``--params``),
+``study.piles`` (which piles), ``study.stages`` (their stages),
+``study.paths`` (where their files lie), ``study.jobs`` (what the workflow
+adds to a job's settings: a probe's own keys, the unrecorded bookkeeping),
 ``study.resources`` (runtime and memory of those jobs), ``study.scene`` (the
 outputs asked for), ``study.analysis`` (the analysis' inputs and targets),
 ``study.numerics`` (the pile numerics), ``study.commands`` (the command
@@ -103,14 +105,18 @@ class Study:
     """
 
     def __init__(self, config, repo, python, mem_mb=None, local=True, warn=print):
-        validate_config(config)
+        #: The simulator's sections (:class:`sim.config.SimConfig`), the one
+        #: object built from them here: validated, drawn by the preflight, and
+        #: the writer of each simulation job's ``--params``
+        #: (:meth:`sim.config.SimConfig.job_params`).
+        self.sim = validate_config(config)
         self.config = config
         self.repo = Path(repo)
         self.piles = Piles(config)
         check_problems(self.piles.problems())
-        check_problems(self.piles.preflight())
+        check_problems(self.piles.preflight(self.sim))
         self.stages, self.paths = self.piles.stages, self.piles.paths
-        self.jobs = JobSettings(config)
+        self.jobs = JobSettings(self.sim)
         self.resources = SimResources(config)
         self.resources.check_size(mem_mb, local, warn)
         self.scene = Scene(self.piles)

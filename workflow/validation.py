@@ -280,6 +280,13 @@ def validate_config(config):
     config : dict
         The workflow configuration.
 
+    Returns
+    -------
+    sim.config.SimConfig
+        The simulator's sections, as the simulator reads them: the object
+        that passed its checks, which the workflow keeps
+        (:attr:`workflow.study.Study.sim`) instead of building it again.
+
     Raises
     ------
     ConfigurationError
@@ -293,12 +300,12 @@ def validate_config(config):
     if problem:
         raise ConfigurationError(f"invalid configuration: {problem}")
     check_results_folder(config["results"])
-    for check in (lambda: SimConfig.from_dict({k: config[k] for k in SECTIONS}),
-                  lambda: check_memory(resolve_params(config["analysis"]))):
-        try:
-            check()
-        except ValueError as exc:
-            raise ConfigurationError(f"invalid configuration: {exc}") from None
+    try:
+        sim = SimConfig.from_dict({k: config[k] for k in SECTIONS})
+        check_memory(resolve_params(config["analysis"]))
+    except ValueError as exc:
+        raise ConfigurationError(f"invalid configuration: {exc}") from None
+    return sim
 
 
 def check_problems(problems, what="configuration"):

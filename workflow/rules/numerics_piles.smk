@@ -28,8 +28,8 @@ rule numerics_pile_pour:
         cpu=study.numerics.cpu("{integrator}", "{factor}", "{seed}", "pour"),
     params:
         code=study.code.sim,
-        sim=lambda wildcards: study.numerics.sim_params(wildcards, "pour"),
-        bookkeeping=study.jobs.sim_bookkeeping(),
+        sim=lambda wildcards: study.numerics.job_params(wildcards, "pour"),
+        bookkeeping=study.jobs.job_bookkeeping(),
         protocol=study.numerics.settings["protocol"],
         checkpoint=lambda wildcards: study.numerics.pile(wildcards.integrator, wildcards.factor, wildcards.seed,
                                                    "pour.checkpoint"),
@@ -61,8 +61,8 @@ rule numerics_pile_relax:
         cpu=study.numerics.cpu("{integrator}", "{factor}", "{seed}", "relax"),
     params:
         code=study.code.sim,
-        sim=lambda wildcards: study.numerics.sim_params(wildcards, "relax"),
-        bookkeeping=study.jobs.sim_bookkeeping(),
+        sim=lambda wildcards: study.numerics.job_params(wildcards, "relax"),
+        bookkeeping=study.jobs.job_bookkeeping(),
     log:
         study.paths.results_path("logs/numerics/piles/{integrator}/dt_factor{factor}/seed{seed}_relax.log"),
     benchmark:

@@ -37,8 +37,8 @@ rule pour:
         **({"frames": study.paths.pile_frames("{protocol}", "{seed}")} if study.scene.wants("film") else {}),
     params:
         code=study.code.sim,
-        sim=study.jobs.sim_params("pour"),
-        bookkeeping=study.jobs.sim_bookkeeping(),
+        sim=study.sim.job_params("pour"),
+        bookkeeping=study.jobs.job_bookkeeping(),
         checkpoint=lambda wildcards: study.paths.pour_checkpoint(wildcards.protocol, wildcards.seed),
         # the finished pour kept apart (PilePaths.pour_finished): Snakemake,
         # interrupted while the pour ran, marks the outputs of the pour that

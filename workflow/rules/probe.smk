@@ -20,8 +20,8 @@ rule probe:
         stage=STAGE_PATTERN,
     params:
         code=study.code.sim,
-        sim=lambda wildcards: study.jobs.probe_sim_params(wildcards.stage),
-        bookkeeping=study.jobs.sim_bookkeeping(),
+        sim=lambda wildcards: study.jobs.probe_job_params(wildcards.stage),
+        bookkeeping=study.jobs.job_bookkeeping(),
         change=lambda wildcards: study.stages.probe_change(wildcards.stage),
     log:
         study.paths.stage_log("{protocol}", "{seed}", "{stage}"),

@@ -9,8 +9,8 @@ rule relax:
         study.paths.pile("{protocol}", "{seed}", "relaxed"),
     params:
         code=study.code.sim,
-        sim=study.jobs.sim_params("relax"),
-        bookkeeping=study.jobs.sim_bookkeeping(),
+        sim=study.sim.job_params("relax"),
+        bookkeeping=study.jobs.job_bookkeeping(),
     log:
         study.paths.stage_log("{protocol}", "{seed}", "relaxed"),
     benchmark:
