@@ -10,7 +10,7 @@ complete-looking file: :func:`sim.atomic.atomic_path`, the project's one
 atomic write, shared with the simulator like its check of paths (a failed
 write is an :class:`sim.atomic.OutputError`, the same line from either
 command line). Each file carries ``data_digest``, the digest of its content as
-read back (:func:`analysis.states.content_digest`), which :func:`read_dataset`
+read back (:func:`sim.digest.data_digest`, the simulator's rule), which :func:`read_dataset`
 verifies.
 """
 
@@ -27,6 +27,7 @@ import numpy as np
 import xarray as xr
 
 from sim.atomic import atomic_path
+from sim.digest import data_digest
 
 from . import __version__
 
@@ -129,9 +130,7 @@ def _write_digest(path: str) -> None:
     :func:`read_dataset` reads it back, so that the reader's computation gives it again bit for bit."""
     import netCDF4
 
-    from .states import content_digest
-
-    digest = content_digest(read_dataset(path))
+    digest = data_digest(read_dataset(path))
     with netCDF4.Dataset(str(path), "a") as nc:
         nc.setncattr("data_digest", digest)
 

@@ -1,7 +1,8 @@
 """Reading particle-state files through the data contract (docs/formats.md#state-files).
 
-The analysis never imports the simulator: everything it knows about a pile
-comes from these files. :func:`load_state` checks names, dimensions, finiteness
+The analysis never imports the simulator's model: everything it knows about a
+pile comes from these files (of ``sim`` it shares only the digest of a file's
+content, :func:`sim.digest.data_digest`, which both packages write and check). :func:`load_state` checks names, dimensions, finiteness
 and index ranges and raises :class:`~analysis.errors.StateError` with the file,
 variable and first offending index, before any computation starts.
 :func:`check_identity` checks that a file is the pile and stage the argument
@@ -11,7 +12,6 @@ one protocol and each pile once (docs/formats.md#which-file-is-which).
 
 from __future__ import annotations
 
-import hashlib
 import os
 import re
 from dataclasses import dataclass, field
@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 import xarray as xr
+
+from sim.digest import data_digest
 
 from .errors import InputError, StateError
 
@@ -105,30 +107,6 @@ def _fail(path: str, msg: str) -> StateError:
     return StateError(f"{path}: {msg}")
 
 
-def content_digest(ds: xr.Dataset) -> str:
-    """The ``data_digest`` of docs/formats.md#state-files, computed from ``ds`` as read.
-
-    SHA-256 over the data variables in the order of their names (each as
-    ``name|dtype|shape|`` and its C-order bytes), then the global attributes
-    but ``data_digest`` in the order of their names (``@name|`` and the value:
-    a text as UTF-8, a number as its int64 or float64 bytes).  The simulator
-    writes it (``sim.io.data_digest``); this is the reader's own computation of
-    the documented rule, as the analysis imports nothing from the simulator.
-    """
-    h = hashlib.sha256()
-    for name in sorted(ds.data_vars):
-        values = np.ascontiguousarray(ds[name].values)
-        h.update(f"{name}|{values.dtype.str}|{values.shape}|".encode() + values.tobytes())
-    for name in sorted(set(ds.attrs) - {"data_digest"}):
-        value = np.asarray(ds.attrs[name])
-        if value.dtype.kind in "US":
-            raw = str(ds.attrs[name]).encode()
-        else:
-            raw = value.astype(np.float64 if value.dtype.kind == "f" else np.int64).tobytes()
-        h.update(f"@{name}|".encode() + raw)
-    return h.hexdigest()
-
-
 def check_digest(ds: xr.Dataset, path: str, error: type[InputError] = InputError) -> None:
     """Refuse a file whose content no longer matches the ``data_digest`` written with it.
 
@@ -149,9 +127,9 @@ def check_digest(ds: xr.Dataset, path: str, error: type[InputError] = InputError
     ------
     InputError
         (or ``error``) Naming the file: its data or global attributes were
-        changed after it was written (:func:`content_digest`).
+        changed after it was written (:func:`sim.digest.data_digest`).
     """
-    if "data_digest" in ds.attrs and content_digest(ds) != ds.attrs["data_digest"]:
+    if "data_digest" in ds.attrs and data_digest(ds) != ds.attrs["data_digest"]:
         raise error(f"{path}: its content does not match the digest written with it (attribute data_digest): "
                     "the file was damaged after it was written; delete it and run the step that writes it again")
 
@@ -166,7 +144,7 @@ def state_from_dataset(ds: xr.Dataset, path: str = "<dataset>") -> State:
     the base layer and the fields see it as the support.
 
     A file written with a ``data_digest`` (every state the simulator writes)
-    must still match it (:func:`content_digest`): bytes changed inside the
+    must still match it (:func:`sim.digest.data_digest`): bytes changed inside the
     file after it was written are named as damage, not read as a pile.
     """
     missing = [v for v in DIMS if v not in ds.variables]

@@ -1,16 +1,23 @@
-"""The digest of a package's sources: the one rule for every code digest of the project.
+"""The project's digests: of a package's sources, and of a file's content.
 
-The simulator records it for ``sim/`` in every state file
-(:func:`sim.io.code_version`), a pour resumes a checkpoint only under the
-same one, the workflow carries it for ``sim/`` and ``analysis/`` as the
-param ``code`` of its rules (an edit re-runs the jobs that run that code),
-and ``python -m sim --version`` and ``python -m analysis --version`` print
-it.  (The Numba cache is named by another digest, of the kernels' sources
-alone: :func:`sim.source_digest`.)
+:func:`code_digest` is the one rule for every code digest: the simulator
+records it for ``sim/`` in every state file (:func:`sim.io.code_version`), a
+pour resumes a checkpoint only under the same one, the workflow carries it
+for ``sim/`` and ``analysis/`` as the param ``code`` of its rules (an edit
+re-runs the jobs that run that code), and ``python -m sim --version`` and
+``python -m analysis --version`` print it.  (The Numba cache is named by
+another digest, of the kernels' sources alone: :func:`sim.source_digest`.)
+
+:func:`data_digest` is the one rule for the ``data_digest`` attribute that
+every netCDF file of the simulator and of the analysis carries
+(docs/formats.md#conventions): each package writes it and checks it on
+reading, by this function.
 """
 
 import hashlib
 from pathlib import Path
+
+import numpy as np
 
 
 def code_digest(folder) -> str:
@@ -32,3 +39,41 @@ def code_digest(folder) -> str:
     for path in sorted(Path(folder).glob("*.py")):
         digest.update(path.name.encode() + b"\0" + path.read_bytes())
     return digest.hexdigest()[:16]
+
+
+def data_digest(ds) -> str:
+    """SHA-256 of a dataset's content: its data variables (name, dtype, shape,
+    bytes) and its global attributes but ``data_digest`` (name and value),
+    each in the order of their names.
+
+    Written with every state file and every analysis file as the attribute
+    ``data_digest`` and checked when they are read, so that bytes changed
+    inside a file after it was written (which netCDF reads without complaint
+    when they fall in the data or an attribute's value) are named as damage
+    instead of passing as a result.  A data variable enters as
+    ``name|dtype|shape|`` and its C-order bytes; an attribute as ``@name|``
+    and its value: a text as UTF-8, a number as its 8 bytes (int64 or
+    float64, as netCDF stores a Python int or float).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The dataset as read (its values loaded).
+
+    Returns
+    -------
+    str
+        64 hex digits.
+    """
+    h = hashlib.sha256()
+    for name in sorted(ds.data_vars):
+        a = np.ascontiguousarray(ds[name].values)
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    for name in sorted(k for k in ds.attrs if k != "data_digest"):
+        value = ds.attrs[name]
+        a = np.asarray(value)
+        raw = (str(value).encode() if a.dtype.kind in "US" else
+               a.astype(np.float64 if a.dtype.kind == "f" else np.int64).tobytes())
+        h.update(f"@{name}|".encode() + raw)
+    return h.hexdigest()

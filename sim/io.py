@@ -28,7 +28,7 @@ import xarray as xr
 from . import __version__
 from .atomic import atomic_path
 from .config import STAGE_SECTIONS, ModelParams, result_settings
-from .digest import code_digest
+from .digest import code_digest, data_digest
 from .engine import Simulation
 from .scene import BODY_BASE, BODY_SUPPORT, place_base
 from .shapes import shapes_from_nodes
@@ -357,33 +357,6 @@ def _base_of(ds: xr.Dataset, density: float):
     shapes = shapes_from_nodes(ds["base_node_count"].values.astype(np.int64),
                                ds["base_node_x"].values, ds["base_node_y"].values, density)
     return place_base(shapes, ds["base_x"].values, ds["base_y"].values, ds["base_theta"].values)
-
-
-def data_digest(ds: xr.Dataset) -> str:
-    """SHA-256 of a dataset's content: its data variables (name, dtype, shape, bytes) and its
-    global attributes but ``data_digest`` (name and value), each in the order of their names.
-
-    Written with every state file as the attribute ``data_digest`` and checked
-    by :func:`read_state`, so that bytes changed inside a file after it was
-    written (which netCDF reads without complaint when they fall in the data
-    or an attribute's value) are named as damage instead of passing as a
-    state; the analysis checks the same digest on its own
-    (``analysis.states``), since ``sim`` and ``analysis`` import nothing from
-    each other.  A number enters as its 8 bytes (int64 or float64, as netCDF
-    stores a Python int or float), a text as UTF-8.
-    """
-    h = hashlib.sha256()
-    for name in sorted(ds.data_vars):
-        a = np.ascontiguousarray(ds[name].values)
-        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
-        h.update(a.tobytes())
-    for name in sorted(k for k in ds.attrs if k != "data_digest"):
-        value = ds.attrs[name]
-        a = np.asarray(value)
-        raw = (str(value).encode() if a.dtype.kind in "US" else
-               a.astype(np.float64 if a.dtype.kind == "f" else np.int64).tobytes())
-        h.update(f"@{name}|".encode() + raw)
-    return h.hexdigest()
 
 
 def save_state(sim: Simulation, path, config: dict | None = None, **attrs) -> None:

@@ -50,7 +50,7 @@ LANDING_TIME = 1.0
 
 #: The largest seed of a pile (the smallest is 0): that of the workflow's
 #: ``protocols.<protocol>.seeds`` (workflow/schemas/config.schema.yaml), well
-#: within the int64 a state file stores it as (:func:`sim.io.data_digest`).
+#: within the int64 a state file stores it as (:func:`sim.digest.data_digest`).
 SEED_MAX = 2**32 - 1
 
 

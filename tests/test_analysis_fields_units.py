@@ -21,7 +21,7 @@ from synthetic_states import displaced, step_pyramid, write_state
 from analysis.__main__ import main
 from analysis.errors import InputError
 from analysis.fields import read_fields
-from analysis.states import content_digest
+from sim.digest import data_digest
 
 SMALL = {"grid": {"x_min": -0.1, "x_max": 0.1, "y_min": 0.03, "y_max": 0.09, "spacing": 0.03}}
 
@@ -104,7 +104,7 @@ def test_the_file_as_written_is_read_by_every_reader(fields, tmp_path, capsys, r
 def test_the_fields_file_carries_the_digest_of_its_content(fields):
     with xr.open_dataset(fields) as ds:
         ds = ds.load()
-    assert ds.attrs["data_digest"] == content_digest(ds)
+    assert ds.attrs["data_digest"] == data_digest(ds)
 
 
 def test_a_copy_changed_in_place_is_refused_as_damaged(fields, tmp_path, capsys):

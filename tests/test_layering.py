@@ -5,7 +5,8 @@ contract; settings, which precede both, are read by one reader,
 :mod:`sim.settings_file`, so that a number or a repeated key means the same to
 both), the check of a setting against its JSON schema (:mod:`sim.schema`),
 and the check that no output of a command line is an input or another
-output (:mod:`sim.paths`, one for both command lines) and the one atomic write
+output (:mod:`sim.paths`, one for both command lines), the digests of
+code and of a file's content (:mod:`sim.digest`) and the one atomic write
 (:mod:`sim.atomic`), and no module of either package imports itself through others (no
 import cycle). Every import statement counts, also those inside functions."""
 
@@ -52,7 +53,7 @@ def graph():
 
 #: What the analysis may import of the simulator: the one reader of settings, the
 #: one check of a setting against its schema, the one check of a command line's
-#: paths, the one code digest and the one atomic write.
+#: paths, the one code digest and data digest, and the one atomic write.
 SHARED = ("sim.settings_file", "sim.schema", "sim.paths", "sim.digest", "sim.atomic")
 
 

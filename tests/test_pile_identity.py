@@ -17,9 +17,9 @@ from scenes import rectangle, scene
 from synthetic_states import displaced, step_pyramid, to_dataset, write_state
 
 from analysis.__main__ import main as analysis
-from analysis.states import content_digest
 from sim.cli import main as sim
 from sim.config import SimConfig
+from sim.digest import data_digest
 from sim.io import StateFileError, pour_digest, save_state
 from sim.probe import probe_file, restore_file, stretch_file, tilt_file
 from sim.relax import relax_file
@@ -31,7 +31,7 @@ LEVEL = 0.1
 def stamped(path, state, **attrs):
     """Write ``state`` with the global attributes ``attrs`` and the ``data_digest`` the simulator writes."""
     ds = to_dataset({**state, "attrs": {**state["attrs"], **attrs}})
-    ds.attrs["data_digest"] = content_digest(ds)
+    ds.attrs["data_digest"] = data_digest(ds)
     ds.to_netcdf(path)
     return str(path)
 
