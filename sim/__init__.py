@@ -18,12 +18,13 @@ the numerics (``sim/numerics/``) recompiles nothing.
 """
 
 import ast
-import hashlib
 import os
 import re
 from pathlib import Path
 
 import numba
+
+from .digest import files_digest
 
 __version__ = "0.1.0"
 
@@ -48,7 +49,8 @@ def kernel_sources(package_dir=Path(__file__).parent):
     The top-level modules of the package that define kernels (they use
     ``njit`` or :func:`sim.builds.build`) and, transitively, every module of
     the package that those import: a kernel may inline a helper from any of
-    them, and this file, which holds the rule.  Subpackages
+    them, and this file, which holds the rule (with :mod:`sim.digest`, which
+    it imports).  Subpackages
     (``sim/numerics/``: the bench and the numerical studies) are not among
     them; their own kernels are cached by Numba's rule (the modification
     time of their file).
@@ -77,7 +79,8 @@ def kernel_sources(package_dir=Path(__file__).parent):
 
 
 def source_digest(package_dir=Path(__file__).parent):
-    """A 12-digit digest of the contents of the kernels' source files.
+    """A 12-digit digest of the kernels' source files: the first 12 hex digits
+    of :func:`sim.digest.files_digest` over :func:`kernel_sources`.
 
     Parameters
     ----------
@@ -87,13 +90,8 @@ def source_digest(package_dir=Path(__file__).parent):
     Returns
     -------
     str
-        Over the names and bytes of :func:`kernel_sources`.
     """
-    h = hashlib.sha256()
-    for path in kernel_sources(package_dir):
-        h.update(path.relative_to(package_dir).as_posix().encode())
-        h.update(path.read_bytes())
-    return h.hexdigest()[:12]
+    return files_digest(kernel_sources(package_dir), package_dir)[:12]
 
 
 def default_cache_dir(package_dir=Path(__file__).parent):

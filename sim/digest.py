@@ -5,8 +5,8 @@ records it for ``sim/`` in every state file (:func:`sim.io.code_version`), a
 pour resumes a checkpoint only under the same one, the workflow carries it
 for ``sim/`` and ``analysis/`` as the param ``code`` of its rules (an edit
 re-runs the jobs that run that code), and ``python -m sim --version`` and
-``python -m analysis --version`` print it.  (The Numba cache is named by
-another digest, of the kernels' sources alone: :func:`sim.source_digest`.)
+``python -m analysis --version`` print it.  The Numba cache is named by the
+same rule over the kernels' sources alone (:func:`sim.source_digest`).
 
 :func:`data_digest` is the one rule for the ``data_digest`` attribute that
 every netCDF file of the simulator and of the analysis carries
@@ -20,12 +20,32 @@ from pathlib import Path
 import numpy as np
 
 
-def code_digest(folder) -> str:
-    """The first 16 hex digits of the SHA-256 of the ``*.py`` files of `folder`.
+def files_digest(files, root) -> str:
+    """SHA-256 (hex) of files: for each, in the order given, its path relative
+    to `root` (with ``/``), a NUL byte and its content.
 
-    Each file's name, a NUL byte and its content, in sorted order; the
-    files of subfolders do not count.  Computed from the files in `folder`,
-    not from an imported package, which need not be the one there.
+    Parameters
+    ----------
+    files : iterable of path-like
+        Files under `root`.
+    root : path-like
+
+    Returns
+    -------
+    str
+        64 hex digits.
+    """
+    digest = hashlib.sha256()
+    for path in files:
+        digest.update(Path(path).relative_to(root).as_posix().encode() + b"\0" + Path(path).read_bytes())
+    return digest.hexdigest()
+
+
+def code_digest(folder) -> str:
+    """The first 16 hex digits of :func:`files_digest` of the ``*.py`` files of
+    `folder`, in sorted order; the files of subfolders do not count.
+    Computed from the files in `folder`, not from an imported package, which
+    need not be the one there.
 
     Parameters
     ----------
@@ -35,10 +55,7 @@ def code_digest(folder) -> str:
     -------
     str
     """
-    digest = hashlib.sha256()
-    for path in sorted(Path(folder).glob("*.py")):
-        digest.update(path.name.encode() + b"\0" + path.read_bytes())
-    return digest.hexdigest()[:16]
+    return files_digest(sorted(Path(folder).glob("*.py")), folder)[:16]
 
 
 def data_digest(ds) -> str:
