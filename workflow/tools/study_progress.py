@@ -377,12 +377,9 @@ def fraction_done(piles, means, cores, threads):
 
     Parameters
     ----------
-    piles : list of PileState
-    means : dict
-        :func:`stage_means`; empty: unknown.
-    cores : int
-    threads : int
-        As for :func:`time_left`, for the CPU seconds of a running stage's ETA.
+    piles, means, cores, threads
+        As for :func:`time_left` (`cores` and `threads` give the CPU seconds
+        of a running stage's ETA).
 
     Returns
     -------
