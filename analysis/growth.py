@@ -92,3 +92,59 @@ def growth(frames, radius, d, start, settled_speed):
         rows.append((t[f], released[f], flank_angle(x[f][settled], tops[settled], d),
                      int(moving.sum()), int((moving & (released_at < t[f] - OLD)).sum())))
     return np.array(rows)
+
+
+#: Quantiles of the landing-to-rest distance a record keeps (:func:`landing_displacement`).
+DISTANCE_QUANTILES = (0.25, 0.5, 0.75, 0.9)
+
+
+def landing_displacement(frames, x_rest, y_rest, d) -> dict:
+    """How far the particles moved from where they landed to where they rest.
+
+    A pile laid down in place (each layer where it falls, as the paper's
+    layered piles are built) keeps its particles near their landing points;
+    a pile built by avalanches carries them down its flanks.  The landing
+    is where a particle first touched the pile (``landing_x``,
+    ``landing_y`` of the frames file, :mod:`sim.frames`), the rest its centre
+    in the relaxed pile; the distance is measured in mean diameters `d`.
+
+    Parameters
+    ----------
+    frames : path-like
+        The frames file of the pour (with its landing variables).
+    x_rest, y_rest : ndarray
+        Centre of every particle of the pile at rest (the relaxed state), m.
+    d : float
+        A mean particle diameter, m.
+
+    Returns
+    -------
+    dict
+        ``interior_share``: the share of the landed particles resting within
+        one diameter of their landing point; ``within_2d``: within two;
+        ``distance_qXX``: the quantiles :data:`DISTANCE_QUANTILES` of the
+        distance (diameters); ``landed``: how many particles landed.
+
+    Raises
+    ------
+    ValueError
+        If the frames file has no landing variables (made before they
+        existed), or its particles are not those at rest.
+    """
+    with xr.open_dataset(frames) as ds:
+        if "landing_x" not in ds:
+            raise ValueError(f"{frames}: no landing_x/landing_y (a frames file made before "
+                             "landings were recorded); pour the pile again")
+        lx, ly = ds["landing_x"].values, ds["landing_y"].values
+    x_rest, y_rest = np.asarray(x_rest, float), np.asarray(y_rest, float)
+    if lx.shape != x_rest.shape:
+        raise ValueError(f"{frames}: {lx.size} particles landed, {x_rest.size} at rest: "
+                         "not the same pile")
+    landed = np.isfinite(lx)
+    dist = np.hypot(x_rest - lx, y_rest - ly)[landed] / d
+    out = {"landed": int(landed.sum()),
+           "interior_share": float(np.mean(dist <= 1.0)) if dist.size else math.nan,
+           "within_2d": float(np.mean(dist <= 2.0)) if dist.size else math.nan}
+    for q in DISTANCE_QUANTILES:
+        out[f"distance_q{round(100 * q)}"] = float(np.quantile(dist, q)) if dist.size else math.nan
+    return out

@@ -127,11 +127,24 @@ def uniform_pile_pressure(x_bins: np.ndarray, x_surface: np.ndarray, surface: np
     return weight * np.interp(x_bins, x_surface, h, left=0.0, right=0.0) / area
 
 
-def base_pressure_stats(bp: xr.Dataset, fields: xr.Dataset, history: dict[str, Any]) -> dict[str, float]:
-    """``base_pressure``, ``base_pressure_column`` and ``centre_column`` of one pile."""
+def base_pressure_inputs(bp: xr.Dataset, fields: xr.Dataset) -> dict[str, list]:
+    """What D2 (``base_pressure_column``) of one pile is computed from: the
+    support's bins ``x`` (m), their normal force density ``p`` (N/m) and the
+    uniform column's pressure ``p_u`` there (N/m, the pile's own surface and
+    weight, :func:`uniform_pile_pressure`), as lists (NaN for an empty bin).
+    Kept in each decision record, so that a reader recomputes D2 from it
+    (:func:`base_pressure_stats`)."""
     x = bp["x"].values
     p = bp["normal_force_density_per_seed"].values[0]
     pu = uniform_pile_pressure(x, fields["x"].values, fields["surface_height"].values, float(bp["weight"].values[0]))
+    return {"x": x.tolist(), "p": p.tolist(), "p_u": pu.tolist()}
+
+
+def base_pressure_stats(bp: xr.Dataset, fields: xr.Dataset, history: dict[str, Any]) -> dict[str, float]:
+    """``base_pressure``, ``base_pressure_column`` and ``centre_column`` of one pile
+    (from :func:`base_pressure_inputs`)."""
+    inputs = base_pressure_inputs(bp, fields)
+    x, p, pu = (np.asarray(inputs[k], float) for k in ("x", "p", "p_u"))
     centre, shoulders = windows(x, history)
     pc, ps = _nanmean(p[centre]), _nanmean(p[shoulders])
     uc, us = _nanmean(pu[centre]), _nanmean(pu[shoulders])
@@ -234,19 +247,43 @@ def pile_stress_contrasts(fields, params):
     (fields,), _ = leave_out_slips([fields], params["ensemble"]["slip_strain_ratio"])
     x, y = fields["x"].values, fields["y"].values
     k = int(np.argmin(np.abs(y - h["primary_height"])))
-    ok = fields["mask_reason"].transpose("y", "x").values == 0
     d = fields["stress_increment"].sel(i="y", j="y").transpose("y", "x").values
     u = fields["strain_increment"].sel(i="y", j="y").transpose("y", "x").values
-    s = np.where(ok, fields["stress"].sel(i="y", j="y").transpose("y", "x").values, np.nan)
-    low = lowest_row(fields, params)
-    pu = uniform_pile_pressure(x, x, fields["surface_height"].values, 1.0)
+    col = _stress_column_row(fields, params)
     centre, shoulders = windows(x, h)
     window = u[k][centre | shoulders]
     with np.errstate(divide="ignore", invalid="ignore"):
         return {"stress_increment": row_contrast(d[k], x, h), "vertical_stiffness": row_contrast(d[k] / u[k], x, h),
                 "strain_min": float(np.min(window[np.isfinite(window)])) if np.isfinite(window).any() else math.nan,
-                "stress_column": math.nan if low is None else row_contrast(s[low] / pu, x, h),
-                "lowest_row_y": math.nan if low is None else float(y[low])}
+                "stress_column": math.nan if col is None else row_contrast(
+                    np.asarray(col["sigma_yy"]) / np.asarray(col["p_u"]), x, h),
+                "lowest_row_y": math.nan if col is None else col["y"]}
+
+
+def _stress_column_row(fields, params):
+    """D1's row of fields already cleared of slips (see :func:`stress_column_inputs`), or None."""
+    x = fields["x"].values
+    low = lowest_row(fields, params)
+    if low is None:
+        return None
+    ok = fields["mask_reason"].transpose("y", "x").values[low] == 0
+    s = np.where(ok, fields["stress"].sel(i="y", j="y").transpose("y", "x").values[low], np.nan)
+    pu = uniform_pile_pressure(x, x, fields["surface_height"].values, 1.0)
+    return {"y": float(fields["y"].values[low]), "x": x.tolist(), "sigma_yy": s.tolist(), "p_u": pu.tolist()}
+
+
+def stress_column_inputs(fields, params):
+    """What D1 (``stress_column``) of one pile is computed from: the height
+    ``y`` (m) of its row (the lowest whose centre and shoulder windows both
+    hold a valid RVE, :func:`lowest_row`, slipped RVEs left out), the grid
+    columns ``x`` (m), ``σ_yy`` there (N/m in 2D, NaN where the RVE is not valid)
+    and the uniform column's pressure ``p_u`` of a pile of unit weight (1/m,
+    :func:`uniform_pile_pressure`), as lists; None when no row qualifies.
+    Kept in each decision record, so that a reader recomputes D1 as
+    ``mean(σ_yy/p_u over the centre) / mean(σ_yy/p_u over the shoulders) − 1``
+    (:func:`pile_stress_contrasts`)."""
+    (fields,), _ = leave_out_slips([fields], params["ensemble"]["slip_strain_ratio"])
+    return _stress_column_row(fields, params)
 
 
 def mean_sem(values) -> tuple[float, float, float, int]:

@@ -13,6 +13,16 @@ second frame dropped) when that many are reached, so the file stays under
 ``MAX_FRAMES`` frames whatever the pour's length. The wall time spent copying
 is measured and logged with the file's size.
 
+Beside the frames it keeps where each particle *landed*: its centre and the
+time at the end of the first run chunk (one release interval of the pour,
+``1 / rate``) in which it touched a particle or a body (``landing_x``,
+``landing_y``, ``landing_time``; NaN for a particle that never touched
+anything).  Read against where the particle comes to rest, it says whether a
+pile was laid down where its particles fell or built by flows
+(:func:`analysis.growth.landing_displacement`).  The landing is taken at every
+call, not only at frame times, so it is as fine as the pour's chunks whatever
+``frame_interval``.
+
 While a pour checkpoints, the frames so far are written beside the checkpoint
 (:func:`partial_path`) and read back when that checkpoint is resumed, so a
 resumed pour's film has no gap; they are deleted with the checkpoint.
@@ -28,6 +38,7 @@ import numpy as np
 import xarray as xr
 
 from .io import atomic_write, cf_attributes
+from .release import touching
 
 log = logging.getLogger(__name__)
 
@@ -39,6 +50,14 @@ FRAME_VARS = {
     "y": ("m", "centre of mass y (NaN: not yet released)"),
     "theta": ("rad", "orientation"),
     "speed": ("m/s", "speed of the centre of mass"),
+}
+
+#: Where each particle first touched the pile (see the module docstring).
+LANDING_VARS = {
+    "landing_x": ("m", "centre x at the end of the first chunk in which the particle touched "
+                  "a particle or a body (NaN: never)"),
+    "landing_y": ("m", "centre y then"),
+    "landing_time": ("s", "simulated time then"),
 }
 
 
@@ -71,16 +90,21 @@ class FrameRecorder:
         self.frames: list[np.ndarray] = []   # (4, n_particles) float32 each
         self.next_time = 0.0
         self.wall = 0.0
+        self.landing = np.full((len(LANDING_VARS), self.n_particles), np.nan)
 
     def __call__(self, sim) -> None:
         """Take a frame if the simulation has reached the next frame time.
 
         Frame k is the state at the first call at or after k * interval, so the
-        frame times depend only on the run, not on where it was resumed.
+        frame times depend only on the run, not on where it was resumed.  Every
+        call also takes the landing of the particles that touch something for
+        the first time (:meth:`_land`).
         """
-        if sim.time < self.next_time:
-            return
         t0 = _time.perf_counter()
+        self._land(sim)
+        if sim.time < self.next_time:
+            self.wall += _time.perf_counter() - t0
+            return
         self._take(sim)
         self.next_time = self._after(sim.time)
         self.wall += _time.perf_counter() - t0
@@ -89,8 +113,17 @@ class FrameRecorder:
         """The first frame time after `t`: the next multiple of the interval."""
         return (np.floor(t / self.interval) + 1.0) * self.interval
 
+    def _land(self, sim) -> None:
+        """Record centre and time of the particles touching something for the first time."""
+        n = sim.n
+        new = touching(sim) & np.isnan(self.landing[2, :n])
+        self.landing[0, :n][new] = sim.position[new, 0]
+        self.landing[1, :n][new] = sim.position[new, 1]
+        self.landing[2, :n][new] = sim.time
+
     def finish(self, sim) -> None:
-        """Take the last frame (the state that is saved), whatever the time."""
+        """Take the last frame (the state that is saved), whatever the time, and the last landings."""
+        self._land(sim)
         if not self.times or self.times[-1] < sim.time:
             self._take(sim)
 
@@ -120,6 +153,7 @@ class FrameRecorder:
                 keep = times <= time + 1e-12
                 stack = np.stack([ds[name].values[keep] for name in FRAME_VARS], axis=1)
                 interval = float(ds.attrs["frame_interval"])
+                landing = np.stack([ds[name].values for name in LANDING_VARS])
         except (OSError, KeyError, ValueError) as exc:
             log.warning("frames: %s unusable (%s); the film starts at t = %.3f s",
                         path, exc, time)
@@ -132,6 +166,7 @@ class FrameRecorder:
         self.frames = [f.astype(np.float32) for f in stack]
         self.interval = interval
         self.next_time = self._after(self.times[-1]) if self.times else 0.0
+        self.landing = np.where(landing[2] <= time + 1e-12, landing, np.nan)
 
     def dataset(self, config: dict | None = None, **attrs) -> xr.Dataset:
         """The frames as a dataset: ``time (frame)``, ``x, y, theta, speed
@@ -147,6 +182,9 @@ class FrameRecorder:
         for k, (name, (units, long_name)) in enumerate(FRAME_VARS.items()):
             ds[name] = xr.DataArray(stack[k], dims=("frame", "particle"),
                                     attrs={"units": units, "long_name": long_name})
+        for row, (name, (units, long_name)) in zip(self.landing, LANDING_VARS.items()):
+            ds[name] = xr.DataArray(row, dims="particle", attrs={"units": units,
+                                                                 "long_name": long_name})
         ds["released"] = xr.DataArray(
             np.sum(np.isfinite(stack[0]), axis=1).astype(np.int32), dims="frame",
             attrs={"units": "1", "long_name": "particles released so far"})

@@ -16,13 +16,23 @@ written to ``docs/reproduction/calibration/ARM-seedS.json``:
   ``OLD`` s before and with their centre below the tip, faster than the
   settling speed: an avalanche, not a particle landing), the median and
   largest number of such particles, the flank angle (median, 90th
-  percentile, largest) and the measured flux;
+  percentile, largest) and the measured flux; and how the pile was laid
+  down (:func:`landing_record`): the share of its particles resting within
+  one mean diameter of where they landed (``interior_share``), within two,
+  and quantiles of that distance;
 * ``quantities``: the sweeps' per-pile numbers
   (:func:`analysis.pile_quantities.pile_quantities`: shape, core solid
   fraction, the five primary history statistics, core moduli), the σ_yy
   column contrast of the lowest RVE row (``stress_column``, the low-variance
   statistic of docs/reproduction.md) and the flank fabric (mean deviatoric
   fraction and mirrored axis over the flank RVEs);
+* ``inputs``: the numbers D1 (``stress_column``) and D2
+  (``base_pressure_column``) are computed from, so that a reader recomputes
+  both from the record alone: D1's grid row (its height, the columns, σ_yy
+  and the uniform column's pressure there,
+  :func:`analysis.history.stress_column_inputs`), D2's support bins (force
+  density and the uniform column's pressure,
+  :func:`analysis.history.base_pressure_inputs`) and the windows;
 * ``cpu_s``: CPU seconds of the pour, the relaxation and the probes, each,
   from Snakemake's benchmark files;
 * ``commit``: the checkout the pile was made in.
@@ -54,8 +64,9 @@ import xarray as xr
 import yaml
 
 from analysis.fields import read_fields
-from analysis.growth import OLD, growth
-from analysis.history import mean_sem, pile_stress_contrasts, welch
+from analysis.growth import OLD, growth, landing_displacement
+from analysis.history import (base_pressure_inputs, mean_sem, pile_stress_contrasts, stress_column_inputs,
+                              welch)
 from analysis.params import parse_params
 from analysis.pile_quantities import pile_quantities, quantities
 from sim.config import SimConfig
@@ -98,8 +109,9 @@ def targets(cfg: dict, protocol: str, seed: int) -> dict:
     """The files of one pile the record is read from, relative to its working directory."""
     res = cfg.get("results", "results/study")
     stem = f"{res}/fields/{protocol}/seed{seed}"
+    pile = f"{res}/piles/{protocol}/seed{seed}"
     return {"fields": f"{stem}.nc", "summary": f"{stem}.summary.json", "base_pressure": f"{stem}.base_pressure.nc",
-            "frames": f"{res}/piles/{protocol}/seed{seed}/frames.nc", "benchmarks": f"{res}/benchmarks"}
+            "frames": f"{pile}/frames.nc", "relaxed": f"{pile}/relaxed.nc", "benchmarks": f"{res}/benchmarks"}
 
 
 def cpu_seconds(benchmarks: Path, protocol: str, seed: int) -> dict:
@@ -133,6 +145,15 @@ def growth_record(frames: Path, cfg: dict, protocol: str, seed: int) -> dict:
             "flux_per_s": float((g[-1, 1] - g[0, 1]) / (g[-1, 0] - g[0, 0]))}
 
 
+def landing_record(frames: Path, relaxed: Path, cfg: dict, seed: int) -> dict:
+    """Where the particles came to rest against where they landed
+    (:func:`analysis.growth.landing_displacement`, distances in mean diameters)."""
+    sim_cfg = SimConfig.from_dict({k: cfg[k] for k in ("model", "particles", "pour") if k in cfg})
+    with xr.open_dataset(relaxed) as ds:
+        x, y = ds["x"].values, ds["y"].values
+    return landing_displacement(frames, x, y, mean_diameter(pile_shapes(sim_cfg, seed)))
+
+
 def flank_fabric(fields: xr.Dataset, history: dict) -> dict:
     """Mean deviatoric fraction and mirrored major-axis angle (deg) of the fabric over the flank RVEs."""
     x, y = fields["x"].values, fields["y"].values
@@ -164,7 +185,8 @@ def run_pile(cal: dict, arm: str, seed: int, records: Path) -> Path:
     work.mkdir(parents=True, exist_ok=True)
     (work / "config.yaml").write_text(yaml.dump(cfg, Dumper=SettingsDumper))
     files = targets(cfg, protocol, seed)
-    cmd = [sys.executable, "-m", "snakemake", *(files[k] for k in ("fields", "summary", "base_pressure", "frames")),
+    cmd = [sys.executable, "-m", "snakemake",
+           *(files[k] for k in ("fields", "summary", "base_pressure", "frames", "relaxed")),
            "-s", str(REPO / "Snakefile"), "--directory", str(work), "--cores", "1",
            "--profile", str(REPO / "workflow" / "profiles" / "default"),
            "--configfile", str(work / "config.yaml"), "--replace-workflow-config"]
@@ -178,10 +200,15 @@ def run_pile(cal: dict, arm: str, seed: int, records: Path) -> Path:
     f = read_fields(str(path["fields"]))
     q["stress_column"] = pile_stress_contrasts(f, params)["stress_column"]
     q.update(flank_fabric(f, params["history"]))
+    with xr.open_dataset(path["base_pressure"]) as bp:
+        inputs = {"stress_column": stress_column_inputs(f, params),
+                  "base_pressure_column": base_pressure_inputs(bp.load(), f),
+                  "windows": {k: params["history"][k] for k in ("centre", "shoulder_inner", "shoulder_outer")}}
     record = {"arm": arm, "protocol": protocol, "seed": seed, "n_particles": cfg["pour"]["n_particles"],
               "settings": cal["arms"][arm]["settings"], "commit": commit_of(REPO),
-              "growth": growth_record(path["frames"], cfg, protocol, seed),
-              "quantities": q, "cpu_s": cpu_seconds(path["benchmarks"], protocol, seed),
+              "growth": {**growth_record(path["frames"], cfg, protocol, seed),
+                         **landing_record(path["frames"], path["relaxed"], cfg, seed)},
+              "quantities": q, "inputs": inputs, "cpu_s": cpu_seconds(path["benchmarks"], protocol, seed),
               "definitions": {"flow_min": FLOW_MIN, "old_s": OLD, "start": START,
                               "frame_interval": cal["frame_interval"]}}
     records.mkdir(parents=True, exist_ok=True)
