@@ -352,7 +352,7 @@ def test_stress_only_scene_runs_no_probe_no_fit_no_figure(workdir):
     assert proc.returncode == 0, proc.output
     n = len(smoke_piles())
     assert job_counts(proc.output) == {
-        "compile_kernels": 1, "pour": n, "relax": n, "analysis_fields": n,
+        "compile_kernels": 1, "pour": n, "relax": n, "pile_summary": n, "analysis_fields": n,
         "analysis_base_pressure_pile": n, "analysis_ensemble": 2, "analysis_base_pressure": 2,
         "all": 1}
     assert "--reduced" not in proc.output and "reduced.nc" not in proc.output
