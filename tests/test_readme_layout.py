@@ -144,3 +144,14 @@ def test_the_link_check_finds_what_it_must():
     assert "no-such-heading" not in found
     assert re.findall(r"\]\(([^)\s]+)\)", _without_code("a `[x](nowhere.md)` and [y](here.md)\n"
                                                          "```\n[z](code.md)\n```\n")) == ["here.md"]
+
+
+def test_the_pages_say_what_a_thing_is_for_not_which_issue_asked_for_it():
+    """A reader has no access to the project's tracker: the README and the pages of
+    docs/ cite no issue of ours by number (another project's, e.g. Numba's, may)."""
+    cited = [f"{page.relative_to(REPO)}: {m.group(0)}"
+             for page in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+             for m in re.finditer(r"(\w+ )?\bissues? #?\d+", _without_code(page.read_text(encoding="utf-8")),
+                                  re.I)
+             if not (m.group(1) or "").strip().lower() in ("numba",)]
+    assert cited == []

@@ -1,5 +1,5 @@
 """One line on the progress of the study: piles done, running and left, and
-the time left (issue 15, item 4).
+the time left (make run and make progress print it).
 
 The piles, their stages and the paths of their files are those the
 workflow makes (:class:`workflow.piles.Piles` of the configuration, as the
