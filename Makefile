@@ -44,8 +44,8 @@ $(TEST_STAMP): $(STAMP)
 
 # The paper's study (config/config.yaml): all piles, pictures and the analysis,
 # in results/study/. While Snakemake runs, a line on the piles done, running and left and the time
-# left (python -m workflow.tools study_progress) comes every PROGRESS_EVERY seconds,
-# and once at the end, into the terminal and logs/make-run.log (through the
+# left (python -m workflow.tools study_progress) comes a minute after the start
+# (its FIRST_LINE_S), then every PROGRESS_EVERY seconds, and once at the end, into the terminal and logs/make-run.log (through the
 # same tee: a second writer appending to the file would be overwritten by
 # tee). The trap stops that loop whenever the group ends; the group, and so
 # `make run`, exits with Snakemake's status.
@@ -105,8 +105,22 @@ browser:
 	else echo "make test needs Chromium and ChromeDriver for the report test: install the" \
 	  "Debian packages chromium and chromium-driver (or put chromium and chromedriver on PATH)" >&2; exit 1; fi
 
+# make test changes the machine when run as root: besides Chromium (above),
+# tests/test_slurm.py installs Debian's slurmctld, slurmd, slurm-client and
+# munge (tests/slurm/cluster.sh) and starts a one-node SLURM cluster (munged,
+# slurmctld, slurmd) on this machine; it stops those daemons at its end, the
+# packages stay installed. `make test CLUSTER=no` runs the suite without that
+# test: nothing of SLURM is installed or started.
+CLUSTER ?= yes
+ifeq ($(CLUSTER),no)
+PYTEST_CLUSTER := -m "not slurm"
+endif
+
 test: venv-test browser
-	$(PY) -m pytest
+	@if [ "$(CLUSTER)" != no ] && [ "$$(id -u)" = 0 ]; then \
+	  echo "make test: the SLURM test installs slurmctld, slurmd, slurm-client and munge when" \
+	    "missing and starts a one-node cluster, stopped at its end (make test CLUSTER=no leaves it out)"; fi
+	$(PY) -m pytest $(PYTEST_CLUSTER)
 
 # The simulator's timings; with LAMMPS installed (make bench-peers) also a
 # LAMMPS disk pile of each size and LAMMPS's rounded polygons of each pile,

@@ -47,7 +47,8 @@ CONFIGURATION = configuration_files(workflow.overwrite_configfiles, workflow.con
 check_report_path(report_path(sys.argv), study.paths.folder, CONFIGURATION)
 config["_report"] = report_words(
     CONFIGURATION, study.paths.folder, piles_made(study.piles, study.analysis.analysis_seeds),
-    Freshness(lambda: workflow.dag, logger.warning) if report_path(sys.argv) else "", config["protocols"])
+    Freshness(lambda: workflow.dag, logger.warning, logger.info, lambda: any(map(os.path.exists, SCENE_TARGETS)))
+    if report_path(sys.argv) else "", config["protocols"])
 
 # What the scene asks for (config `outputs`; by default everything: every pile
 # stage, the picture of every relaxed pile, and the analysis), with the

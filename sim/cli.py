@@ -246,7 +246,9 @@ def _parser():
     params_help = ("run parameters: JSON or YAML text, or @FILE (JSON or YAML config); "
                    "given again, merged over the earlier ones (later wins)")
     bookkeeping_help = ("settings that change no result (checkpoint, progress and "
-                        "frame intervals) as JSON, e.g. '{\"pour\": {\"progress_interval\": 5}}'")
+                        "frame intervals) as JSON, e.g. '{\"pour\": {\"progress_interval\": 5}}'; "
+                        "--params takes them too, this keeps them apart from the settings that "
+                        "decide the result (the workflow re-runs a job when those change)")
 
     p = sub.add_parser("pour", help="pour a pile (wedge: point source, layered: line source)")
     p.add_argument("--params", action="append", help=params_help)
@@ -258,7 +260,10 @@ def _parser():
     p.add_argument("--frames", nargs="?", const=None, metavar="FILE",
                    help="also write frames of the pour for a film, every "
                    "pour.frame_interval simulated seconds, to FILE (.nc; python -m analysis "
-                   "film); without FILE, or empty, no frames")
+                   "film); without FILE, or empty, no frames. The interval's default, 0.5 s, "
+                   "gives 3 frames of a 1 s pour (a pour lasts about pour.n_particles / "
+                   "pour.rate s): for a film set it to about a thirtieth of that, e.g. "
+                   "--bookkeeping '{\"pour\": {\"frame_interval\": 0.05}}'")
     p.add_argument("--log", metavar="FILE",
                    help="also append the log to FILE, the pile's log over all runs of its pour, "
                    "once this run holds the pour's lock (a run the lock refuses leaves it as it is)")

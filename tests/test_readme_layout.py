@@ -1,9 +1,13 @@
-"""The README and the pages of docs/ stay usable: the README's layout names every
-rule file, tool and workflow module by its file name, and every folder of the
-two packages, so that a newcomer finds each one there; the README keeps the two
-commands on its first screen and stays short, as does docs/performance.md (its
-measurements live in docs/performance/); and every relative link of these pages
-points at a file that exists and, with a #fragment, at a heading of that page."""
+"""The README and the pages of docs/ stay usable: the guide's layout
+(docs/guide.md) names every rule file, tool and workflow module by its file
+name, and every folder of the two packages, and its table of configurations
+every file of config/, so that a newcomer finds each one there; the README
+keeps the two commands on its first screen and stays a landing page, well
+under its cap, as docs/performance.md stays short (its measurements live in
+docs/performance/); the lists and numbers the pages repeat from the tree (the
+SLURM test's checkpoint interval, the progress line's intervals) match it;
+and every relative link of these pages points at a file that exists and, with
+a #fragment, at a heading of that page."""
 
 import re
 from pathlib import Path
@@ -11,14 +15,50 @@ from urllib.parse import unquote
 
 REPO = Path(__file__).resolve().parents[1]
 
-README_MAX_LINES = 220
+README_MAX_LINES = 130
 README_FIRST_SCREEN = 40
 PERFORMANCE_MAX_LINES = 150
+GUIDE = REPO / "docs" / "guide.md"
 
 
 def layout_block():
-    text = (REPO / "README.md").read_text()
-    return re.search(r"## Layout\n\n```\n(.*?)```", text, re.S).group(1)
+    text = GUIDE.read_text(encoding="utf-8")
+    return re.search(r"## The repository's layout\n\n```\n(.*?)```", text, re.S).group(1)
+
+
+def _section(page, heading):
+    """The text of a page's section `heading` (``## heading``) up to the next ``## ``."""
+    text = page.read_text(encoding="utf-8")
+    return re.search(rf"^## {re.escape(heading)}\n(.*?)(?=^## |\Z)", text, re.S | re.M).group(1)
+
+
+def test_the_guide_lists_every_configuration_file_and_no_other():
+    listed = set(re.findall(r"`(config/[\w/.-]+\.yaml)`", _section(GUIDE, "Configurations")))
+    present = {p.relative_to(REPO).as_posix() for p in (REPO / "config").rglob("*.yaml")}
+    assert {"missing": sorted(present - listed), "not there": sorted(listed - present)} == \
+        {"missing": [], "not there": []}
+
+
+def test_cluster_md_gives_the_slurm_tests_checkpoint_interval():
+    from test_slurm import STUDY
+
+    text = (REPO / "docs" / "cluster.md").read_text(encoding="utf-8")
+    said = re.findall(r"checkpoint every ([\d.]+) s", _section(REPO / "docs" / "cluster.md",
+                                                            "Tested against a real SLURM"))
+    assert said == [f"{STUDY['pour']['checkpoint_interval']:g}"], text
+
+
+def test_the_progress_lines_intervals_are_those_of_the_makefile_and_the_tool():
+    """workflow.md and the README say "a minute after the start, then every 5
+    minutes": the tool's first line (FIRST_LINE_S) and the Makefile's PROGRESS_EVERY."""
+    from workflow.tools.study_progress import FIRST_LINE_S
+
+    every = int(re.search(r"^PROGRESS_EVERY := (\d+)$", (REPO / "Makefile").read_text(), re.M).group(1))
+    assert (FIRST_LINE_S, every) == (60, 300)
+    workflow = " ".join((REPO / "docs" / "workflow.md").read_text(encoding="utf-8").split())
+    readme = " ".join((REPO / "README.md").read_text(encoding="utf-8").split())
+    assert "prints one line a minute after it starts, then every 5 minutes" in workflow
+    assert "comes a minute after the start, then every 5 minutes" in readme
 
 
 def test_the_layout_names_every_rule_file_tool_and_package_folder():
@@ -33,7 +73,7 @@ def test_the_layout_names_every_rule_file_tool_and_package_folder():
     assert missing == []
 
 
-def test_the_readme_is_short_and_starts_with_the_two_commands():
+def test_the_readme_is_a_short_landing_page_that_starts_with_the_commands():
     lines = (REPO / "README.md").read_text(encoding="utf-8").splitlines()
     assert len(lines) <= README_MAX_LINES, f"README.md has {len(lines)} lines"
     first_screen = "\n".join(lines[:README_FIRST_SCREEN])
@@ -104,3 +144,14 @@ def test_the_link_check_finds_what_it_must():
     assert "no-such-heading" not in found
     assert re.findall(r"\]\(([^)\s]+)\)", _without_code("a `[x](nowhere.md)` and [y](here.md)\n"
                                                          "```\n[z](code.md)\n```\n")) == ["here.md"]
+
+
+def test_the_pages_say_what_a_thing_is_for_not_which_issue_asked_for_it():
+    """A reader has no access to the project's tracker: the README and the pages of
+    docs/ cite no issue of ours by number (another project's, e.g. Numba's, may)."""
+    cited = [f"{page.relative_to(REPO)}: {m.group(0)}"
+             for page in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+             for m in re.finditer(r"(\w+ )?\bissues? #?\d+", _without_code(page.read_text(encoding="utf-8")),
+                                  re.I)
+             if not (m.group(1) or "").strip().lower() in ("numba",)]
+    assert cited == []

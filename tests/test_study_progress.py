@@ -3,6 +3,7 @@
 configuration's results folder (results/study, issue 29 item 2), at the paths
 of workflow/piles.py."""
 
+import json
 import math
 import os
 import re
@@ -304,21 +305,28 @@ def test_cost_model_before_a_pile_has_finished(tmp_path):
     default piles (3500 particles at 100/s, Gear at its automatic step of the
     reference particles, 1.9 us; a relaxation and a gravity probe, step mode,
     of 2 s simulated each) take (1.5 x 3500 / 100 + 0.1) s / 1.9 us x 1750
-    particles + 2 x 2 s / 1.9 us x 3500 particle-steps, at 500 ns each."""
+    particles + 2 x 2 s / 1.9 us x 3500 particle-steps, each at the price of the
+    run-time table's measured pour (workflow/run_times.json), which the line names."""
     from sim.durations import hms
+    from workflow.resources import COST_BASIS
 
+    table = json.loads((REPO / "workflow" / "run_times.json").read_text())
+    pour = next(row for row in table["rows"] if row["id"] == table["cost_model"])
+    price = pour["cpu_s"] / (pour["steps"] * pour["particles"] / 2)
+    assert COST_BASIS["ns_per_particle_step"] == pytest.approx(price * 1e9)
     empty = tmp_path / "empty"
     write_config(empty)
     steps = (1.5 * 3500 / 100 + 0.1) / 1.9e-6 * 1750 + 2 * 2.0 / 1.9e-6 * 3500
-    cpu = steps * 500e-9
+    cpu = steps * price
     # 5 piles on 2 cores, one thread each: 2.5 piles' CPU in wall time
     assert sp.progress_line(empty, config_of(empty), 2, NOW) == (
         "study (results/study/): 0 of 5 piles done, 0 running, 5 left; 0 % of the simulation done, "
         f"about {hms(2.5 * cpu)} left at 2 jobs at a time (estimate from the cost model until a pile "
         f"has finished: {steps:.3g} particle-steps per pile, host-independent, from "
         "pour.n_particles = 3500, pour.rate = 100/s, automatic time step of gear about 1.9e-06 s "
-        "and 2 relaxing stages of about 2 s simulated, x 500 ns per particle-step measured on the "
-        f"project's machine: {hms(cpu)} of CPU per pile)")
+        f"and 2 relaxing stages of about 2 s simulated, x {price * 1e9:.0f} ns per particle-step as "
+        f"measured ({pour['id']}: {pour['commit']}, {pour['host']}, {pour['date']}; docs/run_times.md): "
+        f"{hms(cpu)} of CPU per pile)")
     root = fake_study(tmp_path)
     for seed in (1, 2):  # the finished piles' last stage gone: none has finished
         (root / piles_of(root).paths.pile("wedge", seed, "reduced")).unlink()
@@ -328,8 +336,8 @@ def test_cost_model_before_a_pile_has_finished(tmp_path):
     assert "(estimate from the cost model until a pile has finished: " in line
     # wedge 1, 2: their probe; wedge 3: its pour's ETA (390 s), then a relaxation
     # and a probe; layered 2: a relaxation and a probe; layered 1: a whole pile.
-    # A relaxation and a probe cost the same here, 2 s / 1.9 us x 3500 x 500 ns.
-    stage = 2.0 / 1.9e-6 * 3500 * 500e-9
+    # A relaxation and a probe cost the same here, 2 s / 1.9 us x 3500 particle-steps.
+    stage = 2.0 / 1.9e-6 * 3500 * price
     left = 2 * stage + (390 + 2 * stage) + 2 * stage + cpu
     assert left / 2 < cpu  # on 2 jobs the study waits for its longest pile, layered 1
     assert f"% of the simulation done, about {hms(cpu)} left at 2 jobs" in line

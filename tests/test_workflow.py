@@ -352,7 +352,7 @@ def test_stress_only_scene_runs_no_probe_no_fit_no_figure(workdir):
     assert proc.returncode == 0, proc.output
     n = len(smoke_piles())
     assert job_counts(proc.output) == {
-        "compile_kernels": 1, "pour": n, "relax": n, "analysis_fields": n,
+        "compile_kernels": 1, "pour": n, "relax": n, "pile_summary": n, "analysis_fields": n,
         "analysis_base_pressure_pile": n, "analysis_ensemble": 2, "analysis_base_pressure": 2,
         "all": 1}
     assert "--reduced" not in proc.output and "reduced.nc" not in proc.output
@@ -457,6 +457,11 @@ SECTIONS = {"pour": {"model", "particles", "pour", "physics"}, "relax": {"model"
 cmd, rest = sys.argv[1], sys.argv[2:]
 if cmd == "warmup":
     assert os.environ["NUMBA_CACHE_DIR"].endswith(".numba_cache")
+    sys.exit(0)
+if cmd == "summary":  # one JSON line per state file, on stdout
+    for state in rest:
+        assert Path(state).exists(), state
+        print(json.dumps({"cmd": cmd, "state": state}))
     sys.exit(0)
 parser = argparse.ArgumentParser()
 for option in ("--params", "--bookkeeping", "--protocol", "--seed", "--out", "--checkpoint",
@@ -567,9 +572,11 @@ def test_asking_for_fewer_outputs_reruns_no_simulation(ran):
     root, _ = ran
     config = with_overrides(root, "states_only", {"outputs": ["states", "figures"]})
     proc = snakemake(root, "-n", "--cores", "2", *config)
-    # the run-time table (part of figures) is all that is missing: not a simulation
-    assert proc.returncode == 0 and job_counts(proc.output) == {"run_times_table": 1, "all": 1}, \
-        proc.output
+    # the run-time table (part of figures) and the piles' run summaries (with the
+    # states) are all that is missing: not a simulation
+    n = len(smoke_piles())
+    assert proc.returncode == 0 and job_counts(proc.output) == {"run_times_table": 1, "pile_summary": n,
+                                                                 "all": 1}, proc.output
 
 
 def test_editing_simulator_code_reruns_the_piles(ran):

@@ -152,14 +152,24 @@ def reason(**why):
 def test_results_whose_jobs_would_run_again_are_reported_out_of_date(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "a.nc").write_text("")
-    warned = []
-    fresh = Freshness(lambda: Dag([(job("draw_pile", "missing.png"), reason(missing_output=True))]), warned.append)
-    assert str(fresh).startswith("Up to date") and warned == []
+    warned, said = [], []
+    fresh = Freshness(lambda: Dag([(job("draw_pile", "missing.png"), reason(missing_output=True))]),
+                      warned.append, said.append, lambda: True)
+    assert str(fresh).startswith("Up to date") and warned == [] and said == [f"Report: {fresh}"]
     dag = Dag([(job("analysis_fields", "a.nc"), reason(params_changed=True)),
                (job("analysis_fields", "b.nc"), reason(input_changed=True)),
                (job("all"), reason(input_changed=True))])
-    text = str(Freshness(lambda: dag, warned.append))
+    text = str(Freshness(lambda: dag, warned.append, said.append, lambda: True))
     assert text.startswith("OUT OF DATE: 1 files of these results do not show what the workflow makes now "
                            "(code or settings changed; inputs changed since they were made): "
                            "Snakemake would run 2 jobs again (2 analysis_fields), for example for a.nc.")
     assert warned == [f"Report: {text}"]
+
+
+def test_a_study_with_no_result_is_not_called_up_to_date():
+    """A report of a configuration that has made nothing yet (make report on a
+    fresh clone) says so, on the terminal too, instead of "Up to date"."""
+    said = []
+    text = str(Freshness(lambda: Dag([]), [].append, said.append, lambda: False))
+    assert text.startswith("Nothing made yet: none of this configuration's results exists")
+    assert "Up to date" not in text and said == [f"Report: {text}"]

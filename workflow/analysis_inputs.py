@@ -169,10 +169,14 @@ class AnalysisInputs:
     # --- targets ---------------------------------------------------------
 
     def targets(self):
-        """The final outputs of the analysis that the scene asks for (for rule ``all``)."""
+        """The final outputs of the analysis that the scene asks for (for rule ``all``):
+        with the piles' states (output ``states``, not from committed results) each
+        pile's run summary, its height, width and flanks per stage."""
         wants, results_path = self.scene.wants, self.piles.paths.results_path
         names = [name for output, files in ANALYSIS_ENSEMBLE.items() if wants(output) for name in files]
         targets = [results_path(f"ensemble/{p}/{name}") for p in self.piles.protocols for name in names]
+        if wants("states") and self.committed is None:
+            targets += [self.pile_result(p, s, "summary") for p, s in self.piles.each()]
         if wants("strain"):
             targets += self.convergence_files()
         if wants("figures"):

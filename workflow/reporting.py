@@ -174,8 +174,9 @@ class Freshness:
     Snakemake's own judgement: the jobs it would run (what a dry run with the
     same options lists) among those that made the report's files. It is
     rendered into the report's first paragraph (workflow/report/workflow.rst)
-    once Snakemake has built the jobs, and a report with stale results is
-    warned about on the terminal too.
+    once Snakemake has built the jobs, and said on the terminal too: a report
+    with stale results as a warning. A configuration that has made none of
+    its results yet is not up to date: it is told so.
 
     Parameters
     ----------
@@ -183,6 +184,10 @@ class Freshness:
         Returns Snakemake's DAG of jobs, once built (``lambda: workflow.dag``).
     warn : callable
         Called with the sentence when the results are out of date.
+    say : callable
+        Called with the sentence otherwise (up to date, or nothing made yet).
+    made : callable
+        Whether any of the configuration's results exists.
     """
 
     #: Why a job would run, in words: (attribute of Snakemake's reason, words);
@@ -194,9 +199,11 @@ class Freshness:
                ("incomplete_output", "a job was killed while making them"),
                ("missing_output", "files they need are missing"))
 
-    def __init__(self, dag, warn):
+    def __init__(self, dag, warn, say, made):
         self._dag = dag
         self._warn = warn
+        self._say = say
+        self._made = made
         self._text = None
 
     def __str__(self):
@@ -205,12 +212,21 @@ class Freshness:
         return self._text
 
     def judge(self, dag):
-        """The sentence on the jobs of `dag`; warns when results are out of date."""
+        """The sentence on the jobs of `dag`, said on the terminal (a warning when
+        results are out of date)."""
+        if not self._made():
+            text = ("Nothing made yet: none of this configuration's results exists, so there is "
+                    "nothing to be up to date. Run the workflow (make run for the study), then "
+                    "make the report again.")
+            self._say(f"Report: {text}")
+            return text
         jobs = [job for job in dag.needrun_jobs() if job.output]
         stale = [str(f) for job in jobs for f in job.output if os.path.exists(f)]
         if not stale:
-            return ("Up to date: Snakemake would remake none of these results (their code, "
+            text = ("Up to date: Snakemake would remake none of these results (their code, "
                     "settings and inputs have not changed since they were made).")
+            self._say(f"Report: {text}")
+            return text
         rules = {}
         for job in jobs:
             rules[job.rule.name] = rules.get(job.rule.name, 0) + 1

@@ -11,22 +11,53 @@ limit asks for twice the time when --retries resubmits it (a pour resumes
 from its checkpoint, so it needs less; relaxations start again).  The same
 cost model, without the margin and the start, estimates the CPU seconds of a
 pile before any has finished (:meth:`SimResources.stage_cpu_s`, for
-workflow/tools/study_progress.py).
+workflow/tools/study_progress.py). PARTICLE_STEP_S is one measurement of the
+run-time table, workflow/run_times.json (its row ``cost_model``), which
+docs/run_times.md and the README show.
 """
 
+import json
 import math
 import os
+from pathlib import Path
 
 from sim.timestep import MAX_STEPS
 from workflow.stages import STRETCH_STAGE
 
-# Measured on this project's 2-core machine: the full-size layered pour of the
-# study (3500 particles, velocity Verlet, 100 particles/s, one thread) took
-# 4585 s of CPU for 5.14 M steps and 9.04e9 particle-steps, 0.51 us per
-# particle-step (docs/performance.md, "How long").
-PARTICLE_STEP_S = 0.5e-6
-# Safety factor on the step cost (a slower or busier node).
-RUNTIME_MARGIN = 1.5
+#: The run-time table: every measured time of the targets and piles, with its
+#: command, host, date and commit (python -m workflow.tools run_times writes
+#: docs/run_times.md from it).
+RUN_TIMES = Path(__file__).with_name("run_times.json")
+
+
+def cost_basis(path=RUN_TIMES):
+    """The measurement the cost model's price of a particle-step comes from.
+
+    Parameters
+    ----------
+    path : path-like
+        The run-time table (JSON): its ``cost_model`` names the row, a pour
+        with ``cpu_s``, ``steps`` and ``particles``.
+
+    Returns
+    -------
+    dict
+        That row, with ``ns_per_particle_step``: its CPU time over steps × N/2
+        (a pour holds half its particles on average).
+    """
+    table = json.loads(Path(path).read_text(encoding="utf-8"))
+    row = next(r for r in table["rows"] if r["id"] == table["cost_model"])
+    return {**row, "ns_per_particle_step": 1e9 * row["cpu_s"] / (row["steps"] * row["particles"] / 2)}
+
+
+#: The measured pour the cost model is priced by (:func:`cost_basis`).
+COST_BASIS = cost_basis()
+#: CPU seconds of one particle-step on one thread, from that pour.
+PARTICLE_STEP_S = COST_BASIS["ns_per_particle_step"] * 1e-9
+# Safety factor on the step cost of a cluster job's time limit: a slow hour of
+# a shared host doubled the cost per particle-step (223 to 494 ns on the same
+# bench heap, docs/performance.md), and half as much again for a slower node.
+RUNTIME_MARGIN = 3.0
 # Python start, loading the compiled kernels, reading and writing state files.
 START_MIN = 2
 # Automatic time step of the default particles (semi-axis 3.4 mm, density

@@ -1,4 +1,4 @@
-"""Shape of a pile while it grows (issue 11, item 1: what sets the angle).
+"""Shape of a pile while it grows: what sets its angle of repose.
 
 Reads state files of one pour taken at different times (copies of its
 ``pour.checkpoint.nc``, frames of a film, or the poured and relaxed states)

@@ -1,4 +1,4 @@
-"""Is the probe response linear in the gravity reduction, and does a ramp remove the slips?  (issue 25, item 4)
+"""Is the probe response linear in the gravity reduction, and does a ramp remove the slips?
 
 Reads the ``probes.nc`` of piles probed by ``config/scenes/probe_levels.yaml``
 (reductions of 5, 10 and 15 % and the restoration after the 10 % one, gravity

@@ -1,4 +1,4 @@
-"""Does one setting change the piles?  (issues 11 and 25: the pile shape, the unknown parameters)
+"""Does one setting change the piles? For the pile shape and the parameters the paper does not give.
 
 Runs the piles of ``--piles`` (``config/medium_piles.yaml``, 800 particles, by
 default; ``config/sweep_piles.yaml``, 1600, for the unknown parameters of

@@ -1,5 +1,5 @@
 """All six elastic constants of a full-size variant's piles, and the paper's
-statements on the elastic law tested with them (issue 27)
+statements on the elastic law tested with them.
 
 For every pile recorded under ``--variant`` whose ``probes.nc`` has the
 support stretch (stage ``stretched``, ``config/scenes/six_constants.yaml``),

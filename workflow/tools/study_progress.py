@@ -1,5 +1,5 @@
 """One line on the progress of the study: piles done, running and left, and
-the time left (issue 15, item 4).
+the time left (make run and make progress print it).
 
 The piles, their stages and the paths of their files are those the
 workflow makes (:class:`workflow.piles.Piles` of the configuration, as the
@@ -37,8 +37,9 @@ whole study (its piles times the mean CPU seconds of a finished pile). Before
 any pile has finished (with benchmark files) the CPU seconds of each stage are
 the estimate of the bench's cost model instead
 (``workflow.resources.SimResources.stage_cpu_s``: the particle-steps the
-configuration fixes times the nanoseconds per particle-step measured on the
-project's machine), and the line says so. Only the simulations are counted, not
+configuration fixes times the nanoseconds per particle-step of a measured
+pour, the run-time table's (workflow/run_times.json, docs/run_times.md)), and
+the line says so. Only the simulations are counted, not
 the analysis after them. Times are written ``h:mm:ss`` (``sim.durations.hms``).
 
 Usage::
@@ -69,7 +70,7 @@ from sim.durations import hms, parse_hms
 from sim.lock import PourLock
 from workflow.piles import Piles
 from workflow.stages import stage_rule
-from workflow.resources import PARTICLE_STEP_S, SimResources
+from workflow.resources import COST_BASIS, PARTICLE_STEP_S, SimResources
 from workflow.validation import load_config
 
 # A pile whose log was written this recently (s) counts as running.
@@ -488,7 +489,8 @@ def cost_model(study):
         :meth:`workflow.resources.SimResources.stage_cpu_s` of each stage of
         a pile, and what the estimate rests on: the particle-steps of a pile,
         which the configuration alone fixes (particles, pour rate, time
-        step), times the ns per particle-step measured on the project's machine.
+        step), times the ns per particle-step of the run-time table's measured
+        pour (``workflow.resources.COST_BASIS``), named with its commit, host and date.
     """
     model = SimResources(study.config)
     stages = study.stages.all_stages()
@@ -503,7 +505,8 @@ def cost_model(study):
                    f"pour.n_particles = {pour['n_particles']}, pour.rate = {pour['rate']:g}/s, "
                    f"{dt} and {len(stages) - 1} relaxing stage{'s' * (len(stages) != 2)} of "
                    f"about {relax_s:g} s simulated, x {PARTICLE_STEP_S * 1e9:.0f} ns per "
-                   f"particle-step measured on the project's machine: "
+                   f"particle-step as measured ({COST_BASIS['id']}: {COST_BASIS['commit']}, "
+                   f"{COST_BASIS['host']}, {COST_BASIS['date']}; docs/run_times.md): "
                    f"{hms(sum(means.values()))} of CPU per pile")
 
 

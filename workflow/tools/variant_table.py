@@ -1,4 +1,4 @@
-"""A full-size variant against the study, side by side  (issue 25, item 3)
+"""A full-size variant against the study, side by side: does the changed setting move the piles?
 
 A *variant* is the study (``config/config.yaml``) with a few settings changed,
 given by ``config/variants/{name}.yaml``; its full-size piles are recorded
