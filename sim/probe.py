@@ -85,8 +85,8 @@ def change_gravity(cfg: SimConfig, input_path, target, out, stage, what, command
                 sim.run(duration=cfg.probe.ramp_time / 50.0)
         sim.set_gravity(*g_end)
         mass = float(np.sum(sim.shapes.mass[:sim.n]))
-        relax(sim, cfg, what, load=mass * float(np.hypot(*(g_end - g_start))), progress=progress)
-        return attrs
+        return {**attrs, **relax(sim, cfg, what, load=mass * float(np.hypot(*(g_end - g_start))),
+                                 progress=progress)}
 
     return run_stage(cfg, sim, ds, out, stage, what, work,
                      extra_time=cfg.probe.ramp_time if ramp else 0.0,
@@ -197,10 +197,10 @@ def stretch_file(cfg: SimConfig, input_path, strain, out, stage="stretched"):
             # the last force evaluation, which a state read from a file has not had
             sim.run(duration=chunk)
             sim.stretch_body(BODY_SUPPORT, strain / STRETCH_INCREMENTS)
-        relax(sim, cfg, what, load=_support_force_change(before, sim.contacts()),
-              progress=progress)
+        applied = relax(sim, cfg, what, load=_support_force_change(before, sim.contacts()),
+                        progress=progress)
         return {"support_stretch": strain, "support_reaction_moment_before": moment_before,
-                "support_reaction_moment": support_reaction_moment(sim)}
+                "support_reaction_moment": support_reaction_moment(sim), **applied}
 
     return run_stage(cfg, sim, ds, out, stage, what, work, extra_time=cfg.probe.stretch_time)
 
