@@ -25,7 +25,7 @@ import numpy as np
 
 from .blowup import BlowUpError
 from .checkpoint import (keep_finished, keep_last_good, remove_checkpoint, remove_temporaries,
-                         resume, save_checkpoint, take_finished)
+                         resume, save_checkpoint, save_stop_checkpoint, take_finished)
 from .config import ConfigError, SimConfig, setting_schema
 from .engine import Simulation
 from .frames import FrameRecorder, partial_path
@@ -354,7 +354,9 @@ def _stopped(sim, cfg, what, exc, checkpoint, passed, recorder, lock, attrs):
                   "run the command again to pour afresh", what, exc.name)
         return
     sim.restore(passed[0])
-    save_checkpoint(sim, checkpoint, cfg, passed[1], recorder, lock, **attrs)
+    if not save_stop_checkpoint(sim, checkpoint, cfg, passed[1], recorder, lock, exc.name,
+                                **attrs):
+        return
     log.error("%s: stopped by %s; checkpoint %s holds t = %.4f s simulated, %d of %d particles "
               "released; to resume, run the same command again (with --checkpoint %s)",
               what, exc.name, checkpoint, sim.time, sim.n, p.n_particles, checkpoint)
