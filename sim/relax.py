@@ -66,7 +66,8 @@ def watch_window(sim, least):
     drag, s: ``least``, but at least :data:`WATCH_PERIODS` contact periods
     (:func:`contact_period`) and :data:`WATCH_DECAY_TIMES` decay times of the
     drag.  A drag too weak to take a measurable share of the kinetic energy
-    within the relaxation's time gets a window longer than it: it is not judged."""
+    within ``relax.max_time`` gets a window longer than the relaxation may
+    run: it is never judged."""
     window = max(float(least), WATCH_PERIODS * contact_period(sim))
     return max(window, WATCH_DECAY_TIMES / sim.drag) if sim.drag > 0.0 else window
 
@@ -256,8 +257,8 @@ def relax(sim: Simulation, cfg: SimConfig, what="relax", load=None, progress=Non
     logs one warning line naming the particle and raises the drag
     (:func:`_stronger_drag`), which vanishes at rest as the other drags do.
     The criteria are checked after each chunk of steps: a fifth of the hold
-    time, at most 1 ms, but no shorter than a contact period
-    (:func:`contact_period`; nor than a step) however short the hold time.
+    time but no less than a contact period (:func:`contact_period`), however
+    short the hold time; at most 1 ms and at least one step.
 
     Parameters
     ----------
