@@ -12,7 +12,9 @@ Reads a particle-state file through the contract (docs/formats.md#state-files,
 * optionally the contact-force network: a line between the centres of two
   particles in contact (from the centre to the contact point for the
   support), its width proportional to the magnitude of the contact force;
-* the support, the line y = 0;
+* the support, the line y = 0, and the fixed polygons of a rough base on it
+  where the file has one (:func:`base_polygons`), so that a pile on a rough
+  base rests on them in the picture;
 * framed on the pile (:func:`pile_frame`): a particle flung far away, or
   one that lost contact, does not shrink the pile to a speck; the picture
   says which particles lie out of frame.
@@ -48,6 +50,32 @@ def polygons_world(state: State) -> list[np.ndarray]:
     """Corners of every particle in the lab frame: a list of ``(n_corners, 2)`` arrays."""
     vx, vy, counts = state.world_vertices()
     return [np.column_stack((vx[p, :n], vy[p, :n])) for p, n in enumerate(counts)]
+
+
+def base_polygons(path: str) -> list[np.ndarray]:
+    """Corners of the rough base's polygons in the lab frame, left to right:
+    a list of ``(n_corners, 2)`` arrays, empty for a file without a base.
+
+    The state contract reads them as no particles
+    (:func:`analysis.states.state_from_dataset`); they are the file's
+    ``base_x``, ``base_y``, ``base_theta`` and body-frame corners
+    ``base_node_x``, ``base_node_y`` in runs of ``base_node_count``
+    (docs/formats.md#state-files), turned and moved as a particle's corners are.
+    """
+    import xarray as xr
+
+    with xr.open_dataset(path, decode_times=False) as ds:
+        if "base_x" not in ds:
+            return []
+        x, y, theta, counts, nx, ny = (ds[name].values for name in (
+            "base_x", "base_y", "base_theta", "base_node_count", "base_node_x", "base_node_y"))
+    ends = np.cumsum(counts)
+    out = []
+    for b, (lo, hi) in enumerate(zip(ends - counts, ends)):
+        c, s = np.cos(theta[b]), np.sin(theta[b])
+        out.append(np.column_stack((x[b] + c * nx[lo:hi] - s * ny[lo:hi],
+                                    y[b] + s * nx[lo:hi] + c * ny[lo:hi])))
+    return out
 
 
 def particle_pressure(state: State) -> np.ndarray:
@@ -209,9 +237,13 @@ def draw_state(path_in: str, path_out: str, color_by: str = "pressure", forces: 
             ax.add_collection(LineCollection(segments, linewidths=3.0 * mag / fmax, colors="crimson",
                                              alpha=0.8, capstyle="round"))
 
-    # The support: its top surface is y = 0.
+    # The support: its top surface is y = 0; a rough base lies on it.
     ax.axhline(0.0, color="black", linewidth=1.5)
     ax.fill_between([xmin - pad, xmax + pad], -pad, 0.0, color="0.6", hatch="///", linewidth=0)
+    base = base_polygons(path_in)
+    if base:
+        ax.add_collection(PolyCollection(base, facecolors="0.45", edgecolors="0.2",
+                                         linewidths=0.3))
     ax.set_xlim(xmin - pad, xmax + pad)
     ax.set_ylim(-pad, ymax + pad)
     ax.set_aspect("equal")

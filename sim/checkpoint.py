@@ -22,7 +22,7 @@ import shutil
 import time as _time
 from pathlib import Path
 
-from .atomic import atomic_path, stale_temporaries
+from .atomic import OutputError, atomic_path, stale_temporaries
 from .config import STAGE_SECTIONS, result_settings
 from .frames import partial_path
 from .io import (StateFileError, code_version, load_simulation,
@@ -118,15 +118,88 @@ def resume(cfg, protocol, seed, checkpoint, shapes):
     return sim, next_release
 
 
-def save_checkpoint(sim, checkpoint, cfg, next_release, recorder=None, lock=None, **attrs):
+def _write_checkpoint(sim, checkpoint, cfg, next_release, recorder, lock, attrs):
     """Write the checkpoint (stage ``checkpoint``, with the time of the next
-    release) and the frames so far, and refresh the pour's lock."""
-    if recorder is not None:
-        recorder.save(partial_path(checkpoint), cfg.to_dict(), **attrs)
-    save_state(sim, checkpoint, cfg.to_dict(), stage="checkpoint", next_release=next_release,
-               **attrs)
-    if lock is not None:
-        lock.refresh()
+    release) and the frames so far, and refresh the pour's lock, written or not
+    (the run holding it is alive).
+
+    Raises
+    ------
+    sim.atomic.OutputError
+        If a file cannot be written; the checkpoint on disk is as it was.
+    """
+    try:
+        if recorder is not None:
+            recorder.save(partial_path(checkpoint), cfg.to_dict(), **attrs)
+        save_state(sim, checkpoint, cfg.to_dict(), stage="checkpoint",
+                   next_release=next_release, **attrs)
+    finally:
+        if lock is not None:
+            lock.refresh()
+
+
+def _left(checkpoint, stopped=False):
+    """What a stop leaves (`stopped`), or would leave, of a pour whose
+    checkpoint could not be written now."""
+    if Path(checkpoint).exists():
+        return f"{checkpoint} keeps its last write, from which a rerun resumes" + (
+            "" if stopped else ", and a stop before the next one is written loses the pour "
+                               "since then")
+    if stopped:
+        return "no checkpoint was ever written, so a rerun pours afresh"
+    return "there is none yet, and a stop before one is written loses the pour so far"
+
+
+def save_checkpoint(sim, checkpoint, cfg, next_release, recorder=None, lock=None, **attrs):
+    """Write the checkpoint of a running pour (:func:`_write_checkpoint`);
+    ``attrs`` holds its ``protocol`` and ``seed``.
+
+    A checkpoint that cannot be written (a full disk, a read-only file
+    system) ends no pour: it only shortens a rerun after a stop, while ending
+    the pour would lose all of it since its start or last checkpoint, its
+    output's disk maybe healthy.  So the pour goes on, with one warning line
+    that names the cause and what a stop would lose, and tries again at the
+    next interval.
+
+    Returns
+    -------
+    bool
+        Whether it was written.
+    """
+    try:
+        _write_checkpoint(sim, checkpoint, cfg, next_release, recorder, lock, attrs)
+    except OutputError as exc:
+        log.warning("pour %s seed %s: checkpoint not written (%s); pouring on without it: %s",
+                    attrs.get("protocol"), attrs.get("seed"), _cause(exc), _left(checkpoint))
+        return False
+    return True
+
+
+def save_stop_checkpoint(sim, checkpoint, cfg, next_release, recorder, lock, signal_name,
+                         **attrs):
+    """Write the checkpoint of a pour stopped by the signal ``signal_name``
+    (:func:`_write_checkpoint`).
+
+    Returns
+    -------
+    bool
+        Whether it was written; where it cannot be, one error line says that
+        the state of the stop is lost, why, and what is left on disk.
+    """
+    try:
+        _write_checkpoint(sim, checkpoint, cfg, next_release, recorder, lock, attrs)
+    except OutputError as exc:
+        log.error("pour %s seed %s: stopped by %s; the checkpoint could not be written (%s): "
+                  "the state of the stop is lost; %s", attrs.get("protocol"), attrs.get("seed"),
+                  signal_name, _cause(exc), _left(checkpoint, stopped=True))
+        return False
+    return True
+
+
+def _cause(exc):
+    """The cause of a failed write (:class:`sim.atomic.OutputError`), without its
+    claim that nothing was lost: true of the file, not of the pour."""
+    return str(exc).split("; nothing was lost")[0]
 
 
 def remove_checkpoint(checkpoint):

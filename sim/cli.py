@@ -326,15 +326,26 @@ def _parser():
     return ap
 
 
-# python -m sim numerics WHAT ...: the checks by name (each a module of sim.numerics with main(argv))
-NUMERICS = ("collisions", "stability", "kernel-profile")
+# python -m sim numerics WHAT ...: the checks by name (each a module of sim.numerics with
+# main(argv)), with what each does in the words of python -m sim numerics --help
+NUMERICS = {"collisions": "error against run time of binary collisions, over the time step",
+            "stability": "stiff and extreme scenes, and the largest stable time step",
+            "kernel-profile": "where a kernel's time goes, per instruction (needs perf)"}
 
 
 def _numerics(argv):
-    """Run ``python -m sim numerics WHAT [options]``; returns the exit status."""
+    """Run ``python -m sim numerics WHAT [options]``; returns the exit status.
+
+    ``--help`` (or ``-h``) alone prints the checks on stdout and returns 0;
+    no check, or an unknown one, prints the usage on stderr and returns 2.
+    """
+    usage = f"usage: python -m sim numerics {{{','.join(NUMERICS)}}} [--help]"
+    if argv[:1] in (["--help"], ["-h"]):
+        print(usage + "\n\nnumerical checks (python -m sim numerics WHAT --help for one's "
+              "options):\n" + "".join(f"  {k:<16}{v}\n" for k, v in NUMERICS.items()), end="")
+        return 0
     if not argv or argv[0] not in NUMERICS:
-        print(f"usage: python -m sim numerics {{{','.join(NUMERICS)}}} [--help]",
-              file=sys.stderr)
+        print(usage, file=sys.stderr)
         return 2
     logging.basicConfig(level=logging.INFO, stream=sys.stderr,
                         format="%(asctime)s %(levelname)s %(message)s")

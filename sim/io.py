@@ -19,6 +19,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import logging
 import time as _time
 from pathlib import Path
 
@@ -373,7 +374,8 @@ REQUIRED = list(PARTICLE_VARS) + ["node_count", "node_x", "node_y", "contact_i",
 
 def read_state(path) -> xr.Dataset:
     """Open and validate a state file (every variable present, its data those
-    written with it (:func:`data_digest`, where the file has one), finite).
+    written with it (:func:`data_digest`; a file without one is read with a
+    warning that it is unverified), finite).
 
     Raises
     ------
@@ -402,7 +404,12 @@ def read_state(path) -> xr.Dataset:
             k = int(np.argmax(~np.isfinite(vals.ravel())))
             raise StateFileError(f"state file {path}: variable {v} holds NaN or Inf "
                                  f"(first at flat index {k})")
-    if "data_digest" in ds.attrs and data_digest(ds) != ds.attrs["data_digest"]:
+    if "data_digest" not in ds.attrs:
+        logging.getLogger("sim").warning(
+            "state file %s: no data_digest attribute, so its data are unverified (every state "
+            "the simulator writes has one: this file was written before digests, by other code, "
+            "or had it removed); read as it is", path)
+    elif data_digest(ds) != ds.attrs["data_digest"]:
         raise StateFileError(f"state file {path}: its data do not match the digest written with them "
                              "(attribute data_digest): the file was damaged after it was written; delete "
                              "it and run the step that writes it again")

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .scene import BODY_BASE, BODY_SUPPORT
+
 
 def surface_profile(x, y, radius, bin_width):
     """Height of the free surface on a grid of x bins.
@@ -95,8 +97,9 @@ def pile_summary(position, radius, mass, gravity_y, contact_i, contact_j, contac
     gravity_y : float
         Vertical gravity, m/s² (negative).
     contact_i, contact_j, contact_fy : numpy.ndarray
-        The contacts of the state (docs/formats.md#state-files): ``j = -1`` is the support,
-        ``fy`` the vertical force on i.
+        The contacts of the state (docs/formats.md#state-files): ``j = -1`` is
+        the flat support, ``j <= -4`` a polygon of a rough base lying on it
+        (both the support here), ``fy`` the vertical force on i.
 
     Returns
     -------
@@ -107,8 +110,8 @@ def pile_summary(position, radius, mass, gravity_y, contact_i, contact_j, contac
         rolled away over the bare support are not counted);
         ``flank_left_deg``, ``flank_right_deg`` (:func:`flank_angles`);
         ``mean_coordination``; ``support_reaction_over_weight_minus_1``: the
-        support's vertical force on the pile over its weight, minus 1 (0 in
-        static balance).
+        vertical force of the support and of a rough base on it on the pile,
+        over its weight, minus 1 (0 in static balance without walls).
     """
     n = len(radius)
     x, y = position[:, 0], position[:, 1]
@@ -129,5 +132,6 @@ def pile_summary(position, radius, mass, gravity_y, contact_i, contact_j, contac
         "flank_right_deg": right,
         "mean_coordination": mean_coordination(contact_i, contact_j, n),
         "support_reaction_over_weight_minus_1":
-            float(np.sum(contact_fy[contact_j == -1])) / weight - 1.0,
+            float(np.sum(contact_fy[(contact_j == BODY_SUPPORT) | (contact_j <= BODY_BASE)]))
+            / weight - 1.0,
     }

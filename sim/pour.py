@@ -25,8 +25,8 @@ import numpy as np
 
 from .blowup import BlowUpError
 from .checkpoint import (keep_finished, keep_last_good, remove_checkpoint, remove_temporaries,
-                         resume, save_checkpoint, take_finished)
-from .config import ConfigError, SimConfig
+                         resume, save_checkpoint, save_stop_checkpoint, take_finished)
+from .config import ConfigError, SimConfig, setting_schema
 from .engine import Simulation
 from .frames import FrameRecorder, partial_path
 from .io import save_state
@@ -95,12 +95,26 @@ def rough_base(cfg: SimConfig, seed: int, shapes):
     ``|x| <= L``, ``L`` the half base width of a triangular pile of all the
     particles `shapes` with flanks at ``physics.rough_base_slope_deg``
     (:func:`sim.release.target_pile`).
+
+    Raises
+    ------
+    sim.config.ConfigError
+        For walls beyond ``|x| = L`` at the flattest slope the setting allows,
+        before a polygon is laid: no pile of these particles covers that base.
     """
     phys = cfg.physics
     if not phys.rough_base:
         return None
     if phys.walls is not None:
         lo, hi = phys.walls
+        flattest = setting_schema("physics", "rough_base_slope_deg")["minimum"]
+        widest = target_pile(shapes, flattest)[0]
+        if max(-lo, hi) > widest:
+            raise ConfigError(
+                f"physics.walls = {list(phys.walls)} with physics.rough_base = true: the base "
+                f"spans the walls, wider than a pile of these {len(shapes.mass)} particles with "
+                f"the flattest flanks allowed ({flattest} degrees, |x| <= {widest:.3g} m), so no "
+                f"pile of them covers it; allowed: walls within |x| <= {widest:.3g} m")
     else:
         hi = target_pile(shapes, phys.rough_base_slope_deg)[0]
         lo = -hi
@@ -177,7 +191,7 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
         raise ConfigError("physics.support = false: a pile is poured onto the support; "
                           "without it the particles fall for ever (allowed: true)")
     shapes = pile_shapes(cfg, seed)
-    check_pour(cfg, protocol, seed, shapes, settle_time)
+    base = check_pour(cfg, protocol, seed, shapes, settle_time)
     checkpoint = Path(checkpoint) if checkpoint else None
     with contextlib.ExitStack() as held:
         held.enter_context(stop_on_signals())
@@ -190,8 +204,8 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
         taken = None if finished is None else take_finished(cfg, protocol, seed, finished, out,
                                                             frames)
         if taken is None:
-            return _pour(cfg, protocol, seed, shapes, out, checkpoint, settle_time, lock, frames,
-                         finished)
+            return _pour(cfg, protocol, seed, shapes, base, out, checkpoint, settle_time, lock,
+                         frames, finished)
         if checkpoint is not None:    # of a run killed after it kept the finished pour
             remove_checkpoint(checkpoint)
         return taken
@@ -207,6 +221,12 @@ def check_pour(cfg: SimConfig, protocol, seed, shapes, settle_time=0.1):
     and height those of the source, :func:`sim.release.source`)
     (:func:`sim.release.pile_height_bound`, plus the top of a rough base),
     ``sqrt(v0² + 2 g h)``: the contacts only dissipate; its drag ``spin_drag``.
+
+    Returns
+    -------
+    sim.scene.RoughBase or None
+        The rough base it checked the pour with (:func:`rough_base`), for the
+        pour to start on, so that it is laid once.
 
     Raises
     ------
@@ -231,14 +251,15 @@ def check_pour(cfg: SimConfig, protocol, seed, shapes, settle_time=0.1):
                            f"{height:.3g} m high",
                   "drag": f"pour.spin_drag = {p.spin_drag!r} 1/s",
                   "dt": dt_source(cfg.model)})
+    return base
 
 
 
-def _start(cfg, protocol, seed, checkpoint, shapes, outputs):
-    """The simulation to pour with, its next release time and whether it was
-    resumed from a usable checkpoint (:func:`sim.checkpoint.resume`); the
-    temporary files a killed run left of the checkpoint and of ``outputs``
-    are removed first."""
+def _start(cfg, protocol, seed, checkpoint, shapes, base, outputs):
+    """The simulation to pour with (on the rough base ``base``, or None), its
+    next release time and whether it was resumed from a usable checkpoint
+    (:func:`sim.checkpoint.resume`); the temporary files a killed run left of
+    the checkpoint and of ``outputs`` are removed first."""
     if checkpoint is not None:
         remove_temporaries(checkpoint, *outputs)
         resumed = resume(cfg, protocol, seed, checkpoint, shapes) if checkpoint.exists() else None
@@ -248,12 +269,14 @@ def _start(cfg, protocol, seed, checkpoint, shapes, outputs):
     phys = cfg.physics
     sim = Simulation(shapes, cfg.model, gravity=(0.0, -GRAVITY), support=phys.support,
                      walls=phys.walls, rotate=phys.rotation,
-                     base=rough_base(cfg, seed, shapes))
+                     base=base)
     return sim, 0.0, False
 
 
-def _pour(cfg, protocol, seed, shapes, out, checkpoint, settle_time, lock, frames, finished):
-    """The pour itself (see :func:`pour`); ``lock`` is refreshed at each checkpoint.
+def _pour(cfg, protocol, seed, shapes, base, out, checkpoint, settle_time, lock, frames,
+          finished):
+    """The pour itself (see :func:`pour`) on the rough base ``base`` (or None);
+    ``lock`` is refreshed at each checkpoint.
 
     On a signal (:func:`sim.run_loop.stop_on_signals`) it writes the state
     of the last pass of its release loop as the checkpoint (where the
@@ -263,7 +286,8 @@ def _pour(cfg, protocol, seed, shapes, out, checkpoint, settle_time, lock, frame
     p = cfg.pour
     src = source(cfg, shapes, protocol, GRAVITY)
     interval = 1.0 / src.rate
-    sim, next_release, resumed = _start(cfg, protocol, seed, checkpoint, shapes, (out, frames))
+    sim, next_release, resumed = _start(cfg, protocol, seed, checkpoint, shapes, base,
+                                        (out, frames))
     recorder = FrameRecorder(shapes, p.n_particles, p.frame_interval) if frames else None
     if recorder is not None and resumed:
         recorder.resume(partial_path(checkpoint), sim.time)
@@ -330,7 +354,9 @@ def _stopped(sim, cfg, what, exc, checkpoint, passed, recorder, lock, attrs):
                   "run the command again to pour afresh", what, exc.name)
         return
     sim.restore(passed[0])
-    save_checkpoint(sim, checkpoint, cfg, passed[1], recorder, lock, **attrs)
+    if not save_stop_checkpoint(sim, checkpoint, cfg, passed[1], recorder, lock, exc.name,
+                                **attrs):
+        return
     log.error("%s: stopped by %s; checkpoint %s holds t = %.4f s simulated, %d of %d particles "
               "released; to resume, run the same command again (with --checkpoint %s)",
               what, exc.name, checkpoint, sim.time, sim.n, p.n_particles, checkpoint)

@@ -85,8 +85,8 @@ def change_gravity(cfg: SimConfig, input_path, target, out, stage, what, command
                 sim.run(duration=cfg.probe.ramp_time / 50.0)
         sim.set_gravity(*g_end)
         mass = float(np.sum(sim.shapes.mass[:sim.n]))
-        relax(sim, cfg, what, load=mass * float(np.hypot(*(g_end - g_start))), progress=progress)
-        return attrs
+        return {**attrs, **relax(sim, cfg, what, load=mass * float(np.hypot(*(g_end - g_start))),
+                                 progress=progress)}
 
     return run_stage(cfg, sim, ds, out, stage, what, work,
                      extra_time=cfg.probe.ramp_time if ramp else 0.0,
@@ -166,13 +166,19 @@ def stretch_file(cfg: SimConfig, input_path, strain, out, stage="stretched"):
     ------
     ValueError
         For a strain outside that range, an input not relaxed
-        (:class:`sim.io.StateFileError`), a scene without the support or a
+        (:class:`sim.io.StateFileError`), a pile on a rough base (its fixed
+        polygons do not stretch), a scene without the support or a
         frictionless support, before anything runs.
     """
     strain = float(strain)
     if not (0.0 < abs(strain) < 0.01):
         raise ValueError(f"stretch = {strain!r}: the support's strain must be in (-0.01, 0.01), not 0")
     sim, ds = _load_input(cfg, input_path, "--stretch")
+    if sim.base is not None:
+        raise ValueError(f"{input_path}: the pile lies on a rough base (physics.rough_base = "
+                         f"true, {sim.base.count} fixed polygons), which the stretch does not "
+                         "move: the flat support it stretches under them drags no particle; "
+                         "allowed: a pile poured on the flat support (physics.rough_base = false)")
     if BODY_SUPPORT not in sim.body_ids:
         raise ValueError(f"{input_path}: the scene has no support to stretch (physics.support = false)")
     if not sim.model.support_friction > 0.0:
@@ -191,10 +197,10 @@ def stretch_file(cfg: SimConfig, input_path, strain, out, stage="stretched"):
             # the last force evaluation, which a state read from a file has not had
             sim.run(duration=chunk)
             sim.stretch_body(BODY_SUPPORT, strain / STRETCH_INCREMENTS)
-        relax(sim, cfg, what, load=_support_force_change(before, sim.contacts()),
-              progress=progress)
+        applied = relax(sim, cfg, what, load=_support_force_change(before, sim.contacts()),
+                        progress=progress)
         return {"support_stretch": strain, "support_reaction_moment_before": moment_before,
-                "support_reaction_moment": support_reaction_moment(sim)}
+                "support_reaction_moment": support_reaction_moment(sim), **applied}
 
     return run_stage(cfg, sim, ds, out, stage, what, work, extra_time=cfg.probe.stretch_time)
 

@@ -34,9 +34,42 @@ FED_DRAG_FACTOR = 4.0
 #: A window of the watchdog holds at least this many chunks of steps.
 WATCH_CHUNKS = 20
 
+#: A window of the watchdog spans at least this many contact periods
+#: (:func:`contact_period`): the kinetic energy sloshes with the elastic at
+#: about that period, and the means over the window's halves must average it out.
+WATCH_PERIODS = 20
+
+#: A window of the watchdog spans at least this many decay times ``1/c`` of
+#: the drag ``c``: under the drag alone the kinetic energy then falls by e⁻²
+#: from the window's first half to its second, a factor e beyond the
+#: watchdog's threshold e⁻¹ (:class:`EnergyWatchdog`), so that neither a
+#: fluctuation nor the drag's own decay passes for the other.
+WATCH_DECAY_TIMES = 2.0
+
 #: Names of the bodies in the contact table (``contact_j`` < 0; below −3 the
 #: polygons of a rough base).
 BODY_NAMES = {-1: "the support", -2: "a wall", -3: "a wall"}
+
+
+def contact_period(sim):
+    """A contact period of the pile, s: ``2 pi sqrt(m / Y)`` for its heaviest
+    particle ``m`` on a contact of stiffness ``Y`` (``model.youngs_modulus``,
+    the stiffness scale of the contact law)."""
+    if sim.n == 0:
+        return 0.0
+    return 2.0 * math.pi * math.sqrt(float(np.max(sim.shapes.mass[:sim.n]))
+                                     / sim.model.youngs_modulus)
+
+
+def watch_window(sim, least):
+    """The length of an :class:`EnergyWatchdog` window for the pile's current
+    drag, s: ``least``, but at least :data:`WATCH_PERIODS` contact periods
+    (:func:`contact_period`) and :data:`WATCH_DECAY_TIMES` decay times of the
+    drag.  A drag too weak to take a measurable share of the kinetic energy
+    within ``relax.max_time`` gets a window longer than the relaxation may
+    run: it is never judged."""
+    window = max(float(least), WATCH_PERIODS * contact_period(sim))
+    return max(window, WATCH_DECAY_TIMES / sim.drag) if sim.drag > 0.0 else window
 
 
 def _rest_measures(sim, load, net):
@@ -84,7 +117,12 @@ class EnergyWatchdog:
     keeps creeping (the work is gravity's) or a pile that unloads after a
     gravity probe while its motion dies away (the kinetic energy falls) is
     no finding.  A window in which the rest criteria hold is no evidence and
-    starts afresh.
+    starts afresh, as does one in which the drag changed.  A window is never
+    shorter than the physics needs to tell a feed from a fluctuation
+    (:func:`watch_window`): with a window of a few chunks of steps (a hold
+    time of 1 ms or 0) the kinetic energy sloshing between the contacts
+    passed for fed, blamed a particle in flight and raised the drag a
+    hundredfold.
 
     The feed it finds in a stiff pile (``youngs_modulus`` ≥ 10⁹ N/m, docs/model.md,
     Relaxation drag): a polygon rocking on an edge, whose elastic force acts
@@ -98,16 +136,18 @@ class EnergyWatchdog:
     sim : Simulation
         The relaxing pile; its drag then is the one the window judges.
     window : float
-        Length of a window, s.
+        The least length of a window, s; each window is
+        :func:`watch_window` of it for the drag it judges (attribute ``window``).
     """
 
     def __init__(self, sim, window):
-        self.window = float(window)
+        self.least = float(window)
         self._restart(sim)
 
     def _restart(self, sim):
         """Open a window at the current state."""
         self.drag = sim.drag
+        self.window = watch_window(sim, self.least)
         self.start = sim.time
         self.times = []
         self.energies = []          # per particle, J/m, one row per chunk
@@ -216,6 +256,9 @@ def relax(sim: Simulation, cfg: SimConfig, what="relax", load=None, progress=Non
     kinetic energy; where they do (a polygon rocking in a stiff pile), it
     logs one warning line naming the particle and raises the drag
     (:func:`_stronger_drag`), which vanishes at rest as the other drags do.
+    The criteria are checked after each chunk of steps: a fifth of the hold
+    time but no less than a contact period (:func:`contact_period`), however
+    short the hold time; at most 1 ms and at least one step.
 
     Parameters
     ----------
@@ -229,6 +272,14 @@ def relax(sim: Simulation, cfg: SimConfig, what="relax", load=None, progress=Non
     progress : sim.progress.Progress, optional
         The stage's progress lines, which go on here (its heartbeat, with the
         rest measures as detail); default: lines of this relaxation alone.
+
+    Returns
+    -------
+    dict
+        The drag actually applied, for the stage's file: ``relax_drag_max``,
+        the strongest that acted, and ``relax_drag_final``, the one acting
+        when the pile came to rest (1/s); the watchdog's raises make them
+        differ from the settings.
 
     Raises
     ------
@@ -257,8 +308,9 @@ def _relax_loop(sim, cfg, what, t0, load, scale, progress):
     r = cfg.relax
     ke_max = r.kinetic_energy_fraction * scale ** 2
     speed_max = r.max_speed * scale
-    chunk = max(min(1e-3, r.hold_time / 5.0), sim.dt)
+    chunk = max(min(1e-3, max(r.hold_time / 5.0, contact_period(sim))), sim.dt)
     rest_since = watch = fed = None
+    strongest = sim.drag
     while True:
         sim.run(duration=chunk)
         net = sim.net_forces()
@@ -270,6 +322,7 @@ def _relax_loop(sim, cfg, what, t0, load, scale, progress):
                          " drag %g -> %g 1/s", what, "calm" if calm else "relax.drag_time over",
                          sim.time - t0, ke, vmax, sim.drag, r.rocking_drag)
                 sim.drag = r.rocking_drag
+                strongest = max(strongest, sim.drag)
             if sim.drag > 0.0:
                 watch = EnergyWatchdog(sim, max(r.hold_time, WATCH_CHUNKS * chunk))
         at_rest = calm and vmax < speed_max and unbalanced < r.unbalanced_force
@@ -282,13 +335,14 @@ def _relax_loop(sim, cfg, what, t0, load, scale, progress):
                             sim.time - t0, found, sim.drag, stronger,
                             "" if stronger > sim.drag else " (the most the time step carries)")
                 sim.drag = stronger
+                strongest = max(strongest, sim.drag)
         if at_rest:
             rest_since = sim.time if rest_since is None else rest_since
             if sim.time - rest_since >= r.hold_time:
                 log.info("%s: at rest after %.4f s (KE per particle %.3g m g d, max speed "
                          "%.3g m/s, unbalanced force %.3g of %.4g N)", what, sim.time - t0, ke,
                          vmax, unbalanced, load)
-                return sim
+                return {"relax_drag_max": strongest, "relax_drag_final": sim.drag}
         else:
             rest_since = None
         if sim.time - t0 > r.max_time:
@@ -451,7 +505,8 @@ def relax_file(cfg: SimConfig, input_path, out):
                       "a poured state (stage 'poured', written by python -m sim pour)")
 
     def work(progress):
-        relax(sim, cfg, f"relax {ds.attrs.get('protocol', '')} seed {ds.attrs.get('seed', '')}",
-              progress=progress)
+        return relax(sim, cfg,
+                     f"relax {ds.attrs.get('protocol', '')} seed {ds.attrs.get('seed', '')}",
+                     progress=progress)
 
     return run_stage(cfg, sim, ds, out, "relaxed", "relax", work)

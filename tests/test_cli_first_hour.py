@@ -208,3 +208,17 @@ def test_a_first_run_says_it_compiles_the_kernels(tmp_path, monkeypatch, caplog)
     with caplog.at_level(logging.INFO, logger="sim"):
         _announce_compile(log)
     assert not caplog.records
+
+
+@pytest.mark.parametrize("flag", ["--help", "-h"])
+def test_numerics_help_lists_the_checks_and_exits_0(flag, capsys):
+    """``python -m sim numerics --help`` is a request, not a mistake: it
+    prints the usage and one line per check on stdout and exits 0, as every
+    other --help does; a missing or unknown check is still a usage error (2)."""
+    assert main(["numerics", flag]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage: python -m sim numerics")
+    for what in NUMERICS:
+        assert re.search(rf"^  {re.escape(what)}\s+\S", out, re.M), what
+    assert not MARKUP.search(out)
+    assert main(["numerics"]) == 2 and main(["numerics", "nothing"]) == 2

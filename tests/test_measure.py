@@ -87,3 +87,20 @@ def test_pile_summary_of_a_lattice_triangle():
     stray = pile_summary(np.vstack([pos, [1.0, r]]), np.append(radius, r),
                          np.append(mass, 2e-3), -9.81, base, np.full(len(base), -1), fy)
     assert stray["width"] == pytest.approx(out["width"])
+
+
+def test_pile_summary_counts_the_rough_base_as_the_support():
+    """A pile on a rough base rests on its polygons (``contact_j`` = -4 - b,
+    docs/formats.md#state-files), with a few particles between them on the flat
+    support: the reaction is the sum of both, the weight in static balance
+    (issue 59, item 3: the base's contacts were left out, -1.0 of the weight).
+    Walls (-2, -3) are no support."""
+    from sim.measure import pile_summary
+    n, r, m = 6, 1e-3, 2e-3
+    pos = np.column_stack([np.arange(n) * 2 * r, np.full(n, 3 * r)])
+    weight = n * m * 9.81
+    i = np.array([0, 1, 2, 3, 4, 5, 5])
+    j = np.array([-4, -5, -1, -6, -7, -9, -2])
+    fy = np.array([0.2, 0.2, 0.1, 0.2, 0.2, 0.1, 0.5]) * weight
+    out = pile_summary(pos, np.full(n, r), np.full(n, m), -9.81, i, j, fy)
+    assert out["support_reaction_over_weight_minus_1"] == pytest.approx(0.0, abs=1e-12)

@@ -5,6 +5,7 @@ without complaint, are named as damage by both readers instead of passing as a p
 Both share one rule, sim.digest.data_digest; this test holds it against the documented one."""
 
 import hashlib
+import logging
 
 import netCDF4
 import numpy as np
@@ -97,10 +98,20 @@ def test_a_changed_attribute_is_named_as_damage(state_file, tmp_path):
         load_state(str(bad))
 
 
-def test_a_file_written_before_digests_still_reads(state_file, tmp_path):
+def test_a_file_written_before_digests_still_reads(state_file, tmp_path, caplog):
+    """It reads, but the simulator says in one warning line that the file is
+    unverified (issue 59, item 8: a file whose digest was removed was read
+    silently, as if checked); one with its digest reads without a word."""
     old = tmp_path / "no_digest.nc"
     old.write_bytes(state_file.read_bytes())
     with netCDF4.Dataset(old, "a") as nc:
         nc.delncattr("data_digest")
-    read_state(old)
+    with caplog.at_level(logging.INFO, logger="sim"):
+        read_state(state_file)
+        assert not caplog.records
+        read_state(old)
+    said = [r for r in caplog.records if r.levelno == logging.WARNING]
+    assert len(said) == 1 and "\n" not in said[0].getMessage()
+    assert said[0].getMessage().startswith(f"state file {old}: no data_digest attribute")
+    assert "unverified" in said[0].getMessage()
     assert load_state(str(old)).n_particles == 12

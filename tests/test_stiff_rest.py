@@ -88,3 +88,74 @@ def test_watchdog_does_not_blame_the_contacts_for_gravity():
     assert len(findings) > 40
     assert np.hypot(*sim.velocity[0]) == pytest.approx(G / 100.0, rel=1e-2)
     assert findings == [None] * len(findings)
+
+
+def _fed(caplog):
+    return [r.getMessage() for r in caplog.records if "energy fed" in r.getMessage()]
+
+
+@pytest.mark.parametrize("hold_time", [0.0, 1e-4])
+def test_a_short_hold_time_does_not_fool_the_watchdog(hold_time, caplog):
+    """The pile not fed energy: at 10⁷ N/m relax.rocking_drag stops the rocking
+    (above). With a hold time of 1e-4 s or 0 the watchdog's window was a few
+    chunks of steps, shorter than the drag's own time 1/c: the kinetic energy
+    sloshing between the contacts looked fed, and it raised the drag 100 -> 10000
+    in 15 findings (issue 59, item 4). Its window is bounded from physics now
+    (:func:`sim.relax.watch_window`): silent, and the drag applied is the one
+    configured."""
+    sim = rocking_polygon(1e7)
+    config = SimConfig(relax=RelaxParams(max_time=1.0, hold_time=hold_time))
+    with caplog.at_level(logging.INFO, logger="sim"):
+        applied = relax(sim, config)
+    assert _fed(caplog) == []
+    assert applied == {"relax_drag_max": 100.0, "relax_drag_final": 100.0}
+
+
+def test_a_fed_pile_is_still_found_at_a_zero_hold_time(caplog):
+    """The pile fed energy (10⁹ N/m): with hold_time 0 the watchdog still names
+    the rocking polygon and raises the drag, and the drag it reports applying is
+    the one of its last finding, above relax.rocking_drag."""
+    sim = rocking_polygon(1e9)
+    config = SimConfig(relax=RelaxParams(max_time=0.3, hold_time=0.0))
+    with caplog.at_level(logging.INFO, logger="sim"):
+        applied = relax(sim, config)
+    fed = _fed(caplog)
+    assert fed and "particle 0" in fed[0] and "rocking on the support" in fed[0]
+    last = float(fed[-1].split("drag ")[-1].split(" -> ")[1].split(" ")[0])
+    assert applied["relax_drag_final"] == applied["relax_drag_max"] == last > 100.0
+
+
+@pytest.mark.parametrize("youngs_modulus", [1e7, 1e9])
+@pytest.mark.parametrize("drag", [1e-3, 100.0, 1e4])
+def test_the_window_spans_contact_periods_and_the_drags_time(youngs_modulus, drag):
+    """However short the window asked for, the watchdog's spans 20 contact
+    periods ``2 pi sqrt(m / Y)`` (the kinetic energy sloshes with the elastic
+    at that period, and the means of the window's halves must average it out)
+    and two decay times ``1 / c`` of the drag (the kinetic energy then falls
+    by e⁻² between the halves under the drag alone, a factor e beyond the
+    watchdog's threshold e⁻¹, where a fluctuation cannot pass for either)."""
+    sim = rocking_polygon(youngs_modulus)
+    sim.drag = drag
+    watch = EnergyWatchdog(sim, 1e-9)
+    period = 2 * np.pi * np.sqrt(float(sim.shapes.mass[0]) / youngs_modulus)
+    assert watch.window >= 20 * period
+    assert watch.window >= 2.0 / drag
+
+
+def test_the_relaxed_file_records_the_drag_applied(tmp_path):
+    """The output records the drag the watchdog raised to, not only the
+    configured one (issue 59, item 4): the stiff rocking polygon relaxed by
+    python -m sim relax's own stage."""
+    import xarray as xr
+
+    from sim.io import save_state
+    from sim.relax import relax_file
+
+    sim = rocking_polygon(1e9)
+    config = SimConfig(model=ModelParams(youngs_modulus=1e9), relax=RelaxParams(max_time=0.3))
+    save_state(sim, tmp_path / "poured.nc", config.to_dict(), stage="poured", protocol="wedge",
+               seed=1)
+    relax_file(config, tmp_path / "poured.nc", tmp_path / "relaxed.nc")
+    with xr.open_dataset(tmp_path / "relaxed.nc") as ds:
+        assert ds.attrs["relax_drag_final"] > config.relax.rocking_drag
+        assert ds.attrs["relax_drag_max"] == ds.attrs["relax_drag_final"]
