@@ -2,8 +2,8 @@
 
 A tool refuses a bad argument or file by raising :class:`Refusal` (or
 :func:`refuse`) with one line that names the argument or file, its value and
-what is allowed; ``python -m workflow.tools`` prints that line and exits 2,
-without a traceback.  :class:`ToolParser` turns argparse's own errors (an
+what is allowed; ``python -m workflow.tools`` prints that line after the
+tool's name and exits 2, without a traceback.  :class:`ToolParser` turns argparse's own errors (an
 unknown option, a value of the wrong type) into such a line, and the types
 here (:func:`positive_int`, :func:`output_file`, ...) check a value when it is
 parsed, so that nothing runs before the whole command line is known good.
@@ -21,8 +21,12 @@ from typing import NoReturn
 REPO = Path(__file__).resolve().parents[2]
 
 
-class Refusal(Exception):
-    """A tool's refusal: one line naming the argument or file, its value and what is allowed."""
+class Refusal(SystemExit):
+    """A tool's refusal: one line naming the argument or file, its value and what is allowed.
+
+    A :class:`SystemExit`, so that a tool's ``main`` called by other code also
+    ends with that line (status 1) and no traceback.
+    """
 
 
 def refuse(message: str) -> NoReturn:
@@ -46,6 +50,17 @@ def positive_int(text: str) -> int:
         value = 0
     if value < 1:
         raise argparse.ArgumentTypeError(f"{text!r}: allowed is a whole number of at least 1")
+    return value
+
+
+def seed(text: str) -> int:
+    """An argument type: a pile's seed, a whole number from 0 to 2^32 - 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value < 2**32:
+        raise argparse.ArgumentTypeError(f"{text!r}: allowed is a seed, a whole number from 0 to 4294967295")
     return value
 
 
@@ -104,6 +119,16 @@ def plain_name(text: str) -> str:
         raise argparse.ArgumentTypeError(f"{text!r}: allowed is one name of letters, digits and _ . - "
                                          "(no folder, no '..')")
     return text
+
+
+def analysis_params(text: str) -> dict:
+    """An argument type: analysis settings as JSON or YAML flow text (or ``@file``), validated
+    (:func:`analysis.params.parse_params`)."""
+    from analysis.params import parse_params   # only the tools that take them load the analysis
+    try:
+        return parse_params(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(" ".join(str(exc).split())) from None
 
 
 def shown(path: Path) -> str:

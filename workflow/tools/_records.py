@@ -127,6 +127,21 @@ def _descends(commit: str, registered: str) -> bool | None:
     return {0: True, 1: False}.get(done.returncode)
 
 
+def read_registration(plan: Path) -> dict:
+    """The settings file `plan` that registers piles: ``piles``, ``seeds`` and ``arms``, each arm a
+    ``protocol`` and ``settings``; a :class:`workflow.tools._cli.Refusal` naming what it lacks."""
+    reg = read_settings_file(plan)
+    for key, kind in (("piles", str), ("seeds", list), ("arms", dict)):
+        if not isinstance(reg.get(key), kind) or not reg[key]:
+            refuse(f"{plan}: {key} = {reg.get(key)!r}; allowed is a registration of piles (a settings file), "
+                   "seeds (a list) and arms (a mapping)")
+    for arm, spec in reg["arms"].items():
+        if not (isinstance(spec, dict) and isinstance(spec.get("protocol"), str)
+                and isinstance(spec.get("settings"), dict)):
+            refuse(f"{plan}: arm {arm!r} = {spec!r}; allowed is a protocol and settings")
+    return reg
+
+
 def check_registered(records: dict[Path, dict], plan: Path, replaces: str | None = None) -> None:
     """Refuse every record that the registration `plan` does not hold as one of its piles.
 
@@ -135,9 +150,8 @@ def check_registered(records: dict[Path, dict], plan: Path, replaces: str | None
     records : dict
         The records by file (:func:`read_records`).
     plan : Path
-        The settings file that registered the piles: ``piles`` (their
-        settings, merged over ``config/config.yaml``), ``seeds`` and ``arms``
-        (each a ``protocol`` and ``settings``).
+        The settings file that registered the piles (:func:`read_registration`;
+        ``piles`` are merged over ``config/config.yaml``).
     replaces : str, optional
         A quantity whose NaN marks a missing pile, which the next seed after
         the registered ones replaces (the decision's rule); without it only
@@ -152,10 +166,7 @@ def check_registered(records: dict[Path, dict], plan: Path, replaces: str | None
         registered ones (and their replacements), or poured at a commit that is
         not the registration's (:func:`registration_commit`) or a later one.
     """
-    reg = read_settings_file(plan)
-    for key in ("piles", "seeds", "arms"):
-        if key not in reg:
-            refuse(f"{plan}: no {key!r}; allowed is a registration of piles, seeds and arms")
+    reg = read_registration(plan)
     check_unique(records)
     registered = registration_commit(plan)
     base = merge_settings(read_settings_file(REPO / "config" / "config.yaml"), read_settings_file(REPO / reg["piles"]))
