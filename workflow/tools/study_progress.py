@@ -488,8 +488,8 @@ def cost_model(study):
     (dict, str)
         :meth:`workflow.resources.SimResources.stage_cpu_s` of each stage of
         a pile, and what the estimate rests on: the particle-steps of a pile,
-        which the configuration alone fixes (particles, pour rate, time
-        step), times the ns per particle-step measured on the project's machine.
+        which the configuration alone fixes (particles, the slowest source's
+        flux, time step), times the ns per particle-step measured on the project's machine.
     """
     model = SimResources(study.config)
     stages = study.stages.all_stages()
@@ -501,7 +501,7 @@ def cost_model(study):
     relax_s = model.relax_simulated_s()
     return means, (f"estimate from the cost model until a pile has finished: "
                    f"{steps:.3g} particle-steps per pile, host-independent, from "
-                   f"pour.n_particles = {pour['n_particles']}, pour.rate = {pour['rate']:g}/s, "
+                   f"pour.n_particles = {pour['n_particles']}, {model.rate_text()}, "
                    f"{dt} and {len(stages) - 1} relaxing stage{'s' * (len(stages) != 2)} of "
                    f"about {relax_s:g} s simulated, x {PARTICLE_STEP_S * 1e9:.0f} ns per "
                    f"particle-step measured on the project's machine: "
