@@ -6,6 +6,9 @@ runtime in minutes; docs/cluster.md); locally they only matter with
     minutes = START_MIN + RUNTIME_MARGIN * steps * particles * PARTICLE_STEP_S
               / speedup(threads) / 60,   steps = simulated time / dt,
 
+a pour's simulated time set by its source's own flux (:meth:`SimResources.pour_rate`:
+the funnel's Beverloo rate, which pour.rate does not set),
+
 multiplied by the attempt number, so a job that SLURM killed at its time
 limit asks for twice the time when --retries resubmits it (a pour resumes
 from its checkpoint, so it needs less; relaxations start again).  The same
@@ -21,6 +24,8 @@ import math
 import os
 from pathlib import Path
 
+from sim.config import SECTIONS, SimConfig
+from sim.release import funnel, source
 from sim.timestep import MAX_STEPS
 from workflow.stages import STRETCH_STAGE
 
@@ -104,6 +109,45 @@ class SimResources:
         self.config = config
         #: Threads of every simulation job (config ``threads``).
         self.threads = int(config["threads"])
+        self._rates = {}
+
+    def pour_rate(self, protocol=None):
+        """Releases per second of a pour: its source's own flux (:func:`sim.release.source`).
+
+        The funnel (a wedge pour with ``pour.point_source: funnel``) releases
+        at the 2D Beverloo rate of its outlet for the particles of the
+        protocol's first seed (:func:`sim.release.beverloo_rate`; 213/s at the
+        default 4 d, 19/s at 2 d), whatever ``pour.rate``; the drip and the
+        line sources at ``pour.rate`` or a little below it (86-100 % measured,
+        docs/model.md), which POUR_TIME_FACTOR covers.
+
+        Parameters
+        ----------
+        protocol : str, optional
+            The pour's protocol; None: the slowest source of the
+            configuration's protocols (an estimate that holds for every pile).
+        """
+        return self._source(protocol)[0]
+
+    def rate_text(self, protocol=None):
+        """:meth:`pour_rate` in words, with the setting that sets it (for messages)."""
+        return self._source(protocol)[1]
+
+    def _source(self, protocol):
+        """(:meth:`pour_rate`, :meth:`rate_text`) of `protocol`, or of the slowest source for None."""
+        if protocol is None:
+            return min((self._source(p) for p in self.config["protocols"]), key=lambda found: found[0])
+        if protocol not in self._rates:
+            cfg = SimConfig.from_dict({k: self.config[k] for k in SECTIONS})
+            if funnel(cfg, protocol):
+                from sim.pour import GRAVITY, pile_shapes   # the draw of the particles, for the funnel alone
+                seed = self.config["protocols"][protocol]["seeds"][0]
+                rate = source(cfg, pile_shapes(cfg, seed), protocol, GRAVITY).rate
+                self._rates[protocol] = (rate, f"the funnel's Beverloo rate {rate:.4g}/s "
+                                               f"(pour.outlet_width = {cfg.pour.outlet_width:g})")
+            else:
+                self._rates[protocol] = (float(cfg.pour.rate), f"pour.rate = {cfg.pour.rate:.4g}/s")
+        return self._rates[protocol]
 
     def estimated_dt(self):
         """Time step (s) of the simulations: model.dt if set, else the automatic
@@ -116,26 +160,29 @@ class SimResources:
             model["density"] / model["youngs_modulus"] * (1e7 / 2500.0))
         return DT_REFERENCE_S[model["integrator"]] * scale * model["dt_safety"] / 0.5
 
-    def steps(self, stage):
+    def steps(self, stage, protocol=None):
         """Time steps of the job making `stage` by the cost model
         (:meth:`particle_steps` over the particles); ``inf`` for a step of 0."""
         n = self.config["pour"]["n_particles"]
-        return self.particle_steps(stage) / (n / 2 if stage == "poured" else n)
+        return self.particle_steps(stage, protocol) / (n / 2 if stage == "poured" else n)
 
     def relax_simulated_s(self):
         """Simulated time (s) of a relaxation: RELAX_TYPICAL_S, at most relax.max_time."""
         return min(RELAX_TYPICAL_S, self.config["relax"]["max_time"])
 
-    def particle_steps(self, stage):
+    def particle_steps(self, stage, protocol=None):
         """Particle-steps of the job making `stage`, by the cost model.
 
         Parameters
         ----------
         stage : str
-            ``"poured"``: the release time, stretched by POUR_TIME_FACTOR, plus
+            ``"poured"``: the release time at the source's flux
+            (:meth:`pour_rate`), stretched by POUR_TIME_FACTOR, plus
             the settling time, with half the particles on average;
             ``"relaxed"``: :meth:`relax_simulated_s` of the full pile; a probe: that, plus the gravity ramp, if any, or the support
             stretch.
+        protocol : str, optional
+            The pile's protocol (:meth:`pour_rate`; None: the slowest).
 
         Returns
         -------
@@ -145,7 +192,7 @@ class SimResources:
         """
         pour, dt = self.config["pour"], self.estimated_dt()
         if stage == "poured":
-            simulated = POUR_TIME_FACTOR * pour["n_particles"] / pour["rate"] + 0.1
+            simulated = POUR_TIME_FACTOR * pour["n_particles"] / self.pour_rate(protocol) + 0.1
             return (simulated / dt if dt > 0 else math.inf) * pour["n_particles"] / 2
         probe = self.config["probe"]
         simulated = self.relax_simulated_s()
@@ -155,22 +202,23 @@ class SimResources:
             simulated += probe["ramp_time"]
         return (simulated / dt if dt > 0 else math.inf) * pour["n_particles"]
 
-    def stage_cpu_s(self, stage):
+    def stage_cpu_s(self, stage, protocol=None):
         """CPU seconds of the job making `stage` by the cost model:
         :meth:`particle_steps` times PARTICLE_STEP_S (no margin, no start)."""
-        return self.particle_steps(stage) * PARTICLE_STEP_S
+        return self.particle_steps(stage, protocol) * PARTICLE_STEP_S
 
-    def stage_runtime_min(self, stage, attempt):
+    def stage_runtime_min(self, stage, attempt, protocol=None):
         """Wall-clock minutes to request for the job making `stage`: its
         :meth:`stage_cpu_s` on the configured threads (the parallel kernels are
         assumed to scale with 80 % efficiency), with the margin and the start."""
         speedup = 1.0 + 0.8 * (self.threads - 1)
-        seconds = self.stage_cpu_s(stage) / speedup
+        seconds = self.stage_cpu_s(stage, protocol) / speedup
         return attempt * math.ceil(START_MIN + RUNTIME_MARGIN * seconds / 60.0)
 
     def pour_runtime_min(self, wildcards, attempt):
-        """Runtime (min) of a pour (:meth:`stage_runtime_min`)."""
-        return self.stage_runtime_min("poured", attempt)
+        """Runtime (min) of the pour of ``wildcards.protocol`` (:meth:`stage_runtime_min`; without
+        wildcards, of the slowest source)."""
+        return self.stage_runtime_min("poured", attempt, getattr(wildcards, "protocol", None))
 
     def relax_runtime_min(self, wildcards, attempt):
         """Runtime (min) of relaxing the full pile (:meth:`stage_runtime_min`)."""
@@ -230,11 +278,11 @@ class SimResources:
                         f"an automatic step of about {self.estimated_dt():.4g} s (model.youngs_modulus = "
                         f"{model['youngs_modulus']:.4g}, model.density = {model['density']:.4g}, "
                         f"particles.semi_axis_mean = {self.config['particles']['semi_axis_mean']:.4g})")
-                what = (f"pour.n_particles = {pour['n_particles']} at pour.rate = {pour['rate']:.4g}/s"
+                what = (f"pour.n_particles = {pour['n_particles']} at {self.rate_text()}"
                         if stage == "poured" else f"relaxing for about {self.relax_simulated_s():.4g} s")
                 raise ValueError(f"{what} with {step} needs about {steps:.4g} steps, more than the "
                                  f"simulator's {MAX_STEPS:.0e}; give a larger step or a shorter run")
         minutes = self.pour_runtime_min(None, 1)
         if minutes > ABSURD_RUNTIME_MIN:
-            warn(f"pour.n_particles = {n}, pour.rate = {self.config['pour']['rate']}: each pour is "
+            warn(f"pour.n_particles = {n}, {self.rate_text()}: the slowest pour is "
                  f"estimated to take {minutes / 1440:.0f} days on {self.threads} threads")

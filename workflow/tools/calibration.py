@@ -38,19 +38,20 @@ written to ``docs/reproduction/calibration/ARM-seedS.json``:
 * ``commit``: the checkout the pile was made in.
 
 :data:`FLOW_MIN`, ``OLD`` and :data:`START` were fixed, and committed, before
-the first calibration pile was poured.  ``--table`` writes
-``docs/reproduction/calibration.md`` from the records (mean ± standard error
-over seeds, per arm).
+the first calibration pile was poured.  ``--table`` prints the table of the
+records (mean ± standard error over seeds, per arm), each checked against the
+configuration that registered its pile (:mod:`workflow.tools._records`: a copy
+of another record, another arm or seed is refused, not tabled);
+``--out`` writes it (``docs/reproduction/calibration.md``).
 
 Usage::
 
     .venv/bin/python -m workflow.tools calibration --jobs 2 [--arms "wedge funnel"] [--records DIR]
-    .venv/bin/python -m workflow.tools calibration --table
+    .venv/bin/python -m workflow.tools calibration --table [--out docs/reproduction/calibration.md]
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -74,6 +75,9 @@ from sim.pour import pile_shapes
 from sim.release import SETTLED_SPEED, mean_diameter
 from sim.settings_file import SettingsDumper, read_settings_file
 from workflow.validation import merge_configs, validate_config
+
+from ._cli import ToolParser, existing_file, output_file, positive_int, refuse, seed, shown
+from ._records import check_registered, check_unique, read_records, read_registration
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -165,12 +169,6 @@ def flank_fabric(fields: xr.Dataset, history: dict) -> dict:
             "fabric_axis_deg": float(np.nanmean(np.where(flank, axis, np.nan)))}
 
 
-def _shown(path: Path) -> str:
-    """A path as the page names it: relative to the repository where it lies inside."""
-    path = Path(path).resolve()
-    return str(path.relative_to(REPO)) if path.is_relative_to(REPO) else str(path)
-
-
 def commit_of(folder: Path) -> str:
     """The short commit of the checkout the pile was made in."""
     return subprocess.run(["git", "-C", str(folder), "rev-parse", "--short", "HEAD"],
@@ -234,7 +232,11 @@ CPU = {"pour": "CPU s, pour", "relax": "CPU s, relaxation", "probe": "CPU s, pro
 
 
 def table(records: list, params: dict, arms: list) -> str:
-    """Markdown: per quantity, mean ± standard error over seeds (and the number of piles) of each arm."""
+    """Markdown: per quantity, mean ± standard error over seeds (and the number of piles) of each arm.
+
+    A value that is not a number (NaN: not measured in that pile) is left out
+    of its cell, which then says how many piles it holds: ``(5 of 6 piles)``.
+    """
     by_arm = {a: [r for r in records if r["arm"] == a] for a in arms}
     by_arm = {a: rs for a, rs in by_arm.items() if rs}
     rows = ["| quantity | " + " | ".join(f"{a} ({len(rs)})" for a, rs in by_arm.items()) + " |",
@@ -244,8 +246,8 @@ def table(records: list, params: dict, arms: list) -> str:
         for key, text in names.items():
             cells = []
             for rs in by_arm.values():
-                m, s, *_ = mean_sem([r[part].get(key, math.nan) for r in rs])
-                cells.append(f"{m:.4g} ± {s:.2g}")
+                m, s, _, n = mean_sem([r[part].get(key, math.nan) for r in rs])
+                cells.append(f"{m:.4g} ± {s:.2g}" + (f" ({n} of {len(rs)} piles)" if n < len(rs) else ""))
             rows.append(f"| {text} | " + " | ".join(cells) + " |")
     return "\n".join(rows) + "\n"
 
@@ -303,51 +305,59 @@ def lever_contrasts(records: list, baseline: list, arms: list) -> str:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--config", type=Path, default=CONFIG)
+    """Command line: run the piles not recorded yet, or (``--table``) print the table of the records."""
+    ap = ToolParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--config", type=existing_file, default=CONFIG)
     ap.add_argument("--arms", nargs="*", default=None, help="the arms to run (default: all of the config)")
-    ap.add_argument("--seeds", nargs="*", type=int, default=None, help="the seeds to run (default: the config's)")
-    ap.add_argument("--jobs", type=int, default=2, help="piles run side by side, one core each")
+    ap.add_argument("--seeds", nargs="*", type=seed, default=None,
+                    help="the seeds to run (default: the config's)")
+    ap.add_argument("--jobs", type=positive_int, default=2, help="piles run side by side, one core each")
     ap.add_argument("--records", type=Path, default=RECORDS, help="where each pile's record is written")
-    ap.add_argument("--table", action="store_true", help="only write the table of the records (to --out)")
-    ap.add_argument("--out", type=Path, default=REPO / "docs" / "reproduction" / "calibration.md",
-                    help="the table's file (with --table)")
+    ap.add_argument("--table", action="store_true", help="only print the table of the records")
+    ap.add_argument("--out", type=output_file, default=None,
+                    help="with --table: also write the table to this file (docs/reproduction/calibration.md)")
     ap.add_argument("--baseline", type=Path, default=None,
                     help="with --table: the records of the arms the config's arms change one setting of "
                          "(docs/reproduction/calibration for config/levers.yaml), tabled beside them with "
                          "the point − layered contrasts at each lever value")
     args = ap.parse_args(argv)
-    cal = read_settings_file(args.config)
+    cal = read_registration(args.config)
     arms = args.arms or list(cal["arms"])
     unknown = sorted(set(arms) - set(cal["arms"]))
     if unknown:
-        raise SystemExit(f"--arms: {unknown} not among the arms of {args.config}: {list(cal['arms'])}")
+        refuse(f"--arms: {unknown} not among the arms of {args.config}: {list(cal['arms'])}")
     if args.table:
         params = parse_params(json.dumps(read_settings_file(REPO / cal["piles"])["analysis"]))
-        records = [json.loads(p.read_text()) for p in sorted(args.records.glob("*.json"))]
-        base_records = [json.loads(p.read_text()) for p in sorted(args.baseline.glob("*.json"))] \
-            if args.baseline else []
+        found = read_records(args.records)
+        check_registered(found, args.config)
+        records = list(found.values())
+        base_found = read_records(args.baseline, "--baseline") if args.baseline else {}
+        check_unique(base_found)
+        base_records = list(base_found.values())
         baseline = list(dict.fromkeys(r["arm"] for r in base_records
                                       if any(baseline_arm(a, [r["arm"]]) for a in arms)))
-        shown = [b for b in baseline] + arms if baseline else arms
         page = (f"# {'Levers of the sources' if baseline else 'The calibration of the sources'}: piles of "
-                f"{records[0]['n_particles'] if records else '?'} particles, per arm\n\n"
+                f"{records[0]['n_particles']} particles, per arm\n\n"
                 "Made by `python -m workflow.tools calibration --table` from the per-pile records in "
-                f"{_shown(args.records)}/ (settings: {_shown(args.config)}; what each number is: the script's "
+                f"{shown(args.records)}/ (settings: {shown(args.config)}; what each number is: the script's "
                 "docstring); mean ± standard error over seeds, the number of piles after each arm. CPU seconds "
                 "are each job's own (Snakemake's benchmark files), with two piles side by side on a 2-core host.\n\n"
-                + table(records + [r for r in base_records if r["arm"] in baseline], params, shown))
+                + table(records + [r for r in base_records if r["arm"] in baseline], params, baseline + arms))
         if baseline:
             page += (f"\n## The levers, exploratory\n\nThe default arms' records are those of "
-                     f"{_shown(args.baseline)}/ (same seeds). Point source − layered, at each lever value, "
+                     f"{shown(args.baseline)}/ (same seeds). Point source − layered, at each lever value, "
                      "in per cent of the statistic (Welch's t; not registered, no threshold):\n\n"
                      + lever_contrasts(records + base_records, baseline, arms))
-        args.out.write_text(page)
+        if args.out:
+            args.out.write_text(page)
         print(page)
         return
     seeds = args.seeds or cal["seeds"]
     for arm in arms:                                  # refuse a bad arm before any pile
-        arm_config(cal, arm, seeds[0])
+        try:
+            arm_config(cal, arm, seeds[0])
+        except ValueError as exc:                     # the settings' own one-line message
+            refuse(f"--config {args.config}: arm {arm!r}: {' '.join(str(exc).split())}")
     # seed-major: the first seeds of every arm land first, so a stopped run leaves every arm measured
     todo = [(a, s) for s in seeds for a in arms if not (args.records / f"{slug(a)}-seed{s}.json").exists()]
     print(f"{len(todo)} piles to run, {args.jobs} at a time", flush=True)
@@ -364,4 +374,4 @@ def main(argv=None) -> None:
     with ThreadPoolExecutor(args.jobs) as pool:
         list(pool.map(one, todo))
     if failed:
-        raise SystemExit(f"{len(failed)} of {len(todo)} piles failed: {failed}")
+        refuse(f"{len(failed)} of {len(todo)} piles failed: {failed}")

@@ -1,28 +1,32 @@
 """Apply the pre-registration (docs/reproduction/preregistration.md): choose, then decide.
 
-``select`` reads the calibration records (``docs/reproduction/calibration/``),
-applies the registered rules (:func:`analysis.decision.select_arms`,
-:func:`analysis.decision.piles_required`) and writes what they chose:
-``config/decision.yaml`` (the two arms, the registered seeds 1001 ... 1000 + N,
-read by ``python -m workflow.tools calibration --config config/decision.yaml
---records docs/reproduction/decision``) and ``docs/reproduction/decision_plan.md``
-(the numbers the rules read).  Commit both before the first decision pile.
+``select`` reads the calibration records (``docs/reproduction/calibration/``,
+each checked against ``config/calibration.yaml``), applies the registered rules
+(:func:`analysis.decision.select_arms`, :func:`analysis.decision.piles_required`)
+and writes what they chose to a new plan, ``--plan`` (the two arms, the
+registered seeds 1001 ... 1000 + N, read by ``python -m workflow.tools
+calibration --config PLAN --records docs/reproduction/PLAN-NAME``); it prints the
+numbers the rules read (``--out``: the page of them, e.g.
+``docs/reproduction/decision_plan.md``).  A plan is never rewritten or
+deleted: ``select`` refuses a plan file that exists.  Commit the plan before
+the first decision pile: that commit registers it.
 
-``verdict`` reads the decision records and writes ``docs/reproduction/decision.md``
-(rebuilt by ``make reproduction``):
-the registered test over the ensemble, or, short of N piles per protocol,
-only how far the ensemble is (no test).
+``verdict`` reads a plan's decision records (``docs/reproduction/PLAN-NAME/``
+by default), refuses any that the plan does not hold as one of its piles
+(:func:`workflow.tools._records.check_registered`: arm, protocol and settings,
+particles, seed, a copy of another record, the commit it was poured at) and
+prints the registered test over the ensemble, or, short of N piles per
+protocol, only how far the ensemble is (no test); ``--out`` writes it
+(``docs/reproduction/decision.md`` under ``make reproduction``).
 
 Usage::
 
-    .venv/bin/python -m workflow.tools decision select
-    .venv/bin/python -m workflow.tools decision verdict
+    .venv/bin/python -m workflow.tools decision select --plan config/decision_NEW.yaml [--out PAGE]
+    .venv/bin/python -m workflow.tools decision verdict [--plan config/decision.yaml] [--out PAGE]
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 from pathlib import Path
 
@@ -30,6 +34,9 @@ import yaml
 
 from analysis import decision
 from sim.settings_file import SettingsDumper, read_settings_file
+
+from ._cli import ToolParser, output_file, refuse, shown
+from ._records import check_registered, read_records
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -39,14 +46,37 @@ PLAN = REPO / "config" / "decision.yaml"
 FIRST_SEED = 1001
 
 
-def read_records(folder: Path) -> list[dict]:
-    """Every pile record (``*.json``) of a folder."""
-    return [json.loads(p.read_text()) for p in sorted(folder.glob("*.json"))]
+def calibration_records(folder: Path, option: str) -> list[dict]:
+    """The calibration records of `folder`, each checked against ``config/calibration.yaml``."""
+    records = read_records(folder, option)
+    check_registered(records, CALIBRATION)
+    return list(records.values())
 
 
-def select(records: Path) -> str:
-    """Choose the arms and N; write config/decision.yaml and decision_plan.md; return the page."""
-    recs = read_records(records)
+def select(records: Path, plan: Path) -> str:
+    """Choose the arms and N by the registered rules; write them to the new plan file `plan`.
+
+    Parameters
+    ----------
+    records : Path
+        The calibration records' folder.
+    plan : Path
+        Where the plan goes: a file that does not exist yet.
+
+    Returns
+    -------
+    str
+        The page of the numbers the rules read and what they chose.
+
+    Raises
+    ------
+    workflow.tools._cli.Refusal
+        If `plan` exists (a registered plan is never rewritten), or a record
+        is not one of the calibration's piles.
+    """
+    if plan.exists():
+        refuse(f"--plan {plan}: exists; a registered plan is never rewritten, allowed is a new file")
+    recs = calibration_records(records, "--records")
     sel = decision.select_arms(recs)
     lines = ["# The decision's plan: what the registered rules chose",
              "",
@@ -64,7 +94,6 @@ def select(records: Path) -> str:
               f"{sel['repose_deg'] - decision.REPOSE_MARGIN:.2f}°: qualified {sel['qualified'] or 'none'}."]
     if sel["layered"] is None:
         lines.append("- No layered control at these settings: the decision is not poured; the levers come first.")
-        PLAN.unlink(missing_ok=True)
     else:
         need = decision.piles_required(recs, sel["point"], sel["layered"])
         lines += [f"- Layered control: **{sel['layered']}**.",
@@ -73,15 +102,14 @@ def select(records: Path) -> str:
                   f"{decision.EFFECT:.0%} at {decision.LEVEL:.0%}/{len(decision.DECISION)}: {need['n_power']:.0f}; "
                   f"registered N = **{need['n']}** per protocol, seeds {FIRST_SEED}-{FIRST_SEED + need['n'] - 1}."]
         cal = read_settings_file(CALIBRATION)
-        plan = {"piles": cal["piles"], "frame_interval": cal["frame_interval"],
-                "seeds": list(range(FIRST_SEED, FIRST_SEED + need["n"])),
-                "arms": {a: cal["arms"][a] for a in (sel["point"], sel["layered"])}}
-        PLAN.write_text("# The decision ensemble, written by python -m workflow.tools decision select from the\n"
-                        "# calibration records by the rules of docs/reproduction/preregistration.md.\n"
-                        + yaml.dump(plan, Dumper=SettingsDumper, sort_keys=False))
-    page = "\n".join(lines) + "\n"
-    (DOCS / "decision_plan.md").write_text(page)
-    return page
+        chosen = {"piles": cal["piles"], "frame_interval": cal["frame_interval"],
+                  "seeds": list(range(FIRST_SEED, FIRST_SEED + need["n"])),
+                  "arms": {a: cal["arms"][a] for a in (sel["point"], sel["layered"])}}
+        with open(plan, "x") as fh:   # "x": never over a plan that appeared meanwhile
+            fh.write("# The decision ensemble, written by python -m workflow.tools decision select from the\n"
+                     "# calibration records by the rules of docs/reproduction/preregistration.md.\n"
+                     + yaml.dump(chosen, Dumper=SettingsDumper, sort_keys=False))
+    return "\n".join(lines) + "\n"
 
 
 def _row(key: str, r: dict) -> str:
@@ -90,35 +118,50 @@ def _row(key: str, r: dict) -> str:
             f"| {r['t']:.2f}, {r['df']:.1f} df | {r['p']:.3g} | {r['p_holm']:.3g} | {r['power']:.2f} |")
 
 
-def verdict(records: Path, out: Path) -> str:
-    """Write the verdict page (docs/reproduction/decision.md) from the decision records to `out`; return it."""
-    plan = read_settings_file(PLAN)
-    point, layered = list(plan["arms"])
-    n = len(plan["seeds"])
-    recs = read_records(records)
+def verdict(records: Path, plan: Path) -> str:
+    """The verdict page of the plan `plan` from its decision records; return it.
+
+    Parameters
+    ----------
+    records : Path
+        The decision records' folder.
+    plan : Path
+        The registered plan (``config/decision.yaml``): its two arms, its seeds.
+
+    Raises
+    ------
+    workflow.tools._cli.Refusal
+        If a record is not one of the plan's piles
+        (:func:`workflow.tools._records.check_registered`), or the folder holds none.
+    """
+    reg = read_settings_file(plan)
+    found = read_records(records)
+    check_registered(found, plan, replaces=decision.DECISION[0])
+    recs = list(found.values())
+    point, layered = list(reg["arms"])
+    n = len(reg["seeds"])
     have = {a: sum(r["arm"] == a for r in recs) for a in (point, layered)}
     lines = ["# The decision: a pressure minimum under point-source piles?", "",
              f"Registered in [preregistration.md](preregistration.md); arms and N in "
              f"[decision_plan.md](decision_plan.md): {point} against {layered}, {n} piles per protocol. "
-             "Made by `python -m workflow.tools decision verdict` from docs/reproduction/decision/.", ""]
+             f"Made by `python -m workflow.tools decision verdict` from {shown(records)}/.", ""]
     try:
         result = decision.verdict(recs, point, layered, n)
     except ValueError as exc:
         lines.append(f"**No verdict yet**: {exc} (piles recorded: {have}).")
-        page = "\n".join(lines) + "\n"
-        out.write_text(page)
-        return page
+        return "\n".join(lines) + "\n"
     lines += [f"**Verdict: {result['sentence']}.**", "",
               f"| statistic | {point} | {layered} | difference | Welch t | p | Holm p | power at "
               f"{decision.EFFECT:.0%} |", "|---|---|---|---|---|---|---|---|"]
     lines += [_row(k, r) for k, r in result["decision"].items()]
-    plan_sd = decision.piles_required(read_records(DOCS / "calibration"), point, layered)["sd"]
+    plan_sd = decision.piles_required(calibration_records(DOCS / "calibration", "calibration records"),
+                                      point, layered)["sd"]
     lines += [""] + [f"- {k}: 95 % interval of the difference [{100 * r['ci95'][0]:+.1f} %, "
                      f"{100 * r['ci95'][1]:+.1f} %]; per-pile scatter {r['sd'][0]:.4f} ({point}), "
                      f"{r['sd'][1]:.4f} ({layered})" for k, r in result["decision"].items()]
     lines += [f"- N was set from D1's pooled calibration scatter {plan_sd:.4f}; the power column is at the "
               "ensemble's own scatter.",
-              f"- Piles: seeds {plan['seeds'][0]}-{plan['seeds'][-1]}, {have[point]} {point} and "
+              f"- Piles: seeds {reg['seeds'][0]}-{reg['seeds'][-1]}, {have[point]} {point} and "
               f"{have[layered]} {layered} recorded; missing: "
               + (", ".join(f"{r['arm']} seed {r['seed']}" for r in recs
                            if not math.isfinite(r["quantities"].get(decision.DECISION[0], math.nan))) or "none")
@@ -127,18 +170,24 @@ def verdict(records: Path, out: Path) -> str:
               "| statistic | point | layered | difference | Welch t | p | Holm p | power |",
               "|---|---|---|---|---|---|---|---|"]
     lines += [_row(k, r) for k, r in result["secondary"].items()]
-    page = "\n".join(lines) + "\n"
-    out.write_text(page)
-    return page
+    return "\n".join(lines) + "\n"
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    """Command line: ``select`` or ``verdict`` (the module's docstring); prints the page, writes it only to ``--out``."""
+    ap = ToolParser(description=__doc__.splitlines()[0])
     ap.add_argument("step", choices=["select", "verdict"])
+    ap.add_argument("--plan", type=Path, default=PLAN,
+                    help="the plan: read by verdict (default: config/decision.yaml), written anew by select")
     ap.add_argument("--records", type=Path, default=None,
                     help="the records' folder (default: docs/reproduction/calibration for select, "
-                         "docs/reproduction/decision for verdict)")
-    ap.add_argument("--out", type=Path, default=DOCS / "decision.md", help="the verdict's page (verdict)")
+                         "docs/reproduction/PLAN-NAME for verdict)")
+    ap.add_argument("--out", type=output_file, default=None, help="also write the page to this file")
     args = ap.parse_args(argv)
-    folder = args.records or DOCS / ("calibration" if args.step == "select" else "decision")
-    print(select(folder) if args.step == "select" else verdict(folder, args.out))
+    if args.step == "select":
+        page = select(args.records or DOCS / "calibration", args.plan)
+    else:
+        page = verdict(args.records or DOCS / args.plan.stem, args.plan)
+    if args.out:
+        args.out.write_text(page)
+    print(page, end="")

@@ -16,13 +16,14 @@ Usage::
     .venv/bin/python -m workflow.tools growing_pile_shapes STATE.nc [STATE.nc ...]
 """
 
-import argparse
 import json
 
 import numpy as np
 
-from sim.io import load_simulation
+from sim.io import StateFileError, load_simulation
 from sim.measure import flank_angles
+
+from ._cli import ToolParser, existing_file, refuse
 
 MOVING = 0.01
 """Speed (m/s) above which a particle counts as moving."""
@@ -53,7 +54,12 @@ def growing_shape(path):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("states", nargs="+", help="state files of one pour (.nc)")
+    """Command line: one JSON line per state file."""
+    ap = ToolParser(description=__doc__.splitlines()[0])
+    ap.add_argument("states", nargs="+", type=existing_file, help="state files of one pour (.nc)")
     for path in ap.parse_args(argv).states:
-        print(json.dumps(growing_shape(path)), flush=True)
+        try:
+            row = growing_shape(path)
+        except StateFileError as exc:   # its own one line names the file and what is wrong
+            refuse(str(exc))
+        print(json.dumps(row), flush=True)

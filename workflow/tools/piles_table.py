@@ -12,6 +12,8 @@ import json
 import sys
 from pathlib import Path
 
+from ._cli import ToolParser, existing_file, refuse
+
 
 def _fmt(x, spec):
     return "–" if x is None else format(x, spec)
@@ -56,6 +58,16 @@ reduced stages, and for the increment (change of reaction / change of weight −
 """
 
 
-def main(paths: list[str]) -> None:
-    rows = [pile_row(Path(p)) for p in paths]
+def main(argv=None) -> None:
+    """Command line: print the table of the piles whose ``summary.json`` files are given."""
+    ap = ToolParser(description=__doc__.splitlines()[0])
+    ap.add_argument("summaries", nargs="+", type=existing_file, metavar="SUMMARY",
+                    help="a pile's *.summary.json (its checks.json and pour.tsv beside it)")
+    rows = []
+    for path in ap.parse_args(argv).summaries:
+        try:
+            rows.append(pile_row(path))
+        except (OSError, ValueError, KeyError, TypeError, StopIteration) as exc:
+            refuse(f"{path}: not a pile's record ({type(exc).__name__}: {exc}); allowed is a summary.json "
+                   "with its relaxed stage, and the checks.json and pour.tsv beside it")
     sys.stdout.write(HEADER + "\n".join(rows) + "\n")

@@ -24,7 +24,6 @@ Usage::
         --step DIR --ramp DIR --out docs/reproduction/probe_levels.md
 """
 
-import argparse
 import json
 from pathlib import Path
 
@@ -38,6 +37,8 @@ from analysis.params import parse_params
 from analysis.probes import reversibility
 from sim.settings_file import read_settings_file
 from workflow.layout import folders
+
+from ._cli import ToolParser, existing_file, existing_folder, output_file, refuse
 
 LEVELS = {"reduced05": 0.05, "reduced": 0.10, "reduced15": 0.15}
 
@@ -102,16 +103,24 @@ def report(results: dict, ramp_time: float) -> str:
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--piles", type=Path, required=True, help="the piles' settings (their protocols, seeds, analysis)")
-    ap.add_argument("--step", type=Path, help="working directory of the step probes")
-    ap.add_argument("--ramp", type=Path, help="working directory of the ramp probes")
-    ap.add_argument("--out", type=Path, help="Markdown file to write (and its .json beside it)")
+    """Command line: print the report (and write it to ``--out``)."""
+    ap = ToolParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--piles", type=existing_file, required=True,
+                    help="the piles' settings (their protocols, seeds, analysis)")
+    ap.add_argument("--step", type=existing_folder, help="working directory of the step probes")
+    ap.add_argument("--ramp", type=existing_folder, help="working directory of the ramp probes")
+    ap.add_argument("--out", type=output_file, help="Markdown file to write (and its .json beside it)")
     args = ap.parse_args(argv)
     if not (args.step or args.ramp):
         ap.error("give --step DIR, --ramp DIR or both")
     cfg = read_settings_file(args.piles)
-    params = parse_params(json.dumps(cfg.get("analysis", {})))
+    if not (isinstance(cfg.get("protocols"), dict) and "n_particles" in cfg.get("pour", {})):
+        refuse(f"--piles {args.piles}: no protocols or pour.n_particles; allowed is a piles' settings file "
+               "(config/sweep_piles.yaml)")
+    try:
+        params = parse_params(json.dumps(cfg.get("analysis", {})))
+    except ValueError as exc:   # its one message names the setting
+        refuse(f"--piles {args.piles}: analysis: {' '.join(str(exc).split())}")
     study = read_settings_file(Path(__file__).resolve().parents[2] / "config" / "config.yaml")
     ramp_time = study["probe"]["ramp_time"]
     tree = cfg.get("results", study["results"])  # the piles' results folder in each working directory
@@ -124,7 +133,7 @@ def main(argv=None):
             for seed in v["seeds"]:
                 path = folders(work, tree)[0] / "fields" / protocol / f"seed{seed}.probes.nc"
                 if not path.exists():
-                    raise SystemExit(f"--{mode} {work}: {path} is missing; run the probes first")
+                    refuse(f"--{mode} {work}: {path} is missing; run the probes first")
                 with xr.open_dataset(path) as pr:
                     results[mode].setdefault(protocol, []).append(pile_levels(pr.load(), params))
     n = {p: len(v["seeds"]) for p, v in cfg["protocols"].items()}

@@ -85,8 +85,10 @@ from analysis.fields import read_fields
 from analysis.ensemble import leave_out_slips
 from analysis.history import (UNITS, compare, holm, pile_history, pile_stress_contrasts,
                               piles_for_power, mean_sem, primary_names, t_threshold, welch, windows)
-from analysis.params import parse_params
 from analysis.probes import reversibility
+from sim.settings_file import read_settings_file
+
+from ._cli import ToolParser, analysis_params, existing_file, existing_folder, positive_float, refuse
 
 
 def _pm(v, s, spec=".3g"):
@@ -254,7 +256,7 @@ def convergence(paths):
     sets = [xr.open_dataset(path).load() for path in paths]
     sizes = sets[0]["rve_size"].values
     if any(not np.array_equal(ds["rve_size"].values, sizes) for ds in sets):
-        raise SystemExit(f"the convergence files {paths} do not share their RVE sizes")
+        refuse(f"--convergence {' '.join(map(str, paths))}: the files do not share their RVE sizes")
 
     def deviation(name):
         v = np.concatenate([ds[name].sel(i="y", j="y").values for ds in sets], axis=1)  # (size, pile x point)
@@ -326,6 +328,8 @@ def general_fit(gm):
 
 
 #: Depth bands (m below the top filled RVE of each grid column) of the reversibility.
+#: The files of each protocol's ensemble that the numbers are read from.
+ENSEMBLE_FILES = ("fields.nc", "base_pressure.nc", "moduli.nc", "invariants.nc")
 DEPTHS = (0.0, 0.03, 0.06, 0.10, np.inf)
 
 
@@ -741,26 +745,43 @@ def checks_lines(t):
             *[f"- `{k}`: {v}" for k, v in t.items()], ""]
 
 
+def protocol_file(text: str) -> str:
+    """An argument type: ``PROTOCOL=FILE`` of a file that exists (kept as the text)."""
+    protocol, sep, path = text.partition("=")
+    if not (sep and protocol and Path(path).is_file()):
+        raise argparse.ArgumentTypeError(f"{text!r}: allowed is PROTOCOL=FILE, of a file that exists")
+    return text
+
+
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--ensemble", required=True, help="folder of results/ensemble/{protocol}/")
+    """Command line: print the numbers (Markdown)."""
+    ap = ToolParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--ensemble", type=existing_folder, required=True, help="folder of results/ensemble/{protocol}/")
     ap.add_argument("--protocols", nargs="+", required=True)
-    ap.add_argument("--convergence", nargs="+", required=True, help="the convergence files of the piles")
-    ap.add_argument("--checks", nargs="+", required=True, help="checks.json of every pile")
-    ap.add_argument("--heights", nargs="+", type=float, required=True, help="rows of Fig. 2, m")
-    ap.add_argument("--general", nargs="*", default=[], metavar="PROTOCOL=FILE",
+    ap.add_argument("--convergence", nargs="+", type=existing_file, required=True,
+                    help="the convergence files of the piles")
+    ap.add_argument("--checks", nargs="+", type=existing_file, required=True, help="checks.json of every pile")
+    ap.add_argument("--heights", nargs="+", type=positive_float, required=True, help="rows of Fig. 2, m")
+    ap.add_argument("--general", nargs="*", type=protocol_file, default=[], metavar="PROTOCOL=FILE",
                     help="general_moduli.nc of the protocols with the extra probes")
-    ap.add_argument("--probes", nargs="*", default=[], metavar="PROTOCOL=FILE",
+    ap.add_argument("--probes", nargs="*", type=protocol_file, default=[], metavar="PROTOCOL=FILE",
                     help="the probes.nc of every pile with the extra probes")
-    ap.add_argument("--fields", nargs="*", default=[], metavar="PROTOCOL=FILE",
+    ap.add_argument("--fields", nargs="*", type=protocol_file, default=[], metavar="PROTOCOL=FILE",
                     help="every pile's fields.nc (the history statistics)")
-    ap.add_argument("--base-pressure", nargs="*", default=[], metavar="PROTOCOL=FILE",
+    ap.add_argument("--base-pressure", nargs="*", type=protocol_file, default=[], metavar="PROTOCOL=FILE",
                     help="every pile's base_pressure.nc")
-    ap.add_argument("--params", default=None, help="the analysis section as JSON (the history windows)")
-    ap.add_argument("--study-config", default=str(Path(__file__).resolve().parents[2] / "config" / "config.yaml"),
+    ap.add_argument("--params", type=analysis_params, default="{}",
+                    help="the analysis section as JSON (the history windows)")
+    ap.add_argument("--study-config", type=existing_file,
+                    default=str(Path(__file__).resolve().parents[2] / "config" / "config.yaml"),
                     help="the study's configuration (model.density, pour.layered_slope_deg): the line source's cap")
     args = ap.parse_args(argv)
-    params = parse_params(args.params)
+    params = args.params
+    for p in args.protocols:
+        for name in ENSEMBLE_FILES:
+            if not (args.ensemble / p / name).is_file():
+                refuse(f"--ensemble {args.ensemble} --protocols ... {p}: no {p}/{name} in it; allowed are the "
+                       "protocols whose ensemble it holds")
     out = ["# Numbers of the reproduction", "",
            "Made by `workflow/tools/reproduction_numbers.py` from the ensembles (`make reproduction`); "
            "mean ± standard error over piles.", ""]
@@ -783,8 +804,7 @@ def main(argv=None):
                 *history(history_values(args.fields, args.base_pressure, params, args.heights), params, args.heights),
                 ""]
     if args.fields:
-        import yaml
-        study = yaml.safe_load(open(args.study_config))
+        study = read_settings_file(args.study_config)
         with xr.open_dataset(args.fields[0].split("=", 1)[1]) as first:
             gravity = float(first.attrs["gravity_relaxed"])
         inv_sets = {}

@@ -48,7 +48,6 @@ Usage::
         --name release_height --from /work/sweep/results/sweeps
 """
 
-import argparse
 import json
 import subprocess
 import sys
@@ -65,6 +64,8 @@ from sim.settings_file import SettingsDumper, read_settings_file, yaml_value
 from workflow.layout import folders
 from workflow.validation import ConfigurationError, validate_config
 from workflow.validation import merge_configs as merged
+
+from ._cli import ToolParser, existing_file, existing_folder, plain_name, positive_int, read_json, refuse, shown
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -119,7 +120,7 @@ def check_values(setting: str, values: list, piles: Path = MEDIUM) -> None:
         try:
             validate_config(merged(study, overlay(setting, value)))
         except ConfigurationError as exc:  # it names the setting, the value and what is allowed
-            raise SystemExit(f"setting_sweep.py --setting {setting} --values ... {label(value)}: {exc}") from None
+            refuse(f"--setting {setting} --values ... {label(value)}: {' '.join(str(exc).split())}")
 
 
 def results_setting(piles: Path, layer: dict) -> str:
@@ -200,8 +201,8 @@ def same_run(spec: str, root: Path) -> tuple:
     value_text, _, run = spec.partition("=")
     name, _, other = run.partition("/")
     if not (value_text and run and (Path(run).is_absolute() or (name and other))):
-        raise SystemExit(f"--same {spec!r}: expected VALUE=NAME/VALUE (under the runs' folder) or "
-                         "VALUE=/path/to/run, e.g. 0.02=friction/0.5")
+        refuse(f"--same {spec!r}: expected VALUE=NAME/VALUE (under the runs' folder) or "
+               "VALUE=/path/to/run, e.g. 0.02=friction/0.5")
     return yaml_value(value_text), Path(run) if Path(run).is_absolute() else root / name / other
 
 
@@ -217,18 +218,18 @@ def _configuration(piles: Path, layer: dict) -> dict:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = ToolParser(description=__doc__.splitlines()[0])
     ap.add_argument("--setting", required=True, help="dotted name of the setting, e.g. pour.rate")
     ap.add_argument("--values", nargs="*", default=[], type=yaml_value,
                     help="its values, each read as YAML (100, 0.5, 1e7, false); none with --keep-recorded: "
                          "only write the table of the recorded ones again")
-    ap.add_argument("--name", required=True, help="the study's name: results/sweeps/NAME, docs/reproduction/NAME.md")
-    ap.add_argument("--cores", type=int, default=2)
-    ap.add_argument("--piles", type=Path, default=MEDIUM,
+    ap.add_argument("--name", required=True, type=plain_name, help="the study's name: results/sweeps/NAME, docs/reproduction/NAME.md")
+    ap.add_argument("--cores", type=positive_int, default=2)
+    ap.add_argument("--piles", type=existing_file, default=MEDIUM,
                     help="the piles' settings, merged over config/config.yaml (default: config/medium_piles.yaml)")
     ap.add_argument("--keep-recorded", action="store_true",
                     help="take the values not run now from the recorded docs/reproduction/NAME.json")
-    ap.add_argument("--from", dest="runs", type=Path, default=None, metavar="DIR",
+    ap.add_argument("--from", dest="runs", type=existing_folder, default=None, metavar="DIR",
                     help="read the values' piles from DIR/NAME/VALUE/ (results/sweeps of a clone that ran "
                          "them at a fixed commit, which is recorded) instead of pouring them here")
     ap.add_argument("--same", nargs="*", default=[], metavar="VALUE=NAME/VALUE",
@@ -246,9 +247,11 @@ def main(argv=None) -> None:
     record = out / f"{args.name}.json"
     results = {"setting": args.setting, "piles": {p: {} for p in cfg["protocols"]}, "runs": {}}
     if args.keep_recorded:
-        results = json.loads(record.read_text())
+        results = read_json(record, "--keep-recorded: the sweep's record")
+        if not isinstance(results, dict) or not isinstance(results.get("piles"), dict):
+            refuse(f"--keep-recorded: {record} holds no sweep (a mapping with piles); allowed is a sweep's record")
         if results.get("setting", args.setting) != args.setting:
-            raise SystemExit(f"--keep-recorded: {record} is a sweep of {results['setting']}, not {args.setting}")
+            refuse(f"--keep-recorded: {record} is a sweep of {results['setting']}, not {args.setting}")
         results["setting"] = args.setting
     root = args.runs or REPO / "results" / "sweeps"
     values = list(args.values)
@@ -257,8 +260,8 @@ def main(argv=None) -> None:
         value, run = same_run(spec, root)
         if _configuration(piles, overlay(args.setting, value)) != \
                 _configuration(piles, read_settings_file(run / "setting.yaml")):
-            raise SystemExit(f"--same {spec}: {run} was run with another configuration than "
-                             f"{args.setting} = {label(value)}")
+            refuse(f"--same {spec}: {run} was run with another configuration than "
+                   f"{args.setting} = {label(value)}")
         check_values(args.setting, [value], piles)
         works[label(value)] = run
         values.append(value)
@@ -274,7 +277,7 @@ def main(argv=None) -> None:
     runs = ", ".join(f"{k} at `{results['runs'][k]}`" for k in keys)
     text = (f"# {args.setting}: piles of {cfg['pour']['n_particles']} particles, seeds per protocol {n}\n\n"
             f"Made by `python -m workflow.tools setting_sweep --setting {args.setting} --name {args.name}` "
-            f"(--piles {piles.relative_to(REPO)}); mean ± standard error over seeds; the last column is the largest "
+            f"(--piles {shown(piles)}); mean ± standard error over seeds; the last column is the largest "
             "difference between two values over their combined standard error (> 2: differs beyond seed "
             f"scatter). Run: {runs}." + (f" Note: {results['note']}." if results.get("note") else "")
             + "\n\n" + table(results, keys, quantities(params)))

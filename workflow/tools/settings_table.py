@@ -13,12 +13,13 @@ script writes their tables between the marker lines of the page::
 (``tests/test_config_schema.py`` runs the check.)
 """
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
 import yaml
+
+from ._cli import ToolParser, existing_file, refuse
 
 REPO = Path(__file__).resolve().parents[2]
 SCHEMAS = REPO / "workflow" / "schemas"
@@ -97,23 +98,24 @@ def tables() -> str:
                       *head, *rows(analysis["properties"], "analysis."), "", END])
 
 
-def replaced(page: str) -> str:
-    """``page`` with the text between the marker lines replaced by :func:`tables`."""
+def replaced(page: str, name: str) -> str:
+    """``page`` (the text of the file `name`) with the text between the marker lines replaced by :func:`tables`."""
     if BEGIN not in page or END not in page:
-        raise SystemExit(f"the page has no marker lines {BEGIN!r} ... {END!r}")
+        refuse(f"{name}: no marker lines {BEGIN!r} ... {END!r}; allowed is a page that has them")
     before, rest = page.split(BEGIN, 1)
     return before + tables() + rest.split(END, 1)[1]
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = ToolParser(description=__doc__.splitlines()[0])
     mode = ap.add_mutually_exclusive_group(required=True)
-    mode.add_argument("--write", metavar="PAGE", help="rewrite the tables of PAGE")
-    mode.add_argument("--check", metavar="PAGE", help="exit 1 if the tables of PAGE differ from the schemas")
+    mode.add_argument("--write", metavar="PAGE", type=existing_file, help="rewrite the tables of PAGE")
+    mode.add_argument("--check", metavar="PAGE", type=existing_file,
+                      help="exit 1 if the tables of PAGE differ from the schemas")
     args = ap.parse_args(argv)
-    path = Path(args.write or args.check)
+    path = args.write or args.check
     page = path.read_text()
-    new = replaced(page)
+    new = replaced(page, str(path))
     if args.write:
         path.write_text(new)
         return 0

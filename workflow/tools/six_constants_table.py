@@ -42,7 +42,6 @@ Usage::
         --params '{}' --figure six_constants.png > six_constants.md
 """
 
-import argparse
 import math
 from pathlib import Path
 
@@ -54,8 +53,9 @@ from scipy.stats import t as student_t
 from analysis.anisotropy import (
     MODULI, has_stretch, pile_anisotropy, pile_summary, reduction_shear_contrast)
 from analysis.history import detection_factor, mean_sem
-from analysis.params import parse_params
 from analysis.probes import SIX_CONSTANTS_MAX_CONDITION
+
+from ._cli import ToolParser, analysis_params, existing_folder, output_file, refuse
 
 #: Fits of the tables by default (the paper's m for its cubic law; the reduction alone needs the neighbours).
 POINTS = 5
@@ -244,19 +244,16 @@ def figure(per_pile: dict, params: dict, path: Path, points: int = POINTS) -> No
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--variant", type=Path, required=True, help="the variant's records")
-    ap.add_argument("--study", type=Path, required=True, help="the study's records (docs/reproduction)")
-    ap.add_argument("--params", default="{}", help="analysis settings as JSON or YAML flow text")
+    ap = ToolParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--variant", type=existing_folder, required=True, help="the variant's records")
+    ap.add_argument("--study", type=existing_folder, required=True, help="the study's records (docs/reproduction)")
+    ap.add_argument("--params", type=analysis_params, default="{}", help="analysis settings as JSON or YAML flow text")
     ap.add_argument("--protocols", nargs="+", default=["wedge", "layered"])
-    ap.add_argument("--figure", type=Path, help="the figure (PNG)")
+    ap.add_argument("--figure", type=output_file, help="the figure (PNG)")
     ap.add_argument("--points", type=int, choices=(1, 5), default=POINTS,
                     help="the fits (RVE points) of the tables but the first (default: %(default)s)")
     args = ap.parse_args(argv)
-    for option, folder in (("--study", args.study), ("--variant", args.variant)):
-        if not folder.is_dir():
-            raise SystemExit(f"six_constants_table.py {option} {folder}: no such folder")
-    params = parse_params(args.params)
+    params = args.params
     per_pile, piles = {}, {}
     for p in args.protocols:
         for s in stretched(args.variant, p):
@@ -266,7 +263,7 @@ def main(argv=None) -> None:
                 per_pile[(p, s)] = (pile_anisotropy(pr.load(), fields, params), fields)
             piles[(p, s)] = pile_summary(per_pile[(p, s)][0], params, args.points)
     if not piles:
-        raise SystemExit(f"six_constants_table.py: no pile under {args.variant} has probes with the stretch")
+        refuse(f"--variant {args.variant}: no pile under it has probes with the stretch")
     protocols = [p for p in args.protocols if any(q == p for q, _ in piles)]
     study = {p: [] for p in protocols}
     for p in protocols:

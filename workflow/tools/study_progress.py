@@ -56,7 +56,6 @@ the first line comes after at most :data:`FIRST_LINE_S` seconds.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import math
 import os
@@ -72,6 +71,8 @@ from workflow.piles import Piles
 from workflow.stages import stage_rule
 from workflow.resources import COST_BASIS, PARTICLE_STEP_S, SimResources
 from workflow.validation import load_config
+
+from ._cli import ToolParser, existing_file, existing_folder, positive_float, positive_int, refuse
 
 # A pile whose log was written this recently (s) counts as running.
 RECENT_S = 300.0
@@ -488,9 +489,9 @@ def cost_model(study):
     (dict, str)
         :meth:`workflow.resources.SimResources.stage_cpu_s` of each stage of
         a pile, and what the estimate rests on: the particle-steps of a pile,
-        which the configuration alone fixes (particles, pour rate, time
-        step), times the ns per particle-step of the run-time table's measured
-        pour (``workflow.resources.COST_BASIS``), named with its commit, host and date.
+        which the configuration alone fixes (particles, the slowest source's
+        flux, time step), times the ns per particle-step of the run-time table's
+        measured pour (``workflow.resources.COST_BASIS``), named with its commit, host and date.
     """
     model = SimResources(study.config)
     stages = study.stages.all_stages()
@@ -502,7 +503,7 @@ def cost_model(study):
     relax_s = model.relax_simulated_s()
     return means, (f"estimate from the cost model until a pile has finished: "
                    f"{steps:.3g} particle-steps per pile, host-independent, from "
-                   f"pour.n_particles = {pour['n_particles']}, pour.rate = {pour['rate']:g}/s, "
+                   f"pour.n_particles = {pour['n_particles']}, {model.rate_text()}, "
                    f"{dt} and {len(stages) - 1} relaxing stage{'s' * (len(stages) != 2)} of "
                    f"about {relax_s:g} s simulated, x {PARTICLE_STEP_S * 1e9:.0f} ns per "
                    f"particle-step as measured ({COST_BASIS['id']}: {COST_BASIS['commit']}, "
@@ -554,17 +555,21 @@ def watch(every, line):
 
 def main(argv=None):
     """Command line: print the line once, or every ``--every`` seconds."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--configfile", nargs="+",
+    parser = ToolParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--configfile", nargs="+", type=existing_file,
                         help="configuration files, merged in order (default: DIR/config/config.yaml)")
-    parser.add_argument("--cores", type=int, default=available_cores(),
+    parser.add_argument("--cores", type=positive_int, default=available_cores(),
                         help="cores Snakemake runs on (default: all of this machine)")
-    parser.add_argument("--directory", default=".", help="the workflow's directory DIR (default: .)")
-    parser.add_argument("--every", type=float, help="print the line every EVERY seconds until killed")
+    parser.add_argument("--directory", type=existing_folder, default=Path("."),
+                        help="the workflow's directory DIR (default: .)")
+    parser.add_argument("--every", type=positive_float, help="print the line every EVERY seconds until killed")
     args = parser.parse_args(argv)
-    root = Path(args.directory)
+    root = args.directory
     files = args.configfile or [root / "config" / "config.yaml"]
-    config = load_config(files)
+    try:
+        config = load_config(files)
+    except ValueError as exc:   # the configuration's own message, naming the file and setting
+        refuse(" ".join(str(exc).split()))
     label = ", ".join(_shown(f, root) for f in files)
 
     def line():

@@ -37,7 +37,6 @@ Usage::
         --overlay config/variants/support_friction_0.9.yaml --params '{}'
 """
 
-import argparse
 import math
 from pathlib import Path
 
@@ -46,9 +45,10 @@ from scipy.stats import mannwhitneyu, t as student_t
 
 
 from analysis.history import detection_factor, mean_sem
-from analysis.params import parse_params
 from analysis.pile_quantities import MODULI, SHAPE, pile_quantities, quantities
 from sim.settings_file import read_settings_file
+
+from ._cli import ToolParser, analysis_params, existing_file, existing_folder
 
 COST = {"pour_cpu_min": "pour CPU (min; separate runs, not compared)"}
 #: A recorded pile's files: ``{protocol}/seed{seed}`` plus these suffixes.
@@ -201,19 +201,18 @@ def seeds_text(piles: dict) -> str:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--study", type=Path, required=True, help="the study's records (docs/reproduction)")
-    ap.add_argument("--variant", type=Path, required=True, help="the variant's records")
-    ap.add_argument("--overlay", type=Path, required=True, help="the variant's settings (config/variants/NAME.yaml)")
-    ap.add_argument("--params", default="{}", help="analysis settings as JSON (the study's `analysis`)")
+    ap = ToolParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--study", type=existing_folder, required=True, help="the study's records (docs/reproduction)")
+    ap.add_argument("--variant", type=existing_folder, required=True, help="the variant's records")
+    ap.add_argument("--overlay", type=existing_file, required=True,
+                    help="the variant's settings (config/variants/NAME.yaml)")
+    ap.add_argument("--params", type=analysis_params, default="{}",
+                    help="analysis settings as JSON (the study's `analysis`)")
     ap.add_argument("--protocols", nargs="+", default=["wedge", "layered"])
     args = ap.parse_args(argv)
-    for option, folder in (("--study", args.study), ("--variant", args.variant)):
-        if not folder.is_dir():
-            raise SystemExit(f"variant_table.py {option} {folder}: no such folder")
     layer = read_settings_file(args.overlay)
     changed = {k: v for k, v in flat(layer).items() if not k.startswith(("protocols.", "outputs", "threads"))}
-    params = parse_params(args.params)
+    params = args.params
     study = pile_set(args.study, args.protocols, params)
     variant = pile_set(args.variant, args.protocols, params)
     names = {**quantities(params), **COST}
