@@ -11,7 +11,10 @@ Pure functions on the per-pile records of ``workflow/tools/calibration.py``
   family-wise 5 %, from the pooled scatter of the calibration piles;
 * :func:`verdict`: Welch's test per decision statistic, Holm's correction
   over the family, and the registered sentence; it refuses an ensemble
-  short of the registered size.
+  short of the registered size;
+* :func:`shape_check`: what the arms differ in besides the history: their
+  mean angles of repose, and the first decision statistic fitted on arm
+  plus angle, so that a difference of slope is not read as one of history.
 
 Every rule here is the page's; the page is the registration.
 """
@@ -36,6 +39,8 @@ EFFECT = 0.05
 LEVEL, POWER = 0.05, 0.8
 #: The fewest piles per protocol the decision pours.
 MIN_PILES = 10
+#: Arms whose mean angles of repose differ by more than this (deg) compare sources as built, not histories.
+SLOPE_TOLERANCE = 1.5
 #: The layered control's growing flanks must stay this far (deg) below the point source's angle of repose.
 REPOSE_MARGIN = 2.0
 WEDGE_ARMS = ("wedge drip", "wedge funnel")
@@ -172,7 +177,8 @@ def verdict(records: list[dict], point: str, layered: str, n: int) -> dict[str, 
         out["finding"] = "minimum"
         out["sentence"] = "a minimum: " + "; ".join(
             f"{k}: wedge − layered = {pct(d[k]['diff'])} ± {pct(d[k]['se'])} (Holm p {d[k]['p_holm']:.3g}; "
-            f"wedge alone {pct(d[k]['point'][0])} ± {pct(d[k]['point'][1])})" for k in lower)
+            f"wedge alone {pct(d[k]['point'][0])} ± {pct(d[k]['point'][1])}, layered alone "
+            f"{pct(d[k]['layered'][0])} ± {pct(d[k]['layered'][1])})" for k in lower)
     elif higher:
         out["finding"] = "opposite"
         out["sentence"] = "the opposite of a minimum: " + "; ".join(
@@ -184,4 +190,47 @@ def verdict(records: list[dict], point: str, layered: str, n: int) -> dict[str, 
         out["finding"] = "none"
         out["sentence"] = (f"no minimum larger than {pct(max(z, 0.0))} (95 %) in {DECISION[0]}; "
                            f"{DECISION[1]}: 95 % interval of wedge − layered [{pct(lo2[0])}, {pct(lo2[1])}]")
+    return out
+
+
+def shape_check(records: list[dict], point: str, layered: str, key: str = DECISION[0]) -> dict[str, Any]:
+    """What the arms differ in besides their history: slope, and the statistic on arm plus angle.
+
+    A pile's shape alone moves the column contrast (elastoplastic heap
+    theory spreads the load sideways by the shape, without any history), so
+    two arms at different slopes cannot tell history from shape.  Fits
+    ``key = a + b·[point arm] + c·angle`` by least squares over both arms'
+    piles with a finite ``key`` and ``angle_deg``.
+
+    Returns
+    -------
+    dict
+        ``angle``: per arm (mean, standard error, count) of ``angle_deg``;
+        ``angle_diff``: point − layered mean angle (deg); ``as_built``: whether
+        that difference exceeds :data:`SLOPE_TOLERANCE`; ``arm_effect`` and
+        ``arm_se``: b and its standard error; ``slope_effect``, ``slope_se``:
+        c (per degree) and its standard error; ``correlation``: of arm and
+        angle over the piles (near ±1 the fit cannot part them).
+    """
+    rows = [(r["arm"] == point, r["quantities"].get("angle_deg", math.nan), r["quantities"].get(key, math.nan))
+            for r in records if r["arm"] in (point, layered)]
+    arm, angle, y = (np.array(c, float) for c in zip(*rows)) if rows else (np.empty(0),) * 3
+    ok = np.isfinite(angle) & np.isfinite(y)
+    arm, angle, y = arm[ok], angle[ok], y[ok]
+    out: dict[str, Any] = {"angle": {}}
+    for name, mask in ((point, arm == 1), (layered, arm == 0)):
+        m, se, _, count = mean_sem(angle[mask])
+        out["angle"][name] = (m, se, count)
+    out["angle_diff"] = out["angle"][point][0] - out["angle"][layered][0]
+    out["as_built"] = bool(abs(out["angle_diff"]) > SLOPE_TOLERANCE)
+    x = np.column_stack([np.ones_like(y), arm, angle])
+    if y.size <= 3 or np.linalg.matrix_rank(x) < 3:
+        out.update(arm_effect=math.nan, arm_se=math.nan, slope_effect=math.nan, slope_se=math.nan,
+                   correlation=math.nan)
+        return out
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+    resid = y - x @ coef
+    cov = float(resid @ resid) / (y.size - 3) * np.linalg.inv(x.T @ x)
+    out.update(arm_effect=float(coef[1]), arm_se=float(np.sqrt(cov[1, 1])), slope_effect=float(coef[2]),
+               slope_se=float(np.sqrt(cov[2, 2])), correlation=float(np.corrcoef(arm, angle)[0, 1]))
     return out

@@ -129,3 +129,35 @@ def test_no_effect_gives_the_bound_of_the_interval():
     assert out["decision"][DECISION[0]]["ci95"] == pytest.approx((ci.low, ci.high), rel=1e-9)
     assert out["finding"] == "none"
     assert f"{100 * max(-ci.low, 0):.1f} %" in out["sentence"]
+
+
+def _shaped(arm_effect, slope, angles):
+    """Records whose D1 is ``slope * angle`` plus ``arm_effect`` on the point arm, with a
+    little scatter that does not depend on either (so the least squares fit is exact in mean)."""
+    rng = np.random.default_rng(7)
+    out = []
+    for arm, base in (("wedge funnel", angles[0]), ("layered rain", angles[1])):
+        for seed in range(30):
+            angle = base + rng.normal(0.0, 1.5)
+            d1 = slope * angle + (arm_effect if arm == "wedge funnel" else 0.0) + rng.normal(0.0, 0.01)
+            out.append(record(arm, seed, angle=angle, **{DECISION[0]: d1}))
+    return out
+
+
+def test_a_slope_effect_is_not_read_as_one_of_history():
+    """D1 driven by the angle alone, arms 9° apart: the arm-plus-angle fit finds no arm effect
+    (within 3 of its standard errors), the slope's coefficient is the one put in, and the
+    verdict is flagged as of the sources as built."""
+    out = decision.shape_check(_shaped(0.0, -0.006, (28.0, 19.0)), "wedge funnel", "layered rain")
+    assert abs(out["arm_effect"]) < 3 * out["arm_se"]
+    assert out["slope_effect"] == pytest.approx(-0.006, abs=3 * out["slope_se"])
+    assert out["as_built"] and out["angle_diff"] == pytest.approx(9.0, abs=1.0)
+
+
+def test_a_history_effect_at_equal_slope_is_found_by_the_fit():
+    """Arms at one slope, a −5 % arm effect: the fit returns it (within 3 standard errors,
+    which are small since arm and angle do not correlate) and the arms compare histories."""
+    out = decision.shape_check(_shaped(-0.05, -0.006, (28.0, 28.0)), "wedge funnel", "layered rain")
+    assert out["arm_effect"] == pytest.approx(-0.05, abs=3 * out["arm_se"])
+    assert out["arm_se"] < 0.01 and not out["as_built"]
+    assert abs(out["correlation"]) < 0.5

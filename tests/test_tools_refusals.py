@@ -56,6 +56,7 @@ BAD = {
           "--heights", "0.045", "--fields", "wedge"], "--fields"),
         (["--ensemble", "<tmp>", "--protocols", "wedge", "--convergence", "<bad_json>", "--checks", "<bad_json>",
           "--heights", "0.045", "--params", "{rve: {size: -1}}"], "--params")],
+    "run_times": [(["--check", "stale"], "stale"), (["--write"], "--write")],
     "setting_sweep": [(["--setting", "pour.rate", "--values", "50", "--name", "../.."], "--name"),
                       (["--setting", "pour.rate", "--values", "-5", "--name", "x"], "-5"),
                       (["--setting", "pour.rate", "--values", "5", "--name", "x", "--cores", "0"], "--cores"),

@@ -112,10 +112,12 @@ def select(records: Path, plan: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _row(key: str, r: dict) -> str:
+def _row(key: str, r: dict, power: bool = True) -> str:
+    """One table row of a statistic's test (its power last, unless `power` is False)."""
     (ma, sa, na), (mb, sb, nb) = r["point"], r["layered"]
     return (f"| {key} | {ma:.4g} ± {sa:.2g} ({na}) | {mb:.4g} ± {sb:.2g} ({nb}) | {r['diff']:+.4g} ± {r['se']:.2g} "
-            f"| {r['t']:.2f}, {r['df']:.1f} df | {r['p']:.3g} | {r['p_holm']:.3g} | {r['power']:.2f} |")
+            f"| {r['t']:.2f}, {r['df']:.1f} df | {r['p']:.3g} | {r['p_holm']:.3g} |"
+            + (f" {r['power']:.2f} |" if power else ""))
 
 
 def verdict(records: Path, plan: Path) -> str:
@@ -150,7 +152,20 @@ def verdict(records: Path, plan: Path) -> str:
     except ValueError as exc:
         lines.append(f"**No verdict yet**: {exc} (piles recorded: {have}).")
         return "\n".join(lines) + "\n"
-    lines += [f"**Verdict: {result['sentence']}.**", "",
+    shape = decision.shape_check(recs, point, layered)
+    (pa, pse, _), (la, lse, _) = shape["angle"][point], shape["angle"][layered]
+    built = (f" (of the sources as built, not of history: the arms rest {abs(shape['angle_diff']):.1f}° apart)"
+             if shape["as_built"] else "")
+    lines += [f"**Verdict{built}: {result['sentence']}.**", "",
+              f"What the arms differ in besides the history: {point} piles rest at {pa:.1f}° ± {pse:.1f}°, "
+              f"{layered} piles at {la:.1f}° ± {lse:.1f}° (`angle_deg`). Fitted on arm plus angle, the arm's "
+              f"effect on {decision.DECISION[0]} is {100 * shape['arm_effect']:+.1f} % ± {100 * shape['arm_se']:.1f} % "
+              f"and the angle's {100 * shape['slope_effect']:+.2f} % ± {100 * shape['slope_se']:.2f} % per degree "
+              f"(arm and angle correlate at {shape['correlation']:.2f}"
+              + ("; so close to 1 that the fit cannot part them" if abs(shape["correlation"]) > 0.9 else "")
+              + ")." + (f" The arms' slopes differ by more than {decision.SLOPE_TOLERANCE}°, so a difference "
+                        "between them is one of the two sources as built (shape and history together), not "
+                        "attributable to history." if shape["as_built"] else ""), "",
               f"| statistic | {point} | {layered} | difference | Welch t | p | Holm p | power at "
               f"{decision.EFFECT:.0%} |", "|---|---|---|---|---|---|---|---|"]
     lines += [_row(k, r) for k, r in result["decision"].items()]
@@ -159,17 +174,27 @@ def verdict(records: Path, plan: Path) -> str:
     lines += [""] + [f"- {k}: 95 % interval of the difference [{100 * r['ci95'][0]:+.1f} %, "
                      f"{100 * r['ci95'][1]:+.1f} %]; per-pile scatter {r['sd'][0]:.4f} ({point}), "
                      f"{r['sd'][1]:.4f} ({layered})" for k, r in result["decision"].items()]
+    d1 = result["decision"][decision.DECISION[0]]
+    lines += [f"- {layered} alone: {decision.DECISION[0]} {100 * d1['layered'][0]:+.1f} % ± "
+              f"{100 * d1['layered'][1]:.1f} % (t {d1['layered'][0] / d1['layered'][1]:.1f} against 0); the "
+              "paper finds no dip under its layered piles."]
+    low_power = [k for k, r in result["decision"].items() if r["rejected"] and r["power"] < decision.POWER]
     lines += [f"- N was set from D1's pooled calibration scatter {plan_sd:.4f}; the power column is at the "
-              "ensemble's own scatter.",
+              "ensemble's own scatter" + (
+                  f": below the planned {decision.POWER:.0%} for {', '.join(low_power)}, where a test that "
+                  "rejects tends to overstate the effect, so the estimate is more likely too large than too "
+                  "small." if low_power else "."),
               f"- Piles: seeds {reg['seeds'][0]}-{reg['seeds'][-1]}, {have[point]} {point} and "
               f"{have[layered]} {layered} recorded; missing: "
               + (", ".join(f"{r['arm']} seed {r['seed']}" for r in recs
                            if not math.isfinite(r["quantities"].get(decision.DECISION[0], math.nan))) or "none")
               + "."]
-    lines += ["", "Secondary (own Holm family, not the verdict):", "",
-              "| statistic | point | layered | difference | Welch t | p | Holm p | power |",
-              "|---|---|---|---|---|---|---|---|"]
-    lines += [_row(k, r) for k, r in result["secondary"].items()]
+    lines += ["", "Secondary (own Holm family, not the verdict; no power column: the ensemble was powered for "
+              f"{decision.EFFECT:.0%} in {decision.DECISION[0]} alone, and the secondaries' units differ, "
+              "an angle in degrees among them):", "",
+              "| statistic | point | layered | difference | Welch t | p | Holm p |",
+              "|---|---|---|---|---|---|---|"]
+    lines += [_row(k, r, power=False) for k, r in result["secondary"].items()]
     return "\n".join(lines) + "\n"
 
 

@@ -22,7 +22,6 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -32,6 +31,8 @@ from workflow.piles import Piles
 from workflow.resources import COST_BASIS, RUN_TIMES
 from workflow.tools.study_progress import PileState, cost_model, time_left
 from workflow.validation import load_config
+
+from ._cli import ToolParser
 
 REPO = Path(__file__).resolve().parents[2]
 PAGE = REPO / "docs" / "run_times.md"
@@ -203,7 +204,7 @@ def outputs(table_path=RUN_TIMES, readme=README):
 
 def main(argv=None):
     """Command line: write docs/run_times.md and the README's times, or check them."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = ToolParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--check", action="store_true",
                         help="write nothing; exit 1 naming the files the table would change")
     args = parser.parse_args(argv)
