@@ -72,7 +72,7 @@ def kernel_sources(package_dir=Path(__file__).parent):
     """
     package_dir = Path(package_dir)
     todo = [Path(__file__).stem] + [p.stem for p in package_dir.glob("*.py")
-                           if _KERNEL.search(p.read_text(encoding="utf-8"))]
+                                    if _KERNEL.search(p.read_text(encoding="utf-8"))]
     found = set()
     while todo:
         name = todo.pop()
