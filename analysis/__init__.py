@@ -1,7 +1,12 @@
 """Micro-to-macro analysis of particle states: RVE fields, ensembles, elastic fits.
 
-Reads particle-state files only through the data contract (docs/formats.md#state-files)
-and never imports the simulator. Modules, one concern each:
+Reads particle-state files only through the data contract (docs/formats.md#state-files):
+the data flows one way, from the simulator to the analysis.  Of the simulator's
+package it imports five light modules only, which import nothing else of it
+and load without Numba: the settings reader :mod:`sim.settings_file`, the
+schema check :mod:`sim.schema`, the command line's path check
+:mod:`sim.paths`, the digests :mod:`sim.digest` and the atomic write
+:mod:`sim.atomic` (tests/test_layering.py).  Modules, one concern each:
 
 ``states``        read and validate contract state files
 ``rve``           grid of RVE centres, membership of particles and contacts

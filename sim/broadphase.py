@@ -20,9 +20,10 @@ a restarted run retraces the same trajectory.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from .builds import build
+from .kernel_cache import njit
 
 
 @njit(cache=True)

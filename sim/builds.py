@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import types
 
-from numba import njit
+from .kernel_cache import njit
 
 
 def build(kernel, parallel, nrt=True):

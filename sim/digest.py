@@ -6,7 +6,7 @@ pour resumes a checkpoint only under the same one, the workflow carries it
 for ``sim/`` and ``analysis/`` as the param ``code`` of its rules (an edit
 re-runs the jobs that run that code), and ``python -m sim --version`` and
 ``python -m analysis --version`` print it.  The Numba cache is named by the
-same rule over the kernels' sources alone (:func:`sim.source_digest`).
+same rule over the kernels' sources alone (:func:`sim.kernel_cache.source_digest`).
 
 :func:`data_digest` is the one rule for the ``data_digest`` attribute that
 every netCDF file of the simulator and of the analysis carries

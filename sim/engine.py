@@ -13,13 +13,14 @@ The step does only the work the run needs (see :mod:`sim.step`): no damping
 force when ``model.damping`` is 0, no tangential force or spring history
 between particles when ``model.friction`` is 0 (nor with the bodies when
 ``model.support_friction`` is 0), no body contacts without bodies, and no
-orientation update when rotation is fixed.  ``Simulation.full_law = True``
+orientation update when rotation is fixed.  ``Simulation(..., full_law=True)``
 computes every term anyway (tests compare both).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numba
 import numpy as np
@@ -31,7 +32,7 @@ from .rebuild import rebuild
 from .run_loop import run
 from .scene import Scene, make_scene
 from .state import Snapshot, State
-from .step import Bodies, Law, Motion, Pairs, Particles
+from .step import Bodies, Motion, Pairs, Particles
 
 
 class _Field:
@@ -85,6 +86,9 @@ class Simulation:
         angular velocity is zero and θ never changes).
     skin : float or None
         Verlet skin of the pair list, m (default: 0.3 × mean circumradius).
+    full_law : bool
+        Compute every term of the contact law, also those that are zero
+        (``scene.law``, fixed for the simulation's life).
 
     Attributes
     ----------
@@ -96,8 +100,6 @@ class Simulation:
     spin_drag : float
         Further drag on the rotation alone, 1/s; ``pour.spin_drag`` while
         pouring, 0 otherwise.
-    full_law : bool
-        Compute every term of the contact law, also those that are zero.
     heartbeat : callable or None
         ``heartbeat(sim)``, called between the chunks of steps of a run
         (:func:`sim.run_loop.run`): a run's progress lines; None: nothing.
@@ -116,12 +118,11 @@ class Simulation:
     _stale = _Field("state", "stale")
 
     def __init__(self, shapes, model: ModelParams, gravity=(0.0, -9.81), support=True,
-                 walls=None, rotate=True, skin=None, base=None):
-        self.scene = make_scene(shapes, model, support, walls, rotate, skin, base)
+                 walls=None, rotate=True, skin=None, base=None, full_law=False):
+        self.scene = make_scene(shapes, model, support, walls, rotate, skin, base, full_law)
         self.state = states.new_state(self.scene, gravity)
         self._base = _base_arrays(base, int(shapes.node_offset[-1]))
         self._init, self._step = integrator(self.scene)
-        self.full_law = False
         self.check_every = max(50, int(round(1e-3 / self.dt)))
         self.parallel_threshold = 400
         # also starts Numba's threading layer, which the serial builds need too
@@ -202,37 +203,33 @@ class Simulation:
         return energy.elastic_energy(self.state, self.scene)
 
     # ------------------------------------------------------------------ running
-    def _law_flags(self):
-        """``(damped, tangential, body_tangential)``: the terms of the contact law
-        that can be nonzero (all of them with ``full_law``)."""
-        m = self.model
-        return (self.full_law or m.damping > 0.0, self.full_law or m.friction > 0.0,
-                self.full_law or m.support_friction > 0.0)
-
     def parallel_kernels(self):
         """Whether the kernels run their parallel builds: with at least
         ``parallel_threshold`` particles and more than one thread."""
         return self.threads > 1 and self.n >= self.parallel_threshold
 
     def _rebuild(self):
-        rebuild(self.state, self.scene, self._law_flags()[1], self.parallel_kernels())
+        rebuild(self.state, self.scene, self.law.tangential, self.parallel_kernels())
 
     def kernel_state(self):
-        """The state as the kernels take it: particles, pairs, bodies, law, motion, work."""
-        damped, tangential, body_tangential = self._law_flags()
-        m, sh, st = self.model, self.shapes, self.state
+        """The arrays as the kernels take them: :class:`sim.step.Particles`,
+        :class:`sim.step.Pairs` and :class:`sim.step.Bodies`, wrapped anew
+        for each chunk of steps (a rebuild replaces the pairs' arrays, a
+        return to a snapshot those of the particles and the bodies)."""
+        sh, st = self.shapes, self.state
         return (Particles(st.r, st.pred, sh.node_offset, sh.node_x, sh.node_y, st.wx,
                           st.wy, st.box, sh.mass, self.inv_mass,
                           self.inv_inertia, sh.area),
                 Pairs(st.pi, st.pj, st.spring, st.pdamping, st.axis, st.cross, st.pout,
                       st.pforce, st.pair_offset, st.pair_index),
                 Bodies(self.body_p, self.body_m, self.body_friction, st.bspring, st.bout,
-                       *self._base, st.base_owner, st.base_axis, st.base_cross),
-                Law(float(m.youngs_modulus), float(m.damping), float(m.friction), self.eps,
-                    bool(damped), bool(tangential), bool(body_tangential)),
-                Motion(self.dt, self.coeffs, self.gravity[0], self.gravity[1],
-                       float(self.drag), float(self.drag + self.spin_drag), self.rotate),
-                st.work)
+                       *self._base, st.base_owner, st.base_axis, st.base_cross))
+
+    def motion(self):
+        """The :class:`sim.step.Motion` of a run: time step, gravity and drags
+        as they are set when it starts."""
+        return Motion(self.dt, self.coeffs, self.gravity[0], self.gravity[1],
+                      float(self.drag), float(self.drag + self.spin_drag), self.rotate)
 
     def snapshot(self) -> Snapshot:
         """A copy of the dynamic state, enough to continue the run exactly."""
@@ -260,7 +257,15 @@ class Simulation:
             if duration is None:
                 raise ValueError("give a duration or a number of steps")
             steps = int(round(duration / self.dt))
-        return run(self, steps, self._step, self._rebuild)
+        heartbeat = None if self.heartbeat is None else functools.partial(self.heartbeat, self)
+        return run(self.state, self.scene, steps,
+                   functools.partial(self._advance, self.motion(), self.parallel_kernels()),
+                   self._rebuild, self._energy, self.check_every, heartbeat)
+
+    def _advance(self, motion, parallel, n_steps):
+        """The integrator's step over up to ``n_steps`` steps on the current
+        arrays (:meth:`kernel_state`): :func:`sim.run_loop.run`'s ``advance``."""
+        return self._step(self.state, n_steps, self.kernel_state(), motion, parallel)
 
     def check(self, start=False):
         """Blow-up detector (:func:`sim.blowup.check`): a description of the
@@ -290,7 +295,7 @@ class Simulation:
         """
         if body_id not in self.body_ids:
             raise ValueError(f"body {body_id}: not a body of this scene (bodies {list(self.body_ids)})")
-        if not self._law_flags()[2]:
+        if not self.law.body_tangential:
             raise ValueError("a body's surface can only drag the particles through friction: "
                              f"model.support_friction = {self.model.support_friction}; give it > 0")
         return contacts.stretch_body(self.state, self.scene, body_id, strain)

@@ -95,8 +95,8 @@ work array is allocated on each call (slower).  The capacity must satisfy
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from .kernel_cache import njit
 from .rotation import cos_sin
 
 __all__ = [

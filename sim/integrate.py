@@ -2,10 +2,11 @@
 
 ``init(state, k, position, velocity)`` starts particle ``k`` in the scaled
 derivatives of the scene's integrator (:mod:`sim.integrators`);
-``step(state, n_steps, kernel_state, parallel, rebuild_sq)`` advances the
-state by up to ``n_steps`` steps with the force kernels of :mod:`sim.step`
-(the law) and returns the steps done.  Both read the scene's time step when
-called, so a scene built for a time-step study may set its own step first.
+``step(state, n_steps, arrays, motion, parallel)`` advances the state by up
+to ``n_steps`` steps with the force kernels of :mod:`sim.step` under the
+scene's contact law (``scene.law``, built once with the scene) and returns
+the steps done.  Both read the scene's time step when called, so a scene
+built for a time-step study may set its own step first.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from .integrators import scale_derivatives, unscale_derivatives
+from .rebuild import rebuild_distance_sq
 from .step import ADVANCE_PARALLEL, ADVANCE_SERIAL
 
 
@@ -31,13 +33,16 @@ def integrator(scene):
         that of gravity (so free fall is exact from the first step), higher
         derivatives zero.
     step : callable
-        ``step(state, n_steps, kernel_state, parallel, rebuild_sq) -> int``:
-        run up to ``n_steps`` steps of ``state.n`` particles on the kernels'
-        tuples ``kernel_state`` (:meth:`sim.engine.Simulation.kernel_state`),
-        with their parallel builds or not; count them in ``state.step``;
-        stop early, marking the state ``moved``, once a particle moved more than
-        ``sqrt(rebuild_sq)`` from its reference centre (:mod:`sim.rebuild`).
+        ``step(state, n_steps, arrays, motion, parallel) -> int``: run up to
+        ``n_steps`` steps of ``state.n`` particles on the kernels' tuples of
+        arrays ``arrays`` (:meth:`sim.engine.Simulation.kernel_state`) under
+        the run's :class:`sim.step.Motion` ``motion``, with their parallel
+        builds or not; count them in ``state.step``; stop early, marking the
+        state ``moved``, once a particle moved past the rebuild distance of
+        the scene's skin from its reference centre (:mod:`sim.rebuild`).
     """
+    law = scene.law
+
     def init(state, k, position, velocity):
         dt = scene.dt
         state.r[:, :, k] = 0.0
@@ -45,10 +50,10 @@ def integrator(scene):
         state.r[1, :, k] = (velocity[0] * dt, velocity[1] * dt, velocity[2] * dt)
         state.r[2, :2, k] = 0.5 * dt ** 2 * np.asarray(state.gravity)
 
-    def step(state, n_steps, kernel_state, parallel, rebuild_sq):
+    def step(state, n_steps, arrays, motion, parallel):
         advance = ADVANCE_PARALLEL if parallel else ADVANCE_SERIAL
-        done, moved = advance(n_steps, state.n, *kernel_state, state.x_ref, state.y_ref,
-                              rebuild_sq)
+        done, moved = advance(n_steps, state.n, *arrays, law, motion, state.work, state.x_ref,
+                              state.y_ref, rebuild_distance_sq(scene.skin))
         state.step += done
         state.moved = state.moved or moved
         return done

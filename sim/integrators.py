@@ -28,7 +28,8 @@ import functools
 import math
 
 import numpy as np
-from numba import njit
+
+from .kernel_cache import njit
 
 GEAR_COEFFICIENTS = np.array([3.0 / 16.0, 251.0 / 360.0, 1.0, 11.0 / 18.0,
                               1.0 / 6.0, 1.0 / 60.0])

@@ -30,7 +30,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from .kernel_cache import njit
 
 #: The first 33 significant bits of π/2, so that ``k * PIO2_HIGH`` is exact.
 PIO2_HIGH = 1.57079632673412561417e+00

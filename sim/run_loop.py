@@ -15,8 +15,8 @@ import os
 import signal
 import threading
 
-from .blowup import BlowUpError
-from .rebuild import rebuild_distance_sq
+from .blowup import BlowUpError, check
+from .state import Snapshot, restore
 
 #: The signals that end a run cleanly (:func:`stop_on_signals`).
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -82,24 +82,32 @@ def stop_if_signalled():
         raise Interrupted(_received[0])
 
 
-def run(sim, steps, step, rebuild):
-    """Advance `sim` by ``steps`` steps of ``step``, checking it every ``sim.check_every``.
+def run(state, scene, steps, advance, rebuild, energy, check_every, heartbeat=None):
+    """Advance `state` by ``steps`` steps, checking it every ``check_every``.
 
     A chunk of steps ends at the next check or when the pair list needs a
     rebuild (:mod:`sim.rebuild`).  A scene's first step is checked at once,
-    with :meth:`sim.engine.Simulation.check`'s ``start``.  On a failed check
-    the simulation returns to the last state that passed.  After each chunk
-    ``sim.heartbeat(sim)`` is called (unless None); before each, a signal
-    caught by :func:`stop_on_signals` ends the run.
+    with :func:`sim.blowup.check`'s ``start``.  On a failed check the state
+    returns to the last one that passed and the energy check restarts.
+    After each chunk ``heartbeat()`` is called (unless None); before each, a
+    signal caught by :func:`stop_on_signals` ends the run.
 
     Parameters
     ----------
-    sim : sim.engine.Simulation
+    state : sim.state.State
+    scene : sim.scene.Scene
     steps : int
-    step : callable
-        The integrator's step (:func:`sim.integrate.integrator`).
+    advance : callable
+        ``advance(n_steps) -> int``: the integrator's step
+        (:func:`sim.integrate.integrator`) on `state`, up to ``n_steps`` steps.
     rebuild : callable
-        ``rebuild()`` rebuilds the pair list of ``sim.state``.
+        ``rebuild()`` rebuilds the pair list of `state`.
+    energy : sim.blowup.EnergyReference
+        The energy check's reference.
+    check_every : int
+        Steps between blow-up checks.
+    heartbeat : callable or None
+        ``heartbeat()``, called after each chunk.
 
     Returns
     -------
@@ -113,41 +121,40 @@ def run(sim, steps, step, rebuild):
     Interrupted
         On a signal (:func:`stop_on_signals`), with the state after the last chunk.
     """
-    if sim.n == 0:
-        sim.time += steps * sim.dt
-        sim.step += steps
+    if state.n == 0:
+        state.time += steps * scene.dt
+        state.step += steps
         return steps
     done = 0
     # time from the steps done in this call, not summed chunk by chunk: the
     # chunks end at pair-list rebuilds, which a resumed run has elsewhere
-    start_time = sim.time
-    last_good = sim.snapshot()
-    rebuild_sq = rebuild_distance_sq(sim.skin)
+    start_time = state.time
+    last_good = Snapshot(state)
     while done < steps:
-        if sim.state.stale or sim.state.moved:
+        if state.stale or state.moved:
             rebuild()
-        chunk = min(steps - done, sim.check_every - sim.step % sim.check_every)
-        if sim.step == 0:
+        chunk = min(steps - done, check_every - state.step % check_every)
+        if state.step == 0:
             # a scene's first step is checked at once: the particle overlaps it
             # starts with (coincident centres, one polygon inside another) are
             # seen before their forces have thrown the particles apart (a start
             # inside the support or a wall is resolved: it pushes them out)
             chunk = 1
         stop_if_signalled()
-        parallel = sim.parallel_kernels()
-        done += step(sim.state, chunk, sim.kernel_state(), parallel, rebuild_sq)
-        sim.time = start_time + done * sim.dt
-        if sim.heartbeat is not None:
-            sim.heartbeat(sim)
-        if sim.step % sim.check_every == 0 or done == steps or sim.step == 1:
-            problem = sim.check(start=sim.step == 1)
+        done += advance(chunk)
+        state.time = start_time + done * scene.dt
+        if heartbeat is not None:
+            heartbeat()
+        if state.step % check_every == 0 or done == steps or state.step == 1:
+            problem = check(state, scene, energy, start=state.step == 1)
             if problem:
-                failed_at = (sim.time, sim.step)
-                sim.restore(last_good)
+                failed_at = (state.time, state.step)
+                restore(state, last_good)
+                energy.reset()
                 raise BlowUpError(
                     f"unstable at t = {failed_at[0]:.6g} s (step {failed_at[1]}): {problem}; "
-                    f"dt = {sim.dt:.4g} s ({sim.model.integrator}, limit "
-                    f"{sim.bound.dt_limit:.4g} s). The last good state is kept "
+                    f"dt = {scene.dt:.4g} s ({scene.model.integrator}, limit "
+                    f"{scene.bound.dt_limit:.4g} s). The last good state is kept "
                     f"(t = {last_good.time:.6g} s).", last_good)
-            last_good = sim.snapshot()
+            last_good = Snapshot(state)
     return done

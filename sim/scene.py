@@ -18,6 +18,7 @@ import numpy as np
 from .config import ModelParams
 from .integrators import corrector_coefficients
 from .shapes import Shapes, shapes_from_nodes
+from .step import Law
 from .timestep import TimeStepBound, choose_dt, stability_bound
 
 BODY_SUPPORT, BODY_LEFT, BODY_RIGHT = -1, -2, -3
@@ -177,6 +178,10 @@ class Scene:
     size, eps, skin : float
         Mean circumradius, the length below which geometry counts as zero
         (``1e-9 size``) and the Verlet skin of the pair list, m.
+    law : sim.step.Law
+        The contact law as the kernels take it, built once from ``model``:
+        its parameters and the flags of the terms that can be nonzero (all
+        of them with :func:`make_scene`'s ``full_law``).
     inv_mass, inv_inertia : numpy.ndarray
         Per particle.
     body_p, body_m : numpy.ndarray, shape (n_bodies, 2)
@@ -207,6 +212,7 @@ class Scene:
     size: float
     eps: float
     skin: float
+    law: Law
     inv_mass: np.ndarray
     inv_inertia: np.ndarray
     body_p: np.ndarray
@@ -219,7 +225,7 @@ class Scene:
 
 
 def make_scene(shapes, model: ModelParams, support=True, walls=None, rotate=True,
-               skin=None, base=None) -> Scene:
+               skin=None, base=None, full_law=False) -> Scene:
     """The :class:`Scene` of :class:`sim.engine.Simulation`'s arguments (see there).
 
     The time step's bound (:func:`sim.timestep.stability_bound`) is that of
@@ -249,16 +255,27 @@ def make_scene(shapes, model: ModelParams, support=True, walls=None, rotate=True
                               for name in ("mass", "inertia", "radius", "inradius")),
                             max(_max_edge(sh) for sh in every), model.density)
     size = float(np.mean(shapes.radius))
+    eps = 1e-9 * size
     return Scene(shapes=shapes, model=model, capacity=len(shapes.mass),
                  coeffs=corrector_coefficients(model.integrator), bound=bound,
                  dt=choose_dt(bound, model.dt, model.dt_safety, model.integrator),
-                 rotate=bool(rotate), size=size, eps=1e-9 * size,
+                 rotate=bool(rotate), size=size, eps=eps,
                  skin=0.3 * size if skin is None else float(skin),
+                 law=_law(model, eps, full_law),
                  inv_mass=1.0 / shapes.mass, inv_inertia=1.0 / shapes.inertia,
                  body_p=np.ascontiguousarray(b[:, :2]), body_m=np.ascontiguousarray(b[:, 2:]),
                  body_ids=np.array(ids, np.int64),
                  body_friction=np.full(len(ids), model.support_friction), walls=walls,
                  base=base, base_slots=_base_slots(shapes, base))
+
+
+def _law(model, eps, full_law):
+    """The :class:`sim.step.Law` of `model` with length tolerance `eps` (m):
+    a term is computed where its coefficient is nonzero, every one with
+    `full_law` (the skipped ones would be exactly zero: :mod:`sim.step`)."""
+    return Law(float(model.youngs_modulus), float(model.damping), float(model.friction), eps,
+               bool(full_law or model.damping > 0.0), bool(full_law or model.friction > 0.0),
+               bool(full_law or model.support_friction > 0.0))
 
 
 def _base_slots(shapes, base):

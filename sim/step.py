@@ -63,13 +63,14 @@ from collections import namedtuple
 
 import numba
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from .builds import build
 from .contact_law import (characteristic_length, damping_coefficient, elastic_force,
                           normal_force, reduced_mass, tangential_force, tangential_mass)
 from .geometry import halfplane_overlap_range, polygon_overlap_range
 from .integrators import nordsieck_predicted, nordsieck_step
+from .kernel_cache import njit
 from .rotation import cos_sin
 from .warmstart import axis_separates, find_axis, find_crossings, overlap_from_crossings
 

@@ -42,9 +42,9 @@ b_out)``; -1 means no witness.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from .geometry import contact_geometry
+from .kernel_cache import njit
 
 #: Integer type of the witnesses (``axis``, ``cross``) kept per pair.  An edge
 #: number is below 64 (at most 32 corners, ``particles.corners_max``), and the

@@ -1,16 +1,23 @@
 """The data flow is one way (config → sim → state files → analysis): the
 simulator imports nothing of the analysis, the analysis nothing of the
-simulator but its reader of settings files (it reads state files through the
-contract; settings, which precede both, are read by one reader,
-:mod:`sim.settings_file`, so that a number or a repeated key means the same to
-both), the check of a setting against its JSON schema (:mod:`sim.schema`),
-and the check that no output of a command line is an input or another
-output (:mod:`sim.paths`, one for both command lines), the digests of
-code and of a file's content (:mod:`sim.digest`) and the one atomic write
-(:mod:`sim.atomic`), and no module of either package imports itself through others (no
-import cycle). Every import statement counts, also those inside functions."""
+simulator but five light modules it shares with it: its reader of settings
+files (it reads state files through the contract; settings, which precede
+both, are read by one reader, :mod:`sim.settings_file`, so that a number or a
+repeated key means the same to both), the check of a setting against its JSON
+schema (:mod:`sim.schema`), and the check that no output of a command line is
+an input or another output (:mod:`sim.paths`, one for both command lines), the
+digests of code and of a file's content (:mod:`sim.digest`) and the one atomic
+write (:mod:`sim.atomic`).  These import nothing of the simulator, and
+loading one loads no Numba (the package's ``__init__`` runs nothing; the
+kernels' modules set Numba's cache themselves, :mod:`sim.kernel_cache`).  No
+module of either package imports itself through others (no import cycle).
+Every import statement counts, also those inside functions."""
 
 import ast
+import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -93,3 +100,35 @@ def test_the_walk_sees_the_imports():
     assert "analysis.stress" in edges["analysis.draw"]
     assert "analysis.states" in edges["analysis.draw"]
     assert len(modules) > 40
+
+
+def test_the_shared_modules_import_nothing_of_the_simulator():
+    edges, _ = graph()
+    assert {m: sorted(edges[m]) for m in SHARED} == {m: [] for m in SHARED}
+
+
+@pytest.mark.parametrize("module", SHARED)
+def test_a_shared_module_loads_without_numba(module):
+    """In a fresh interpreter, as the analysis loads it: neither Numba nor the
+    kernels' cache folder (:mod:`sim.kernel_cache`) come with it."""
+    code = (f"import sys, json, {module}; "
+            "print(json.dumps(sorted(m for m in sys.modules "
+            "if m.split('.')[0] in ('numba', 'llvmlite') or m == 'sim.kernel_cache')))")
+    out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True,
+                         check=True, env={**os.environ, "PYTHONPATH": str(REPO)}).stdout
+    assert json.loads(out) == []
+
+
+def test_every_kernel_module_takes_its_decorator_where_the_cache_is_set():
+    """A module of the simulator that decorates with ``njit`` imports it from
+    :mod:`sim.kernel_cache`, never straight from Numba: the cache folder is
+    then set before its first kernel, whichever module is loaded first."""
+    straight = []
+    for path in sorted((REPO / "sim").rglob("*.py")):
+        if path.name == "kernel_cache.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if (isinstance(node, ast.ImportFrom) and node.module == "numba"
+                    and any(alias.name == "njit" for alias in node.names)):
+                straight.append(str(path.relative_to(REPO)))
+    assert straight == []

@@ -51,7 +51,7 @@ def share_compiled_kernels(dest):
     that its rule compile_kernels loads the kernels instead of compiling them
     again (about 30 s per copy on 2 cores).
 
-    sim/__init__.py files the cache under a folder named by a digest of the
+    sim/kernel_cache.py files the cache under a folder named by a digest of the
     sources, the same for the copy; under it Numba names a folder per source
     folder by a hash of its absolute path, and takes an entry as fresh when
     its source file's modification time and size match, which shutil.copy2
@@ -59,7 +59,9 @@ def share_compiled_kernels(dest):
     """
     from numba.core.caching import _CacheLocator
 
-    cache = Path(numba.config.CACHE_DIR)  # set by importing sim
+    import sim.kernel_cache  # noqa: F401 (sets the cache folder)
+
+    cache = Path(numba.config.CACHE_DIR)
     for folder in sorted({path.parent for path in (REPO / "sim").rglob("*.py")}):
         ours = cache / _CacheLocator.get_suitable_cache_subpath(str(folder / "_.py"))
         copied = dest / folder.relative_to(REPO)

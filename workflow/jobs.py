@@ -9,6 +9,7 @@ The settings themselves are written by the simulator
 
 import json
 
+from sim.config import STAGE_SECTIONS
 from workflow.stages import STRETCH_KEYS, STRETCH_STAGE
 
 
@@ -42,14 +43,16 @@ class JobSettings:
         self.sim = sim
 
     def probe_job_params(self, stage):
-        """The ``--params`` of the probe `stage`: ``sim.job_params("probe")``,
-        each probe with only its own keys of ``probe``: the support stretch its
-        STRETCH_KEYS, the gravity probes all others. So a scene that adds the
-        stretch re-runs no gravity probe, and one that adds a tilt no stretch."""
-        settings = json.loads(self.sim.job_params("probe"))
+        """The ``--params`` of the probe `stage`: the settings of
+        ``sim.job_params("probe")`` (its object, :meth:`sim.config.SimConfig.result_dict`,
+        filtered before it is written), each probe with only its own keys of
+        ``probe``: the support stretch its STRETCH_KEYS, the gravity probes all
+        others. So a scene that adds the stretch re-runs no gravity probe, and
+        one that adds a tilt no stretch."""
+        settings = self.sim.result_dict(STAGE_SECTIONS["probe"])
         stretch = stage == STRETCH_STAGE
-        settings["probe"] = {k: v for k, v in settings["probe"].items() if (k in STRETCH_KEYS) == stretch}
-        return json.dumps(settings, sort_keys=True)
+        probe = {k: v for k, v in settings["probe"].items() if (k in STRETCH_KEYS) == stretch}
+        return json.dumps({**settings, "probe": probe}, sort_keys=True)
 
     def job_bookkeeping(self):
         """The ``--bookkeeping`` of every simulation job

@@ -170,8 +170,8 @@ def _load(path, integrator, **options):
     law = {k: v for k, v in options.items() if k not in ("rotate", "support", "full_law")}
     model = dataclasses.replace(base.model, integrator=integrator, dt=None, **law)
     sim = Simulation(base.shapes, model, base.gravity, support=options.get("support", True),
-                     walls=base.walls, rotate=options.get("rotate", base.rotate))
-    sim.full_law = options.get("full_law", False)
+                     walls=base.walls, rotate=options.get("rotate", base.rotate),
+                     full_law=options.get("full_law", False))
     sim.set_scaled_derivatives(base.scaled_derivatives(), base.dt)
     sim.set_springs(ds["contact_i"].values.astype(np.int64),
                     ds["contact_j"].values.astype(np.int64), ds["contact_spring"].values,
@@ -197,7 +197,8 @@ def kernel_shares(sim, steps):
     sim.run(steps=1)  # current pair list
     kernels = KERNELS_PARALLEL if sim.parallel_kernels() else KERNELS_SERIAL
     predict, pairs, gather = kernels
-    pt, pr, bodies, law, motion, work = sim.kernel_state()
+    pt, pr, bodies = sim.kernel_state()
+    law, motion, work = sim.law, sim.motion(), sim.work
     spent = np.zeros(3)
     for _ in range(steps):
         t0 = time.perf_counter()

@@ -77,7 +77,8 @@ def _run_kernel(args, out):
     sim = _load(args.state, "verlet")
     sim.run(steps=5)
     predict, pairs, gather = KERNELS_SERIAL
-    pt, pr, bodies, law, motion, work = sim.kernel_state()
+    pt, pr, bodies = sim.kernel_state()
+    law, motion, work = sim.law, sim.motion(), sim.work
     predict(sim.n, pt, motion, work)
     calls = {"predict": (predict, lambda: predict(sim.n, pt, motion, work)),
              "pairs": (pairs, lambda: pairs(pt, pr, law, motion.dt, work, False)),
