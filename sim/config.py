@@ -58,7 +58,8 @@ STAGE_SECTIONS = {"pour": ("model", "particles", "pour", "physics"),
 #: out of the result settings (:func:`result_settings`), so those piles keep
 #: their pour digest and the workflow re-runs none of them.
 LATER_SETTINGS = {"particles": ("aspect_ratio",),
-                  "pour": ("point_source", "outlet_width", "outlet_height", "line_source"),
+                  "pour": ("point_source", "outlet_width", "outlet_height", "line_source",
+                           "table_slope_deg"),
                   "physics": ("rough_base", "rough_base_slope_deg")}
 
 #: The JSON schema (YAML) of the simulator's sections of a configuration: the
@@ -292,9 +293,12 @@ class PourParams:
         Funnel: outlet width in mean particle diameters.
     outlet_height : float
         Funnel: outlet height above the tip in mean particle diameters.
-    line_source : {"top", "rain"}
-        Layered sequence: a line as wide as the measured top, or a rain over
-        the plateau of the target pile (:mod:`sim.release`).
+    line_source : {"top", "rain", "table"}
+        Layered sequence: a line as wide as the measured top, a rain over
+        the plateau of the target pile, or a rain over a finite table whose
+        leavers are removed (:mod:`sim.release`).
+    table_slope_deg : float
+        Table: the slope of the pile whose base is the table (:func:`sim.release.table_half_width`).
     checkpoint_interval : float
         Wall-clock seconds between checkpoints.
     progress_interval : float
@@ -316,6 +320,7 @@ class PourParams:
     outlet_width: float = _default("pour", "outlet_width")
     outlet_height: float = _default("pour", "outlet_height")
     line_source: str = _default("pour", "line_source")
+    table_slope_deg: float = _default("pour", "table_slope_deg")
     checkpoint_interval: float = _default("pour", "checkpoint_interval")
     progress_interval: float = _default("pour", "progress_interval")
     frame_interval: float = _default("pour", "frame_interval")

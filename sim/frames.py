@@ -23,6 +23,10 @@ pile was laid down where its particles fell or built by flows
 call, not only at frame times, so it is as fine as the pour's chunks whatever
 ``frame_interval``.
 
+On a table (``pour.line_source: table``) a particle that has left the table
+is NaN in every frame from then on (it is parked far away, :mod:`sim.pour`),
+and ``released`` still counts it.
+
 While a pour checkpoints, the frames so far are written beside the checkpoint
 (:func:`partial_path`) and read back when that checkpoint is resumed, so a
 resumed pour's film has no gap; they are deleted with the checkpoint.
@@ -46,8 +50,8 @@ log = logging.getLogger(__name__)
 MAX_FRAMES = 1000
 
 FRAME_VARS = {
-    "x": ("m", "centre of mass x (NaN: not yet released)"),
-    "y": ("m", "centre of mass y (NaN: not yet released)"),
+    "x": ("m", "centre of mass x (NaN: not yet released, or left the table)"),
+    "y": ("m", "centre of mass y (NaN: not yet released, or left the table)"),
     "theta": ("rad", "orientation"),
     "speed": ("m/s", "speed of the centre of mass"),
 }
@@ -78,15 +82,22 @@ class FrameRecorder:
         Particles the pour will release (the width of every frame).
     interval : float
         Simulated seconds between frames, s (``pour.frame_interval``).
+    table_half_width : float, optional
+        The table's half-width W of a pour on a table (``pour.line_source:
+        table``): a particle whose centre lies beyond it has left the table
+        and is NaN in every frame from then on, and lands nowhere.
     """
 
-    def __init__(self, shapes, n_particles: int, interval: float):
+    def __init__(self, shapes, n_particles: int, interval: float,
+                 table_half_width: float | None = None):
         if not interval > 0:
             raise ValueError(f"pour.frame_interval = {interval!r}: must be > 0 s")
         self.shapes = shapes
         self.n_particles = int(n_particles)
         self.interval = float(interval)
+        self.table_half_width = table_half_width
         self.times: list[float] = []
+        self.released: list[int] = []
         self.frames: list[np.ndarray] = []   # (4, n_particles) float32 each
         self.next_time = 0.0
         self.wall = 0.0
@@ -113,10 +124,16 @@ class FrameRecorder:
         """The first frame time after `t`: the next multiple of the interval."""
         return (np.floor(t / self.interval) + 1.0) * self.interval
 
+    def _on_table(self, sim) -> np.ndarray:
+        """Mask of the active particles that have not left the table (all without one)."""
+        if self.table_half_width is None:
+            return np.ones(sim.n, bool)
+        return np.abs(sim.position[:, 0]) <= self.table_half_width
+
     def _land(self, sim) -> None:
         """Record centre and time of the particles touching something for the first time."""
         n = sim.n
-        new = touching(sim) & np.isnan(self.landing[2, :n])
+        new = touching(sim) & self._on_table(sim) & np.isnan(self.landing[2, :n])
         self.landing[0, :n][new] = sim.position[new, 0]
         self.landing[1, :n][new] = sim.position[new, 1]
         self.landing[2, :n][new] = sim.time
@@ -134,10 +151,13 @@ class FrameRecorder:
         frame[1, :n] = sim.position[:, 1]
         frame[2, :n] = sim.theta
         frame[3, :n] = np.hypot(*sim.velocity.T)
+        frame[:, :n][:, ~self._on_table(sim)] = np.nan
         self.times.append(float(sim.time))
+        self.released.append(n)
         self.frames.append(frame)
         if len(self.frames) >= MAX_FRAMES:
             self.times, self.frames = self.times[::2], self.frames[::2]
+            self.released = self.released[::2]
             self.interval *= 2.0
             log.info("frames: %d reached, interval now %.3g s", MAX_FRAMES, self.interval)
 
@@ -152,6 +172,7 @@ class FrameRecorder:
                 times = np.asarray(ds["time"].values, float)
                 keep = times <= time + 1e-12
                 stack = np.stack([ds[name].values[keep] for name in FRAME_VARS], axis=1)
+                released = ds["released"].values[keep]
                 interval = float(ds.attrs["frame_interval"])
                 landing = np.stack([ds[name].values for name in LANDING_VARS])
         except (OSError, KeyError, ValueError) as exc:
@@ -164,6 +185,7 @@ class FrameRecorder:
             return
         self.times = [float(t) for t in times[keep]]
         self.frames = [f.astype(np.float32) for f in stack]
+        self.released = [int(r) for r in released]
         self.interval = interval
         self.next_time = self._after(self.times[-1]) if self.times else 0.0
         self.landing = np.where(landing[2] <= time + 1e-12, landing, np.nan)
@@ -186,7 +208,7 @@ class FrameRecorder:
             ds[name] = xr.DataArray(row, dims="particle", attrs={"units": units,
                                                                  "long_name": long_name})
         ds["released"] = xr.DataArray(
-            np.sum(np.isfinite(stack[0]), axis=1).astype(np.int32), dims="frame",
+            np.asarray(self.released, np.int32), dims="frame",
             attrs={"units": "1", "long_name": "particles released so far"})
         ds["node_count"] = xr.DataArray(sh.node_count[:self.n_particles].astype(np.int32),
                                         dims="particle", attrs={

@@ -87,6 +87,11 @@ def pour_digest(config: dict | None) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+#: The global attributes of a pile poured on a table (``pour.line_source: table``,
+#: docs/formats.md#state-files), carried on to every stage that descends from it.
+TABLE_ATTRS = ("released", "left_table", "table_half_width")
+
+
 #: What a state file of each stage is, in words, for a refusal (docs/formats.md#stages); any other
 #: stage is a probe's.
 STAGE_MEANING = {
@@ -129,8 +134,9 @@ def check_input_stage(path, ds: xr.Dataset, accepted, command: str, takes: str) 
 def lineage(ds: xr.Dataset) -> dict:
     """The identity a stage run on the state file ``ds`` carries on into its own file.
 
-    ``protocol``, ``seed`` and ``pour_digest`` of the pile (those the file
-    has), and ``relaxed_digest``: the ``data_digest`` of the relaxed state the
+    ``protocol``, ``seed`` and ``pour_digest`` of the pile and, for a pile
+    poured on a table, its :data:`TABLE_ATTRS` (those the file has), and
+    ``relaxed_digest``: the ``data_digest`` of the relaxed state the
     new stage descends from, the file's own when it is that relaxed state, else
     the one it carries (none when it has none: a poured pile).
 
@@ -146,8 +152,9 @@ def lineage(ds: xr.Dataset) -> dict:
     """
     a = ds.attrs
     out = {"protocol": a.get("protocol", ""), "seed": int(a.get("seed", -1))}
-    if "pour_digest" in a:
-        out["pour_digest"] = a["pour_digest"]
+    for name in ("pour_digest",) + TABLE_ATTRS:
+        if name in a:
+            out[name] = a[name]
     relaxed = a.get("data_digest") if a.get("stage") == "relaxed" else a.get("relaxed_digest")
     if relaxed:
         out["relaxed_digest"] = relaxed
@@ -241,7 +248,20 @@ def atomic_figure(fig, path, **kwargs) -> None:
         fig.savefig(tmp, **kwargs)
 
 
-def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Dataset:
+def _kept_contacts(c: dict, keep) -> dict:
+    """The contacts `c` (:meth:`Simulation.contacts`) between the particles
+    `keep` (a mask) or with a body, their particle indices renumbered as the
+    kept particles are (in their order)."""
+    number = np.cumsum(keep) - 1
+    rows = keep[c["i"]] & ((c["j"] < 0) | keep[np.maximum(c["j"], 0)])
+    out = {name: values[rows] for name, values in c.items()}
+    out["i"] = number[out["i"]]
+    out["j"] = np.where(out["j"] < 0, out["j"], number[np.maximum(out["j"], 0)])
+    return out
+
+
+def state_dataset(sim: Simulation, config: dict | None = None, keep=None,
+                  **attrs) -> xr.Dataset:
     """The docs/formats.md#state-files dataset of a simulation's current state.
 
     Parameters
@@ -249,6 +269,10 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
     sim : Simulation
     config : dict, optional
         Effective configuration of the run (stored as JSON text).
+    keep : numpy.ndarray of bool, optional
+        The particles to write (default all): the others are left out with
+        their contacts, and the kept ones numbered in their order (a table's
+        pile without the particles that left the table, :mod:`sim.pour`).
     **attrs
         Further global attributes (``stage``, ``protocol``, ``seed``, ...).  A
         pour's own stages (:data:`POUR_STAGES`) get ``pour_digest`` of
@@ -259,29 +283,31 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
     -------
     xarray.Dataset
     """
-    n = sim.n
+    keep = np.ones(sim.n, bool) if keep is None else np.asarray(keep, bool)
     sh = sim.shapes
-    pos = sim.position
-    vel = sim.velocity
-    off = int(sh.node_offset[n])
+    pos = sim.position[keep]
+    vel = sim.velocity[keep]
+    nodes = np.repeat(keep, sh.node_count[:sim.n])
     data = {
-        "x": pos[:, 0], "y": pos[:, 1], "theta": sim.theta,
-        "vx": vel[:, 0], "vy": vel[:, 1], "omega": sim.omega,
-        "mass": sh.mass[:n], "inertia": sh.inertia[:n], "area": sh.area[:n],
+        "x": pos[:, 0], "y": pos[:, 1], "theta": sim.theta[keep],
+        "vx": vel[:, 0], "vy": vel[:, 1], "omega": sim.omega[keep],
+        "mass": sh.mass[:sim.n][keep], "inertia": sh.inertia[:sim.n][keep],
+        "area": sh.area[:sim.n][keep],
     }
     ds = xr.Dataset()
     for name, (units, long_name) in PARTICLE_VARS.items():
         ds[name] = xr.DataArray(np.asarray(data[name], float), dims="particle",
                                 attrs={"units": units, "long_name": long_name})
-    ds["node_count"] = xr.DataArray(sh.node_count[:n].astype(np.int32), dims="particle",
+    ds["node_count"] = xr.DataArray(sh.node_count[:sim.n][keep].astype(np.int32), dims="particle",
                                     attrs={"units": "1", "long_name": "corners of each "
                                            "polygon", "sample_dimension": "node"})
-    ds["node_x"] = xr.DataArray(sh.node_x[:off], dims="node", attrs={
+    off = int(sh.node_offset[sim.n])
+    ds["node_x"] = xr.DataArray(sh.node_x[:off][nodes], dims="node", attrs={
         "units": "m", "long_name": "corner x in the body frame (centre of mass, theta = 0), "
         "counter-clockwise, polygon after polygon"})
-    ds["node_y"] = xr.DataArray(sh.node_y[:off], dims="node", attrs={
+    ds["node_y"] = xr.DataArray(sh.node_y[:off][nodes], dims="node", attrs={
         "units": "m", "long_name": "corner y in the body frame"})
-    c = sim.contacts()
+    c = _kept_contacts(sim.contacts(), keep)
     ds["contact_i"] = xr.DataArray(c["i"].astype(np.int32), dims="contact",
                                    attrs={"units": "1", "long_name": "particle index i"})
     ds["contact_j"] = xr.DataArray(c["j"].astype(np.int32), dims="contact", attrs={
@@ -299,7 +325,7 @@ def state_dataset(sim: Simulation, config: dict | None = None, **attrs) -> xr.Da
             "j and where it leaves (-1: none); the narrow phase's warm start for the next "
             "step (restart data)"})
     ds["integrator_state"] = xr.DataArray(
-        sim.scaled_derivatives(), dims=("derivative", "dof", "particle"),
+        sim.scaled_derivatives()[:, :, keep], dims=("derivative", "dof", "particle"),
         coords={"dof": ["x", "y", "theta"]},
         attrs={"units": "m (rad for theta)", "long_name": "scaled time derivatives "
                "dt^k/k! d^k q/dt^k of x, y, theta kept by the integrator, with dt the "
@@ -360,10 +386,11 @@ def _base_of(ds: xr.Dataset, density: float):
     return place_base(shapes, ds["base_x"].values, ds["base_y"].values, ds["base_theta"].values)
 
 
-def save_state(sim: Simulation, path, config: dict | None = None, **attrs) -> None:
-    """Write the simulation's state to ``path`` atomically (see :func:`state_dataset`),
-    with the digest of its data (:func:`data_digest`)."""
-    ds = state_dataset(sim, config, **attrs)
+def save_state(sim: Simulation, path, config: dict | None = None, keep=None, **attrs) -> None:
+    """Write the simulation's state (of the particles `keep`, default all) to
+    ``path`` atomically (see :func:`state_dataset`), with the digest of its
+    data (:func:`data_digest`)."""
+    ds = state_dataset(sim, config, keep, **attrs)
     ds.attrs["data_digest"] = data_digest(ds)
     atomic_write(ds, path)
 

@@ -29,11 +29,11 @@ from .checkpoint import (keep_finished, keep_last_good, remove_checkpoint, remov
 from .config import ConfigError, SimConfig, setting_schema
 from .engine import Simulation
 from .frames import FrameRecorder, partial_path
-from .io import save_state
+from .io import load_simulation, save_state
 from .lock import PourLock, appended_log, lock_path
 from .progress import Progress, pour_remaining, summary
-from .release import (pile_height_bound, pile_top, release_point, source, spot_clear,
-                      target_pile, touching)
+from .release import (on_table, pile_height_bound, pile_top, release_point, source,
+                      spot_clear, table, target_pile, touching)
 from .run_loop import Interrupted, stop_on_signals
 from .scene import lay_base, make_scene
 from .shapes import shapes_by_settings
@@ -44,9 +44,17 @@ log = logging.getLogger("sim")
 #: g0, m/s²: the gravity a pile is poured and relaxed under (the probes change it).
 GRAVITY = 9.81
 
-#: Simulated time (s) after the last release within which every particle must
-#: have landed (see :func:`_in_flight`), else the pour fails.
+#: Simulated time (s) after the last release within which the particles must
+#: rest on the pile (see :func:`_land`), else the pour fails.
 LANDING_TIME = 1.0
+
+#: Simulated time (s) over which the bodies' mean force on the pile is taken
+#: at the end of a pour (:func:`_carried`).
+LANDING_WINDOW = 0.05
+
+#: Largest departure of the bodies' mean vertical force on a poured pile from
+#: its weight, as a fraction of it, at the end of the pour (:func:`_land`).
+REACTION_TOLERANCE = 0.1
 
 #: The largest seed of a pile (the smallest is 0): that of the workflow's
 #: ``protocols.<protocol>.seeds`` (workflow/schemas/config.schema.yaml), well
@@ -55,7 +63,7 @@ SEED_MAX = 2**32 - 1
 
 
 class LandingError(RuntimeError):
-    """Poured particles were still in flight :data:`LANDING_TIME` after the last release."""
+    """Poured particles did not rest on the pile :data:`LANDING_TIME` after the last release."""
 
 
 def pile_shapes(cfg: SimConfig, seed: int):
@@ -177,7 +185,8 @@ def pour(cfg: SimConfig, protocol: str, seed: int, out, checkpoint=None,
     PourLockedError
         If a live process holds the lock.
     LandingError
-        If particles are still in flight :data:`LANDING_TIME` after the last release.
+        If the particles do not rest on the pile :data:`LANDING_TIME` after
+        the last release (:func:`_land`).
     sim.run_loop.Interrupted
         On SIGTERM or SIGINT (:func:`sim.run_loop.stop_on_signals`), after
         writing the checkpoint and logging one line that says what it holds
@@ -288,7 +297,9 @@ def _pour(cfg, protocol, seed, shapes, base, out, checkpoint, settle_time, lock,
     interval = 1.0 / src.rate
     sim, next_release, resumed = _start(cfg, protocol, seed, checkpoint, shapes, base,
                                         (out, frames))
-    recorder = FrameRecorder(shapes, p.n_particles, p.frame_interval) if frames else None
+    half_width = table(cfg, shapes, protocol)
+    recorder = (FrameRecorder(shapes, p.n_particles, p.frame_interval, half_width) if frames
+                else None)
     if recorder is not None and resumed:
         recorder.resume(partial_path(checkpoint), sim.time)
     sim.spin_drag = p.spin_drag
@@ -309,7 +320,11 @@ def _pour(cfg, protocol, seed, shapes, base, out, checkpoint, settle_time, lock,
         while sim.n < p.n_particles:
             if sim.time >= next_release:
                 next_release = _release(sim, cfg, protocol, seed, next_release, interval, src.speed)
-            sim.run(duration=max(next_release - sim.time, sim.dt))
+            ahead = next_release - sim.time
+            sim.run(duration=max(ahead if half_width is None else min(ahead, settle_time),
+                                 sim.dt))
+            if half_width is not None:
+                _retire(sim, half_width)
             if recorder is not None:
                 recorder(sim)
             if checkpoint is not None and _time.monotonic() - last_ckpt > p.checkpoint_interval:
@@ -318,7 +333,9 @@ def _pour(cfg, protocol, seed, shapes, base, out, checkpoint, settle_time, lock,
             if checkpoint is not None:
                 passed = (sim.snapshot(), next_release)
         sim.run(duration=settle_time)
-        _land(sim, src, what, cfg.model.damping)
+        if half_width is not None:
+            _retire(sim, half_width)
+        _land(sim, src, what, cfg.model.damping, half_width)
     except BlowUpError as exc:
         keep_last_good(sim, out, cfg, exc, **attrs)
         raise
@@ -330,7 +347,15 @@ def _pour(cfg, protocol, seed, shapes, base, out, checkpoint, settle_time, lock,
     if recorder is not None:
         recorder.finish(sim)
         recorder.save(frames, cfg.to_dict(), **attrs)
-    save_state(sim, out, cfg.to_dict(), stage="poured", **attrs)
+    if half_width is None:
+        save_state(sim, out, cfg.to_dict(), stage="poured", **attrs)
+    else:
+        kept = on_table(sim, half_width)
+        save_state(sim, out, cfg.to_dict(), keep=kept, stage="poured", released=sim.n,
+                   left_table=int(sim.n - np.sum(kept)), table_half_width=half_width, **attrs)
+        log.info("%s: %d of %d particles released stay on the table |x| <= %.4g m, %d left it",
+                 what, int(np.sum(kept)), sim.n, half_width, int(sim.n - np.sum(kept)))
+        sim, _ = load_simulation(out)
     if finished is not None:
         keep_finished(finished, out, frames)
     if checkpoint is not None:
@@ -378,36 +403,117 @@ def _release(sim, cfg, protocol, seed, next_release, interval, speed):
     return next_release + interval
 
 
-def _in_flight(sim, elevation):
+def _in_flight(sim, elevation, pile):
     """Mask of the particles in flight: touching nothing (no contact with a
     particle or body), with the energy to rise above their release height
-    (``y + |v|²/2g`` above the pile's top plus the source's `elevation` plus
-    their circumradius).  A polygon hopping on the support or rolling down the
-    flank is not in flight; one bounced off the pile is."""
+    (``y + |v|²/2g`` above the top of the `pile` (a mask) plus the source's
+    `elevation` plus their circumradius).  A polygon hopping on the support or
+    rolling down the flank is not in flight; one bounced off the pile is."""
     g = max(float(np.hypot(*sim.gravity)), 1e-12)
     reach = sim.position[:, 1] + np.sum(sim.velocity ** 2, axis=1) / (2.0 * g)
-    release = pile_top(sim) + elevation + sim.shapes.radius[:sim.n]
+    release = pile_top(sim, pile) + elevation + sim.shapes.radius[:sim.n]
     return ~touching(sim) & (reach > release)
 
 
-def _land(sim, src, what, damping):
-    """Run on until no particle is in flight (:func:`_in_flight` above the
-    source `src`), at most :data:`LANDING_TIME` s of simulated time
-    (`damping`: ``model.damping``, for the message).
+def _carried(sim, vy, window, among):
+    """The bodies' (support, walls, rough base) mean vertical force on the
+    particles `among` (a mask) over the last `window` s of simulated time,
+    over their weight; `vy` their vertical velocities `window` s ago.
+
+    By the particles' momentum balance (the forces between them cancel;
+    gravity is the only other force on them) the mean force is
+    ``M g + ΔP_y / window``, with ``P_y`` their vertical momentum: 1 for a
+    pile at rest on the bodies, whatever its vibrations and hops (the mean of
+    a bounce's impacts is the weight), 0 for particles in free fall.
+    """
+    mass = sim.shapes.mass[:sim.n][among]
+    change = float(mass @ (sim.velocity[among, 1] - vy[among]))
+    return 1.0 + change / (window * float(np.hypot(*sim.gravity)) * float(np.sum(mass)))
+
+
+def _land(sim, src, what, damping, half_width=None):
+    """Run on, in windows of :data:`LANDING_WINDOW` s, until the particles
+    rest on the pile: none is in flight (:func:`_in_flight` above the source
+    `src`) and the bodies carried the pile's weight over the last window to
+    :data:`REACTION_TOLERANCE` (:func:`_carried`); for at most
+    :data:`LANDING_TIME` s of simulated time (`damping`: ``model.damping``,
+    for the message).  On a table of `half_width` the pile is the particles
+    on it, and those that leave it are parked after each window (:func:`_retire`).
 
     Raises
     ------
     LandingError
-        Naming how many particles are still in flight and how fast they move.
+        Naming how many particles are still in flight, what the bodies carried,
+        and how fast and high the particles are.
     """
     t0 = sim.time
-    while np.any(flying := _in_flight(sim, src.elevation)):
+    while True:
+        vy, start = sim.velocity[:, 1].copy(), sim.time
+        sim.run(duration=LANDING_WINDOW)
+        pile = np.ones(sim.n, bool) if half_width is None else on_table(sim, half_width)
+        carried = _carried(sim, vy, sim.time - start, pile)
+        flying = int(np.sum(_in_flight(sim, src.elevation, pile)))
+        if half_width is not None:
+            _retire(sim, half_width)
+        if flying == 0 and abs(carried - 1.0) <= REACTION_TOLERANCE:
+            return
         if sim.time - t0 >= LANDING_TIME:
             speed = np.hypot(*sim.velocity.T)
             raise LandingError(
-                f"{what}: {int(np.sum(flying))} of {sim.n} particles are still in flight "
-                f"{LANDING_TIME} s after the last release (fastest {float(speed.max()):.3g} "
-                f"m/s, highest at y = {float(sim.position[:, 1].max()):.3g} m): they bounce "
-                f"off the pile; lower {src.origin[1]} or {src.origin[2]}, or raise "
-                f"model.damping = {damping}")
-        sim.run(duration=0.01)
+                f"{what}: {flying} of {sim.n} particles are still in flight and the bodies "
+                f"carried {carried:.3g} of the weight over the last {LANDING_WINDOW} s (allowed "
+                f"1 ± {REACTION_TOLERANCE}) {LANDING_TIME} s after the last release (fastest "
+                f"{float(speed.max()):.3g} m/s, highest at y = "
+                f"{float(sim.position[:, 1].max()):.3g} m): they do not rest on the pile; lower "
+                f"{src.origin[1]} or {src.origin[2]}, or raise model.damping = {damping}")
+
+
+#: Distance (m) beyond a table's edge of its parking lot (:func:`_retire`):
+#: a particle that left the table is parked at the end of the run in which it
+#: left (on a table a run lasts at most the pour's ``settle_time``, 0.1 s), in
+#: which one rolling off a
+#: flank (at most sqrt(2 g H), 2.4 m/s off a pile 0.3 m high) goes less than
+#: half of it, so it never reaches the parked ones.
+PARK_MARGIN = 0.5
+
+
+def rest_pose(shapes, k):
+    """Orientation (rad) and centre height (m) of particle k lying at rest on
+    the support on its edge nearest its centre of mass.
+
+    That edge's line is the nearest supporting line of the polygon, so the
+    foot of the perpendicular from the centre lies within the edge: the
+    polygon stands on it, stable.
+    """
+    x, y = shapes.corners(k)
+    ex, ey = np.roll(x, -1) - x, np.roll(y, -1) - y
+    length = np.hypot(ex, ey)
+    nx, ny = ey / length, -ex / length        # outward normals (corners counter-clockwise)
+    distance = x * nx + y * ny
+    e = int(np.argmin(distance))
+    return -0.5 * math.pi - math.atan2(ny[e], nx[e]), float(distance[e])
+
+
+def _retire(sim, half_width):
+    """Park the particles whose centre has left the table ``|x| <= half_width``.
+
+    Each is placed at rest (:func:`rest_pose`) on the support beyond the edge
+    it left by, in the next slot of that side's row, which starts
+    :data:`PARK_MARGIN` beyond the edge and holds one particle every
+    ``2.2 R_max``, so parked particles touch nothing.  The parked particles
+    keep their indices (a resumed pour retraces the uninterrupted one) and
+    are those beyond ``half_width + PARK_MARGIN / 2``, so the slots taken are
+    read from the state itself.
+    """
+    x = sim.position[:, 0]
+    parked = np.abs(x) > half_width + 0.5 * PARK_MARGIN
+    leaving = np.flatnonzero((np.abs(x) > half_width) & ~parked)
+    spacing = 2.2 * float(np.max(sim.shapes.radius))
+    for k in leaving:
+        side = math.copysign(1.0, x[k])
+        slot = int(np.sum(parked & (np.sign(x) == side)))
+        theta, height = rest_pose(sim.shapes, k)
+        sim.place(int(k), side * (half_width + PARK_MARGIN + slot * spacing),
+                  height * (1.0 + 1e-9), theta)
+        parked[k] = True
+        x[k] = side * (half_width + PARK_MARGIN)

@@ -38,8 +38,19 @@ target pile of the line source, the source's rate, speed and height
   measured top, so the line narrows at the speed that builds flanks of
   ``layered_slope_deg``.
 
-A particle counts as *settled* when its speed is below 0.1 m/s; the tip is the
-highest ``y + R`` of settled particles (0 on the bare support).  A release
+* **Layered sequence, ``line_source: table``.**  A rain, uniform over the
+  whole of a table ``|x| <= W`` at every release (:func:`table_half_width`,
+  from ``table_slope_deg``), as sand through a sieve as wide as the base: the
+  particles that land on the plateau stay and lay it down in layers, those
+  that land on a flank run down it, and a particle whose centre passes the
+  table's edge has left it and is removed (parked by :mod:`sim.pour`), so the
+  flanks end at the edge at the angle of repose.
+
+A particle counts as *settled* when its speed is below 0.1 m/s and it touches
+a particle or a body (:func:`touching`): one released slower than that is
+still falling, and counted as settled it would raise the tip, and the next
+release, above itself.  The tip is the highest ``y + R`` of settled particles
+(0 on the bare support).  A release
 waits while the release disc (radius ``R`` of the new particle) overlaps a
 particle still in flight, so particles never start overlapping.
 
@@ -72,16 +83,19 @@ BEVERLOO_K = 1.5
 
 
 def _settled(sim):
-    """Mask of the active particles slower than :data:`SETTLED_SPEED`."""
+    """Mask of the active particles slower than :data:`SETTLED_SPEED` that touch
+    a particle or a body (:func:`touching`)."""
     v = sim.velocity
-    return np.hypot(v[:, 0], v[:, 1]) < SETTLED_SPEED
+    return (np.hypot(v[:, 0], v[:, 1]) < SETTLED_SPEED) & touching(sim)
 
 
-def pile_top(sim):
-    """Height of the tip (highest y + R of settled particles; 0 when none)."""
+def pile_top(sim, among=None):
+    """Height of the tip: the highest y + R of the settled particles (0 when
+    none), of those `among` (a mask, default all: a table's pile leaves out
+    the particles parked off the table, :func:`on_table`)."""
     if sim.n == 0:
         return 0.0
-    s = _settled(sim)
+    s = _settled(sim) if among is None else _settled(sim) & among
     if not s.any():
         return 0.0
     return float(np.max(sim.position[s, 1] + sim.shapes.radius[:sim.n][s]))
@@ -268,6 +282,35 @@ def source(cfg: SimConfig, shapes, protocol, gravity):
                    f"pour.release_height = {p.release_height!r} m"))
 
 
+def table_half_width(shapes, slope_deg):
+    """Half-width W of the table of ``line_source: table`` (m).
+
+    The half base of a triangular pile with flanks at `slope_deg` holding
+    half the area of all the particles at a solid fraction of
+    :data:`PILE_PACKING` (:func:`target_pile` of half of them).  A rain over
+    the table sheds what lands on the flanks, so with the pile's flanks at
+    the slope θ the plateau catches ``2 (W − h / tan θ)`` of the rain per unit
+    length at height h, which is exactly ``dA/dh`` of the pile's area A(h):
+    the plateau rises at the rain's rate, and the pile reaches its apex when
+    ``2 W H``, twice its area, has been released.
+    """
+    return target_pile(shapes, slope_deg)[0] / math.sqrt(2.0)
+
+
+def table(cfg: SimConfig, shapes, protocol):
+    """The half-width of the table of a pour of `protocol` under `cfg` with
+    the particles `shapes` (:func:`table_half_width`) for ``line_source:
+    table``, else None."""
+    if protocol != "layered" or cfg.pour.line_source != "table":
+        return None
+    return table_half_width(shapes, cfg.pour.table_slope_deg)
+
+
+def on_table(sim, half_width):
+    """Mask of the active particles whose centre lies on the table ``|x| <= half_width``."""
+    return np.abs(sim.position[:, 0]) <= half_width
+
+
 def rain_half_width(shapes, slope_deg, k):
     """Half-length of the rain's line when particle k is released (m).
 
@@ -301,6 +344,9 @@ def _line_span(sim, cfg: SimConfig, k, top):
     """Horizontal range ``(lo, hi)`` of the line source for particle k under a tip at `top`."""
     p = cfg.pour
     radius = float(sim.shapes.radius[k])
+    if p.line_source == "table":
+        half = table_half_width(sim.shapes, p.table_slope_deg)
+        return -half, half
     if p.line_source == "rain":
         half = max(rain_half_width(sim.shapes, p.layered_slope_deg, k), radius)
         return -half, half
@@ -323,7 +369,9 @@ def release_point(sim, cfg: SimConfig, protocol, seed, k):
     rng = np.random.default_rng([seed, 1, k])
     radius = float(sim.shapes.radius[k])
     on = touching(sim) if funnel(cfg, protocol) else None
-    top = pile_top(sim) if on is None else heap_top(sim, on)
+    half = table(cfg, sim.shapes, protocol)
+    top = (heap_top(sim, on) if on is not None
+           else pile_top(sim, None if half is None else on_table(sim, half)))
     elevation = source(cfg, sim.shapes, protocol, float(np.hypot(*sim.gravity))).elevation
     y = top + elevation + radius
     lo, hi = _point_span(sim, cfg, k) if protocol == "wedge" else _line_span(sim, cfg, k, top)
