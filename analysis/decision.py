@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from scipy.stats import t as student_t
 
-from .history import holm, mean_sem, piles_for_power, t_power, welch
+from .history import holm, mean_sem, piles_for_power, t_power, tost, welch
 
 #: The decision family: the pressure minimum read from the RVE stress (low
 #: variance) and from the support's force density.
@@ -122,7 +122,8 @@ def piles_required(records: list[dict], point: str, layered: str) -> dict[str, A
     return {"sd": sd, "df": df, "n_power": n, "n": int(max(MIN_PILES, n)) if np.isfinite(n) else n}
 
 
-def verdict(records: list[dict], point: str, layered: str, n: int) -> dict[str, Any]:
+def verdict(records: list[dict], point: str, layered: str, n: int, family: tuple = DECISION,
+            margin: float | None = None) -> dict[str, Any]:
     """The registered test and sentence over the decision ensemble.
 
     Parameters
@@ -133,6 +134,19 @@ def verdict(records: list[dict], point: str, layered: str, n: int) -> dict[str, 
         The arms (as registered).
     n : int
         The registered piles per protocol.
+    family : tuple of str
+        The primary statistics, tested with Holm's correction over them (the
+        first decision: D1 and D2; the equal-slope decision: D1 alone).
+    margin : float, optional
+        With a margin, the registered outcomes of the equal-slope decision
+        (docs/reproduction/preregistration_equal_slope.md): ``history`` (the
+        first primary statistic rejects, point − layered below 0), ``opposite``
+        (above 0), ``shape`` (it does not reject and the equivalence test
+        :func:`analysis.history.tost` puts the difference within ``±margin``)
+        or ``none`` ("no effect larger than Z", Z the farther bound of its
+        95 % interval); the equivalence test is in ``out["equivalence"]``.
+        Without one, the first decision's outcomes (``minimum``,
+        ``opposite``, ``none``).
 
     Returns
     -------
@@ -150,29 +164,31 @@ def verdict(records: list[dict], point: str, layered: str, n: int) -> dict[str, 
         decision statistic (no test on a partial ensemble).
     """
     for arm in (point, layered):
-        have = int(np.isfinite(values(records, arm, DECISION[0])).sum())
+        have = int(np.isfinite(values(records, arm, family[0])).sum())
         if have < n:
             raise ValueError(f"{arm}: {have} of the registered {n} piles; the verdict waits for all of them")
     out: dict[str, Any] = {}
-    for family in (DECISION, SECONDARY):
+    for part, keys in (("decision", family), ("secondary", SECONDARY)):
         rows = {}
-        for key in family:
+        for key in keys:
             a, b = values(records, point, key), values(records, layered, key)
             (ma, sa, da, na), (mb, sb, db, nb) = mean_sem(a), mean_sem(b)
             w = welch(a, b)
             half = student_t.isf(0.025, w["df"]) * math.hypot(sa, sb) if np.isfinite(w["df"]) else math.nan
             rows[key] = {"point": (ma, sa, na), "layered": (mb, sb, nb), "diff": ma - mb,
                          "se": math.hypot(sa, sb), "sd": (da, db), "ci95": (ma - mb - half, ma - mb + half), **w,
-                         "power": t_power(da, db, EFFECT, min(na, nb), len(family), LEVEL)
+                         "power": t_power(da, db, EFFECT, min(na, nb), len(keys), LEVEL)
                          if min(na, nb) >= 2 else math.nan}
         adjusted, rejected = holm([r["p"] for r in rows.values()], LEVEL)
         for r, p, rej in zip(rows.values(), adjusted, rejected):
             r["p_holm"], r["rejected"] = p, rej
-        out["decision" if family is DECISION else "secondary"] = rows
+        out[part] = rows
     d = out["decision"]
-    lower = [k for k in DECISION if d[k]["rejected"] and d[k]["diff"] < 0]
-    higher = [k for k in DECISION if d[k]["rejected"] and d[k]["diff"] > 0]
+    lower = [k for k in family if d[k]["rejected"] and d[k]["diff"] < 0]
+    higher = [k for k in family if d[k]["rejected"] and d[k]["diff"] > 0]
     pct = lambda v: f"{100 * v:.1f} %"  # noqa: E731
+    if margin is not None:
+        return _equal_slope_outcome(out, records, point, layered, family[0], margin, lower, higher)
     if lower:
         out["finding"] = "minimum"
         out["sentence"] = "a minimum: " + "; ".join(
@@ -233,4 +249,31 @@ def shape_check(records: list[dict], point: str, layered: str, key: str = DECISI
     cov = float(resid @ resid) / (y.size - 3) * np.linalg.inv(x.T @ x)
     out.update(arm_effect=float(coef[1]), arm_se=float(np.sqrt(cov[1, 1])), slope_effect=float(coef[2]),
                slope_se=float(np.sqrt(cov[2, 2])), correlation=float(np.corrcoef(arm, angle)[0, 1]))
+    return out
+
+
+def _equal_slope_outcome(out, records, point, layered, key, margin, lower, higher):
+    """The registered outcome of the equal-slope decision (see :func:`verdict`), added to `out`."""
+    d = out["decision"][key]
+    eq = tost(values(records, point, key), values(records, layered, key), margin, LEVEL)
+    out["equivalence"] = eq
+    pct = lambda v: f"{100 * v:.1f} %"  # noqa: E731
+    if lower:
+        out["finding"] = "history"
+        out["sentence"] = (f"history: at equal slope {key}: point − layered = {pct(d['diff'])} ± {pct(d['se'])} "
+                           f"(p {d['p']:.3g}; point alone {pct(d['point'][0])}, layered alone "
+                           f"{pct(d['layered'][0])})")
+    elif higher:
+        out["finding"] = "opposite"
+        out["sentence"] = (f"the opposite of a minimum: {key}: point − layered = +{pct(d['diff'])} ± "
+                           f"{pct(d['se'])} (p {d['p']:.3g})")
+    elif eq["equivalent"]:
+        out["finding"] = "shape"
+        out["sentence"] = (f"shape: no history effect as large as {pct(margin)} in {key} (equivalence p "
+                           f"{eq['p']:.3g}; point − layered = {pct(d['diff'])} ± {pct(d['se'])})")
+    else:
+        z = max(abs(d["ci95"][0]), abs(d["ci95"][1]))
+        out["finding"] = "none"
+        out["sentence"] = (f"no effect larger than {pct(z)} (95 %) in {key}, and none shown smaller than "
+                           f"{pct(margin)} (equivalence p {eq['p']:.3g})")
     return out

@@ -113,7 +113,9 @@ def landing_displacement(frames, x_rest, y_rest, d) -> dict:
     frames : path-like
         The frames file of the pour (with its landing variables).
     x_rest, y_rest : ndarray
-        Centre of every particle of the pile at rest (the relaxed state), m.
+        Centre of every particle of the pile at rest (the relaxed state), m;
+        of a pile on a table (``pour.line_source: table``) those it kept, the
+        particles of the frames' last frame, in release order.
     d : float
         A mean particle diameter, m.
 
@@ -136,7 +138,12 @@ def landing_displacement(frames, x_rest, y_rest, d) -> dict:
             raise ValueError(f"{frames}: no landing_x/landing_y (a frames file made before "
                              "landings were recorded); pour the pile again")
         lx, ly = ds["landing_x"].values, ds["landing_y"].values
+        last = ds["x"].values[-1] if ds.sizes["frame"] else np.full(lx.shape, np.nan)
     x_rest, y_rest = np.asarray(x_rest, float), np.asarray(y_rest, float)
+    if lx.shape != x_rest.shape and np.isfinite(last).sum() == x_rest.size:
+        # a pile on a table: the state keeps, in release order, the particles of the last frame
+        kept = np.isfinite(last)
+        lx, ly = lx[kept], ly[kept]
     if lx.shape != x_rest.shape:
         raise ValueError(f"{frames}: {lx.size} particles landed, {x_rest.size} at rest: "
                          "not the same pile")

@@ -362,6 +362,39 @@ def welch(a, b) -> dict[str, float]:
     return {"t": t, "df": df, "p": float(2 * student_t.sf(abs(t), df))}
 
 
+def tost(a, b, margin: float, level: float = 0.05) -> dict[str, float]:
+    """Two one-sided Welch tests that ``mean(a) - mean(b)`` lies within ``±margin``.
+
+    Schuirmann's equivalence test: the difference ``d`` (finite values) with
+    Welch's standard error ``se`` and degrees of freedom ``df`` (as
+    :func:`welch`); ``p_low`` from ``t = (d + margin) / se`` against
+    ``d <= -margin`` and ``p_high`` from ``t = (d - margin) / se`` against
+    ``d >= margin``, each one-sided from Student's t at ``df``.  The two sides
+    are equivalent at ``level`` when ``p = max(p_low, p_high) < level``, which
+    is when the ``1 - 2·level`` interval of ``d`` lies inside ``±margin``.
+
+    Returns
+    -------
+    dict
+        ``diff``, ``se``, ``df``, ``p_low``, ``p_high``, ``p`` and
+        ``equivalent`` (bool); NaN and False with fewer than two values on a side.
+    """
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+    w = welch(a, b)
+    if not np.isfinite(w["df"]):
+        return {"diff": math.nan, "se": math.nan, "df": math.nan, "p_low": math.nan, "p_high": math.nan,
+                "p": math.nan, "equivalent": False}
+    d = float(a.mean() - b.mean())
+    se = math.sqrt(a.var(ddof=1) / a.size + b.var(ddof=1) / b.size)
+    p_low = float(student_t.sf((d + margin) / se, w["df"]))
+    p_high = float(student_t.cdf((d - margin) / se, w["df"]))
+    p = max(p_low, p_high)
+    return {"diff": d, "se": se, "df": w["df"], "p_low": p_low, "p_high": p_high, "p": p,
+            "equivalent": bool(p < level)}
+
+
 def holm(p_values, level: float = 0.05) -> tuple[list[float], list[bool]]:
     """Holm's step-down correction of a family of two-sided ``p_values``.
 

@@ -56,6 +56,22 @@ def contacts(state, scene):
     }
 
 
+def touching(state, scene):
+    """Mask of the active particles with a contact (a particle or a body) in
+    the last force evaluation: :func:`contacts`'s ``i`` and ``j``, read from
+    the rows' active flags alone, without listing the contacts (a pour asks
+    at every release)."""
+    mask = np.zeros(state.n, bool)
+    rows = state.pout
+    if rows.shape[0]:
+        act = rows[:, ROW["active"]] > 0
+        mask[state.pi[act]] = True
+        mask[state.pj[act]] = True
+    if state.bout.shape[0]:
+        mask |= np.any(state.bout[:, :state.n, ROW["active"]] > 0, axis=0)
+    return mask
+
+
 def load_history(state, scene, ci, cj, spring, witness=None):
     """Load the history of contacts ``(ci, cj)`` (j < 0: a body, i < j otherwise)
     into `state`, whose pair list must be current.

@@ -277,6 +277,10 @@ class Simulation:
         """The active contacts of the last force evaluation (:func:`sim.contacts.contacts`)."""
         return contacts.contacts(self.state, self.scene)
 
+    def touching(self):
+        """Mask of the active particles touching a particle or a body (:func:`sim.contacts.touching`)."""
+        return contacts.touching(self.state, self.scene)
+
     def set_springs(self, ci, cj, spring, witness=None):
         """Rebuild the pair list and load the history of contacts ``(ci, cj)``
         (:func:`sim.contacts.load_history`)."""

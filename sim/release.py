@@ -103,13 +103,7 @@ def pile_top(sim, among=None):
 
 def touching(sim):
     """Mask of the active particles in contact with a particle or a body (support, walls)."""
-    if sim.n == 0:
-        return np.zeros(0, bool)
-    c = sim.contacts()
-    mask = np.zeros(sim.n, bool)
-    mask[c["i"]] = True
-    mask[c["j"][c["j"] >= 0]] = True
-    return mask
+    return sim.touching()
 
 
 def heap_top(sim, on):
@@ -361,12 +355,19 @@ def _line_span(sim, cfg: SimConfig, k, top):
     return lo, hi
 
 
-def release_point(sim, cfg: SimConfig, protocol, seed, k):
-    """Where particle k would be released now, as ``(x, y)``.
+#: Places a line source draws for one particle before it waits for a clear
+#: spot (:func:`release_point`): a line lays its particles anywhere along it,
+#: so a spot taken by a particle still falling is a cost, not physics.
+LINE_DRAWS = 8
+
+
+def release_point(sim, cfg: SimConfig, protocol, seed, k, draws=1):
+    """Where particle k would be released now: ``draws`` candidates ``(x, y)``
+    to try in order, the first one drawn from a generator seeded with
+    ``(seed, 1, k)`` and draw ``a > 0`` from one seeded with ``(seed, 1, k, a)``.
 
     With side walls the point lies at least one circumradius inside them.
     """
-    rng = np.random.default_rng([seed, 1, k])
     radius = float(sim.shapes.radius[k])
     on = touching(sim) if funnel(cfg, protocol) else None
     half = table(cfg, sim.shapes, protocol)
@@ -378,8 +379,11 @@ def release_point(sim, cfg: SimConfig, protocol, seed, k):
     if sim.walls is not None:
         lo = min(max(lo, sim.walls[0] + radius), sim.walls[1] - radius)
         hi = max(min(hi, sim.walls[1] - radius), lo)
-    x = rng.uniform(lo, hi)
-    return x, (y if on is None else above_stream(sim, ~on, x, y, radius))
+    points = []
+    for a in range(draws):
+        x = np.random.default_rng([seed, 1, k] if a == 0 else [seed, 1, k, a]).uniform(lo, hi)
+        points.append((x, y if on is None else above_stream(sim, ~on, x, y, radius)))
+    return points
 
 
 def spot_clear(sim, x, y, radius):

@@ -19,6 +19,7 @@ from sim.pour import pour
 
 INTERVAL = 0.01
 CFG = SimConfig.from_dict({"pour": {"n_particles": 15, "rate": 300.0, "frame_interval": INTERVAL,
+                                    "release_speed": 0.3,
                                     "progress_interval": 1e9},
                            "model": {"integrator": "verlet"}})
 

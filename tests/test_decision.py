@@ -15,6 +15,7 @@ from scipy import stats
 
 from analysis import decision
 from analysis.decision import DECISION, EFFECT, SECONDARY
+from analysis.history import tost
 
 
 def record(arm, seed, flow=0.5, p90=20.0, angle=27.0, **q):
@@ -161,3 +162,40 @@ def test_a_history_effect_at_equal_slope_is_found_by_the_fit():
     assert out["arm_effect"] == pytest.approx(-0.05, abs=3 * out["arm_se"])
     assert out["arm_se"] < 0.01 and not out["as_built"]
     assert abs(out["correlation"]) < 0.5
+
+
+@pytest.mark.parametrize("shift", [0.0, 0.02, 0.045, -0.06])
+def test_equivalence_is_the_90_percent_interval_inside_the_margin(shift):
+    """Schuirmann's two one-sided tests at 5 % are equivalent to the 90 % Welch interval lying
+    inside ±margin; scipy's interval decides it independently."""
+    rng = np.random.default_rng(11)
+    a, b = rng.normal(shift, 0.05, 40), rng.normal(0.0, 0.07, 40)
+    out = tost(a, b, 0.05)
+    ci = stats.ttest_ind(a, b, equal_var=False).confidence_interval(0.90)
+    assert out["equivalent"] == (ci.low > -0.05 and ci.high < 0.05)
+    # at the margin's edge the one-sided p values are those of shifted Welch tests
+    assert out["p_low"] == pytest.approx(stats.ttest_ind(a + 0.05, b, equal_var=False,
+                                                         alternative="greater").pvalue, rel=1e-9)
+    assert out["p_high"] == pytest.approx(stats.ttest_ind(a - 0.05, b, equal_var=False,
+                                                          alternative="less").pvalue, rel=1e-9)
+
+
+@pytest.mark.parametrize("shift, finding", [(-0.08, "history"), (0.0, "shape"), (0.08, "opposite")])
+def test_the_equal_slope_outcomes(shift, finding):
+    """D1 alone, a 5 % margin, 40 piles per arm at D1's scatter of 0.05: a clear minimum is
+    "history", no difference "shape" (the 90 % interval's half width, about 1.65 x 0.011, is
+    far inside 5 %), a clear excess "opposite"."""
+    recs = decision_records(shift, n=40, seed=5)
+    out = decision.verdict(recs, "wedge funnel", "layered rain", 40, family=DECISION[:1], margin=0.05)
+    assert out["finding"] == finding
+    assert list(out["decision"]) == [DECISION[0]]
+
+
+def test_too_few_piles_to_tell_is_no_effect_larger_than_the_interval():
+    """Eight piles per arm at a scatter of 0.05: neither the test nor the equivalence
+    decides, and the sentence bounds the effect by its 95 % interval."""
+    recs = decision_records(0.02, n=8, seed=5)
+    out = decision.verdict(recs, "wedge funnel", "layered rain", 8, family=DECISION[:1], margin=0.05)
+    ci = out["decision"][DECISION[0]]["ci95"]
+    assert out["finding"] == "none" and not out["equivalence"]["equivalent"]
+    assert f"{100 * max(abs(ci[0]), abs(ci[1])):.1f} %" in out["sentence"]

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from analysis.growth import OLD, flank_angle, growth
+from analysis.growth import OLD, flank_angle, growth, landing_displacement
 
 D = 0.007          # bin width (a mean diameter), m
 SETTLED = 0.01     # settling speed of these films, m/s
@@ -92,3 +92,42 @@ def test_the_growth_window_and_the_flank_while_growing(tmp_path):
     # every frame's settled particles lie on the 20 degree heap's flanks
     finite = g[np.isfinite(g[:, 2]), 2]
     assert finite.size > 10 and np.all(np.abs(finite - 20.0) < 1.0)
+
+
+def landings(path, lx, ly, last_x):
+    """A frames file holding only what :func:`landing_displacement` reads: the landings and
+    one frame (the last) of centres."""
+    n = len(lx)
+    xr.Dataset({"landing_x": ("particle", np.asarray(lx, float)),
+                "landing_y": ("particle", np.asarray(ly, float)),
+                "x": (("frame", "particle"), np.asarray(last_x, float).reshape(1, n))}).to_netcdf(path)
+    return path
+
+
+def test_the_interior_share_counts_the_particles_resting_within_a_diameter_of_their_landing(tmp_path):
+    """Ten particles moved by 0, 0.5, 0.99, 1.01, 1.5, 1.99, 3, 4 and 5 diameters (one never landed): the
+    share within one diameter is 3 of the 9 that landed, within two 5 of 9, and the median
+    distance is the middle one's."""
+    moved = np.array([0.0, 0.5, 0.99, 1.01, 1.5, 1.99, 3.0, 4.0, 5.0, 0.0]) * D
+    lx = np.linspace(-0.1, 0.1, 10)
+    ly = np.full(10, 0.02)
+    x_rest, y_rest = lx + 0.6 * moved, ly - 0.8 * moved
+    lx[-1] = ly[-1] = np.nan
+    out = landing_displacement(landings(tmp_path / "f.nc", lx, ly, x_rest), x_rest, y_rest, D)
+    assert out["landed"] == 9
+    assert out["interior_share"] == pytest.approx(3 / 9)
+    assert out["within_2d"] == pytest.approx(6 / 9)
+    assert out["distance_q50"] == pytest.approx(1.5)
+
+
+def test_a_table_pile_is_read_against_the_particles_it_kept(tmp_path):
+    """Six released, two left the table (NaN in the last frame): the four kept, in release
+    order, are matched with the relaxed state's four, and a mismatch of counts is refused."""
+    lx = np.array([0.0, 0.01, 0.02, 0.03, 0.04, 0.05])
+    last = np.array([0.0, np.nan, 0.02, 0.03, np.nan, 0.05])
+    path = landings(tmp_path / "t.nc", lx, np.zeros(6), last)
+    kept = np.array([0.0, 0.02, 0.03, 0.05]) + np.array([0.0, 0.0, 2.0, 0.0]) * D
+    out = landing_displacement(path, kept, np.zeros(4), D)
+    assert out["landed"] == 4 and out["interior_share"] == pytest.approx(0.75)
+    with pytest.raises(ValueError, match="not the same pile"):
+        landing_displacement(path, kept[:3], np.zeros(3), D)

@@ -57,12 +57,12 @@ def test_layered_line_stays_within_the_target_flanks():
     assert half * height == pytest.approx(np.sum(shapes.area) / 0.8)
     assert height / half == pytest.approx(np.tan(np.radians(20.0)))
     sim = Simulation(shapes, cfg.model)
-    xs = [release_point(sim, cfg, "layered", 1, k)[0] for k in range(200)]
+    xs = [release_point(sim, cfg, "layered", 1, k)[0][0] for k in range(200)]
     assert max(np.abs(xs)) <= half
     assert max(np.abs(xs)) > 0.8 * half      # the first layer covers the base
     # a settled particle high up: the line shrinks to the flanks at that height
     sim.place(0, 0.0, 0.6 * height, 0.0)
-    xs = [release_point(sim, cfg, "layered", 1, k)[0] for k in range(1, 200)]
+    xs = [release_point(sim, cfg, "layered", 1, k)[0][0] for k in range(1, 200)]
     top = pile_top(sim)
     assert max(np.abs(xs)) <= half * (1 - top / height) + 1e-12
 
@@ -72,12 +72,14 @@ def test_layered_line_follows_the_measured_top_width():
     line_margin), not the whole base of the target pile."""
     cfg = SimConfig.from_dict({"pour": {"n_particles": 400, "line_margin": 0.002}})
     sim = Simulation(pile_shapes(cfg, 1), cfg.model)
-    for k, x in enumerate(np.linspace(0.01, 0.03, 4)):      # a settled row at rest
-        sim.place(k, x, 0.004, 0.0)
+    for k, x in enumerate(np.linspace(0.01, 0.03, 4)):      # a row on the support
+        sim.place(k, x, 0.0032, 0.0)
+    sim.run(steps=1)           # settled = slow and touching: one force evaluation finds the contacts
+    assert sim.touching().all()
     r = sim.shapes.radius[:4]
     lo, hi = 0.01 - r[0] - 0.002, 0.03 + r[3] + 0.002
-    assert top_width(sim, cfg.pour.top_band) == pytest.approx((lo + 0.002, hi - 0.002))
-    xs = np.array([release_point(sim, cfg, "layered", 1, k)[0] for k in range(4, 300)])
+    assert top_width(sim, cfg.pour.top_band) == pytest.approx((lo + 0.002, hi - 0.002), abs=1e-6)
+    xs = np.array([release_point(sim, cfg, "layered", 1, k)[0][0] for k in range(4, 300)])
     assert xs.min() >= lo and xs.max() <= hi
     assert xs.max() - xs.min() > 0.8 * (hi - lo)
 
@@ -230,7 +232,7 @@ def test_release_points_stay_inside_side_walls(protocol):
     cfg = SimConfig.from_dict({"pour": {"n_particles": 400, "jitter": 0.05}})
     sim = Simulation(pile_shapes(cfg, 1), cfg.model, walls=walls)
     for k in range(1, 400):
-        x, _ = release_point(sim, cfg, protocol, 1, k)
+        (x, _), = release_point(sim, cfg, protocol, 1, k)
         r = sim.shapes.radius[k]
         assert walls[0] + r <= x <= walls[1] - r
 

@@ -174,7 +174,7 @@ def test_new_sources_release_inside_side_walls(protocol, settings):
     cfg = SimConfig.from_dict({"pour": {"n_particles": 400, **settings}})
     sim = Simulation(pile_shapes(cfg, 1), cfg.model, walls=walls)
     for k in range(1, 400):
-        x, _ = release_point(sim, cfg, protocol, 1, k)
+        (x, _), = release_point(sim, cfg, protocol, 1, k)
         r = sim.shapes.radius[k]
         assert walls[0] + r <= x <= walls[1] - r
 
