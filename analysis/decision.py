@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from scipy.stats import t as student_t
 
-from .history import holm, mean_sem, piles_for_power, t_power, tost, welch
+from .history import holm, mean_sem, piles_for_power, row_contrast, t_power, tost, welch
 
 #: The decision family: the pressure minimum read from the RVE stress (low
 #: variance) and from the support's force density.
@@ -41,6 +41,10 @@ LEVEL, POWER = 0.05, 0.8
 MIN_PILES = 10
 #: Arms whose mean angles of repose differ by more than this (deg) compare sources as built, not histories.
 SLOPE_TOLERANCE = 1.5
+#: D1's windows as fractions of each pile's half width (``quantities.width / 2``): the fixed
+#: windows (centre 3 cm, shoulders 6-15 cm) over the first decision's funnel piles' mean half
+#: width, 35.4 cm (:func:`scaled_stress_column`).
+SCALED_WINDOWS = {"centre": 0.085, "shoulder_inner": 0.17, "shoulder_outer": 0.42}
 #: The layered control's growing flanks must stay this far (deg) below the point source's angle of repose.
 REPOSE_MARGIN = 2.0
 WEDGE_ARMS = ("wedge drip", "wedge funnel")
@@ -277,3 +281,21 @@ def _equal_slope_outcome(out, records, point, layered, key, margin, lower, highe
         out["sentence"] = (f"no effect larger than {pct(z)} (95 %) in {key}, and none shown smaller than "
                            f"{pct(margin)} (equivalence p {eq['p']:.3g})")
     return out
+
+
+def scaled_stress_column(record: dict) -> float:
+    """D1 of one pile in windows scaled to its own half width (:data:`SCALED_WINDOWS`).
+
+    Read from the record's inputs (``inputs.stress_column``: the row's
+    columns, σ_yy and the uniform column's pressure), so that two arms of
+    different widths are cut at the same fractions of each pile; NaN for a
+    record without inputs or without a qualifying row.
+    """
+    row = record.get("inputs", {}).get("stress_column")
+    half = 0.5 * record["quantities"].get("width", math.nan)
+    if not row or not half > 0:
+        return math.nan
+    windows = {k: f * half for k, f in SCALED_WINDOWS.items()}
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.asarray(row["sigma_yy"], float) / np.asarray(row["p_u"], float)
+    return row_contrast(ratio, np.asarray(row["x"], float), windows)

@@ -15,7 +15,7 @@ from scipy import stats
 
 from analysis import decision
 from analysis.decision import DECISION, EFFECT, SECONDARY
-from analysis.history import tost
+from analysis.history import row_contrast, tost
 
 
 def record(arm, seed, flow=0.5, p90=20.0, angle=27.0, **q):
@@ -199,3 +199,23 @@ def test_too_few_piles_to_tell_is_no_effect_larger_than_the_interval():
     ci = out["decision"][DECISION[0]]["ci95"]
     assert out["finding"] == "none" and not out["equivalence"]["equivalent"]
     assert f"{100 * max(abs(ci[0]), abs(ci[1])):.1f} %" in out["sentence"]
+
+
+def test_scaled_windows_cut_piles_of_two_widths_at_the_same_fractions():
+    """Two piles whose σ_yy/p_u rows are the same function of x over the half width, one
+    twice as wide: the scaled D1 is the same for both (to the grid's sampling), while the
+    fixed windows read them differently."""
+    def pile(half):
+        x = np.arange(-half, half + 1e-9, 0.015)
+        ratio = 1.0 - 0.3 * np.exp(-(x / (0.2 * half)) ** 2)       # a dip 20 % of the half width wide
+        return {"quantities": {"width": 2 * half},
+                "inputs": {"stress_column": {"x": x.tolist(), "sigma_yy": ratio.tolist(),
+                                             "p_u": np.ones_like(x).tolist()}}}
+    narrow, wide = pile(0.35), pile(0.70)
+    assert decision.scaled_stress_column(narrow) == pytest.approx(decision.scaled_stress_column(wide), abs=0.02)
+    assert decision.scaled_stress_column(narrow) < -0.1
+    fixed = {"centre": 0.03, "shoulder_inner": 0.06, "shoulder_outer": 0.15}
+    read = [row_contrast(np.asarray(p["inputs"]["stress_column"]["sigma_yy"]),
+                         np.asarray(p["inputs"]["stress_column"]["x"]), fixed) for p in (narrow, wide)]
+    assert abs(read[0] - read[1]) > 0.05
+    assert math.isnan(decision.scaled_stress_column({"quantities": {"width": 0.7}}))
