@@ -41,6 +41,9 @@ LEVEL, POWER = 0.05, 0.8
 MIN_PILES = 10
 #: Arms whose mean angles of repose differ by more than this (deg) compare sources as built, not histories.
 SLOPE_TOLERANCE = 1.5
+#: The equal-slope pick (docs/reproduction/equal_slope.md): a control's mean angle within this
+#: of the reference (deg), its interior share above the funnel's by this much, at this Welch t.
+PICK_SLOPE, PICK_INTERIOR, PICK_T = 1.0, 0.10, 2.0
 #: D1's windows as fractions of each pile's half width (``quantities.width / 2``): the fixed
 #: windows (centre 3 cm, shoulders 6-15 cm) over the first decision's funnel piles' mean half
 #: width, 35.4 cm (:func:`scaled_stress_column`).
@@ -299,3 +302,48 @@ def scaled_stress_column(record: dict) -> float:
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.asarray(row["sigma_yy"], float) / np.asarray(row["p_u"], float)
     return row_contrast(ratio, np.asarray(row["x"], float), windows)
+
+
+def pick_control(records: list[dict], point: str, reference: list[float]) -> dict[str, Any]:
+    """The layered control of the equal-slope decision, by the rule of docs/reproduction/equal_slope.md.
+
+    Parameters
+    ----------
+    records : list of dict
+        The pilot's records: the point source's arm and the candidate layered arms.
+    point : str
+        The point source's arm.
+    reference : list of float
+        The angles (deg) of every funnel pile the reference slope is the mean of.
+
+    Returns
+    -------
+    dict
+        ``reference`` (mean angle, deg), per candidate arm in ``arms`` its mean
+        ``angle_deg``, ``interior_share``, ``flow_fraction`` (each mean, SE, n),
+        the interior contrast's Welch ``t`` against the point source and
+        whether it qualifies on ``slope`` and ``interior``; ``control``: the
+        qualifying arm nearest the reference (within 0.1°: the smaller mean
+        flow fraction), or None.
+    """
+    ref = float(np.mean(reference))
+    point_interior = [r["growth"]["interior_share"] for r in records if r["arm"] == point]
+    arms = {}
+    for arm in dict.fromkeys(r["arm"] for r in records if r["arm"] != point):
+        rs = [r for r in records if r["arm"] == arm]
+        angle = mean_sem([r["quantities"]["angle_deg"] for r in rs])
+        interior = mean_sem([r["growth"]["interior_share"] for r in rs])
+        flow = mean_sem([r["growth"]["flow_fraction"] for r in rs])
+        t = welch([r["growth"]["interior_share"] for r in rs], point_interior)["t"]
+        arms[arm] = {"angle_deg": (angle[0], angle[1], angle[3]), "interior_share": (interior[0], interior[1], interior[3]),
+                     "flow_fraction": (flow[0], flow[1], flow[3]), "interior_t": t,
+                     "slope": bool(abs(angle[0] - ref) <= PICK_SLOPE),
+                     "interior": bool(interior[0] - mean_sem(point_interior)[0] >= PICK_INTERIOR and t > PICK_T)}
+    qualified = [a for a, m in arms.items() if m["slope"] and m["interior"]]
+    control = None
+    if qualified:
+        near = min(abs(arms[a]["angle_deg"][0] - ref) for a in qualified)
+        tied = [a for a in qualified if abs(arms[a]["angle_deg"][0] - ref) <= near + 0.1]
+        control = min(tied, key=lambda a: arms[a]["flow_fraction"][0])
+    return {"reference": ref, "n_reference": len(reference), "arms": arms, "qualified": qualified,
+            "control": control}

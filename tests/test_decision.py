@@ -219,3 +219,30 @@ def test_scaled_windows_cut_piles_of_two_widths_at_the_same_fractions():
                          np.asarray(p["inputs"]["stress_column"]["x"]), fixed) for p in (narrow, wide)]
     assert abs(read[0] - read[1]) > 0.05
     assert math.isnan(decision.scaled_stress_column({"quantities": {"width": 0.7}}))
+
+
+def _pilot(arm, angle, interior, flow=0.0, n=6):
+    return [{"arm": arm, "seed": s, "quantities": {"angle_deg": angle + 0.2 * (s - 2.5)},
+             "growth": {"interior_share": interior + 0.01 * (s - 2.5), "flow_fraction": flow}}
+            for s in range(n)]
+
+
+def test_the_control_is_the_steep_enough_layered_arm_nearest_the_funnel_s_slope():
+    """Reference 28°: a rain at 26.5° is too flat, one at 27.6° and one at 28.3° qualify
+    (both lay their interior down far more than the funnel), the nearer (28.3°) is chosen;
+    a steep arm that flows like the funnel does not qualify on its interior."""
+    recs = (_pilot("wedge funnel", 28.0, 0.005, 1.0) + _pilot("rain 26", 26.5, 0.7)
+            + _pilot("rain 28", 27.6, 0.7) + _pilot("rain 29", 28.3, 0.6, 0.1)
+            + _pilot("rain flowing", 28.0, 0.05, 0.9))
+    out = decision.pick_control(recs, "wedge funnel", [27.5, 28.5])
+    assert out["reference"] == pytest.approx(28.0)
+    assert out["qualified"] == ["rain 28", "rain 29"] and out["control"] == "rain 29"
+    assert not out["arms"]["rain flowing"]["interior"] and out["arms"]["rain flowing"]["slope"]
+
+
+def test_a_tie_of_slopes_goes_to_the_arm_that_flows_less():
+    recs = (_pilot("wedge funnel", 28.0, 0.005, 1.0) + _pilot("rain a", 27.95, 0.7, 0.2)
+            + _pilot("rain b", 28.02, 0.7, 0.05))
+    assert decision.pick_control(recs, "wedge funnel", [28.0])["control"] == "rain b"
+    flat = _pilot("wedge funnel", 28.0, 0.005, 1.0) + _pilot("rain", 25.0, 0.7)
+    assert decision.pick_control(flat, "wedge funnel", [28.0])["control"] is None

@@ -19,8 +19,14 @@ prints the registered test over the ensemble, or, short of N piles per
 protocol, only how far the ensemble is (no test); ``--out`` writes it
 (``docs/reproduction/decision.md`` under ``make reproduction``).
 
+``pick`` applies the equal-slope decision's rule (docs/reproduction/equal_slope.md,
+:func:`analysis.decision.pick_control`) to the pilot's records and prints
+which layered control it picks (``--out``: the page,
+``docs/reproduction/equal_slope/pick.md``).
+
 Usage::
 
+    .venv/bin/python -m workflow.tools decision pick [--records PILOT] [--plan PILOT-CONFIG] [--out PAGE]
     .venv/bin/python -m workflow.tools decision select --plan config/decision_NEW.yaml [--out PAGE]
     .venv/bin/python -m workflow.tools decision verdict [--plan config/decision.yaml] [--out PAGE]
 """
@@ -109,6 +115,52 @@ def select(records: Path, plan: Path) -> str:
             fh.write("# The decision ensemble, written by python -m workflow.tools decision select from the\n"
                      "# calibration records by the rules of docs/reproduction/preregistration.md.\n"
                      + yaml.dump(chosen, Dumper=SettingsDumper, sort_keys=False))
+    return "\n".join(lines) + "\n"
+
+
+def pick(pilot: Path, pilot_config: Path, reference: Path, point: str) -> str:
+    """The equal-slope control by the rule of docs/reproduction/equal_slope.md; return its page.
+
+    Parameters
+    ----------
+    pilot : Path
+        The pilot's records, each checked against `pilot_config`.
+    pilot_config : Path
+        The settings file that registered the pilot's piles.
+    reference : Path
+        The first decision's records: its `point` piles' angles, with the
+        pilot's, make the reference slope.
+    point : str
+        The point source's arm.
+    """
+    found = read_records(pilot, "--pilot")
+    check_registered(found, pilot_config)
+    recs = list(found.values())
+    first = [r["quantities"]["angle_deg"] for r in read_records(reference, "--reference").values()
+             if r["arm"] == point]
+    angles = first + [r["quantities"]["angle_deg"] for r in recs if r["arm"] == point]
+    out = decision.pick_control(recs, point, angles)
+    funnel = decision.mean_sem([r["growth"]["interior_share"] for r in recs if r["arm"] == point])
+    cpu = lambda arm: decision.mean_sem([r["cpu_s"]["total"] for r in recs if r["arm"] == arm])  # noqa: E731
+    lines = ["# The equal-slope control: what the rule picked",
+             "",
+             f"Made by `python -m workflow.tools decision pick` from the pilot's records ({len(recs)} piles, "
+             f"{shown(pilot)}/, settings {shown(pilot_config)}) by the rule of [equal_slope.md](../equal_slope.md). "
+             f"Reference slope: the mean angle of {len(angles)} {point} piles ({len(first)} of the first decision, "
+             f"{len(angles) - len(first)} of the pilot): **{out['reference']:.2f}°**; {point} interior share "
+             f"{funnel[0]:.3f} ± {funnel[1]:.3f}, CPU s per pile {cpu(point)[0]:.0f} ± {cpu(point)[1]:.0f}.",
+             "",
+             "| arm | piles | angle (deg) | interior share | flanks flow | interior t against the point source "
+             "| CPU s per pile | slope within 1° | interior |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for arm, m in out["arms"].items():
+        (a, sa, n), (i, si, _), (f, sf, _) = m["angle_deg"], m["interior_share"], m["flow_fraction"]
+        c = cpu(arm)
+        lines.append(f"| {arm} | {n} | {a:.2f} ± {sa:.2f} | {i:.3f} ± {si:.3f} | {f:.3f} ± {sf:.3f} "
+                     f"| {m['interior_t']:.1f} | {c[0]:.0f} ± {c[1]:.0f} | {'yes' if m['slope'] else 'no'} "
+                     f"| {'yes' if m['interior'] else 'no'} |")
+    lines += ["", f"**Control: {out['control']}**" if out["control"] else
+              "**No arm qualifies**: the rule's step 5 comes next (equal_slope.md)."]
     return "\n".join(lines) + "\n"
 
 
@@ -201,18 +253,25 @@ def verdict(records: Path, plan: Path) -> str:
 def main(argv=None) -> None:
     """Command line: ``select`` or ``verdict`` (the module's docstring); prints the page, writes it only to ``--out``."""
     ap = ToolParser(description=__doc__.splitlines()[0])
-    ap.add_argument("step", choices=["select", "verdict"])
-    ap.add_argument("--plan", type=Path, default=PLAN,
-                    help="the plan: read by verdict (default: config/decision.yaml), written anew by select")
+    ap.add_argument("step", choices=["select", "verdict", "pick"])
+    ap.add_argument("--plan", type=Path, default=None,
+                    help="the plan: read by verdict (default: config/decision.yaml), written anew by select; "
+                         "for pick the pilot's settings (default: config/equal_slope_pilot2.yaml)")
     ap.add_argument("--records", type=Path, default=None,
                     help="the records' folder (default: docs/reproduction/calibration for select, "
                          "docs/reproduction/PLAN-NAME for verdict)")
     ap.add_argument("--out", type=output_file, default=None, help="also write the page to this file")
     args = ap.parse_args(argv)
-    if args.step == "select":
+    if args.step == "pick":
+        page = pick(args.records or DOCS / "equal_slope" / "pilot2",
+                    args.plan or REPO / "config" / "equal_slope_pilot2.yaml", DOCS / "decision", "wedge funnel")
+    elif args.step == "select":
+        if args.plan is None:
+            refuse("select: --plan is missing; allowed is a new plan file (a registered plan is never rewritten)")
         page = select(args.records or DOCS / "calibration", args.plan)
     else:
-        page = verdict(args.records or DOCS / args.plan.stem, args.plan)
+        plan = args.plan or PLAN
+        page = verdict(args.records or DOCS / plan.stem, plan)
     if args.out:
         args.out.write_text(page)
     print(page, end="")
