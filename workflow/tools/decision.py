@@ -189,29 +189,33 @@ def verdict(records: Path, plan: Path) -> str:
         (:func:`workflow.tools._records.check_registered`), or the folder holds none.
     """
     reg = read_settings_file(plan)
+    family = tuple(reg.get("primary", decision.DECISION))
+    margin = reg.get("equivalence_margin")
     found = read_records(records)
-    check_registered(found, plan, replaces=decision.DECISION[0])
+    check_registered(found, plan, replaces=family[0])
     recs = list(found.values())
     point, layered = list(reg["arms"])
     n = len(reg["seeds"])
     have = {a: sum(r["arm"] == a for r in recs) for a in (point, layered)}
-    lines = ["# The decision: a pressure minimum under point-source piles?", "",
-             f"Registered in [preregistration.md](preregistration.md); arms and N in "
-             f"[decision_plan.md](decision_plan.md): {point} against {layered}, {n} piles per protocol. "
-             f"Made by `python -m workflow.tools decision verdict` from {shown(records)}/.", ""]
+    page = reg.get("registration", "preregistration.md")
+    lines = [f"# {reg.get('title', 'The decision: a pressure minimum under point-source piles?')}", "",
+             f"Registered in [{page}]({page}); arms and N in "
+             f"[{reg.get('plan_page', 'decision_plan.md')}]({reg.get('plan_page', 'decision_plan.md')}): "
+             f"{point} against {layered}, {n} piles per protocol. "
+             f"Made by `python -m workflow.tools decision verdict --plan {shown(plan)}` from {shown(records)}/.", ""]
     try:
-        result = decision.verdict(recs, point, layered, n)
+        result = decision.verdict(recs, point, layered, n, family=family, margin=margin)
     except ValueError as exc:
         lines.append(f"**No verdict yet**: {exc} (piles recorded: {have}).")
         return "\n".join(lines) + "\n"
-    shape = decision.shape_check(recs, point, layered)
+    shape = decision.shape_check(recs, point, layered, family[0])
     (pa, pse, _), (la, lse, _) = shape["angle"][point], shape["angle"][layered]
     built = (f" (of the sources as built, not of history: the arms rest {abs(shape['angle_diff']):.1f}° apart)"
              if shape["as_built"] else "")
     lines += [f"**Verdict{built}: {result['sentence']}.**", "",
               f"What the arms differ in besides the history: {point} piles rest at {pa:.1f}° ± {pse:.1f}°, "
               f"{layered} piles at {la:.1f}° ± {lse:.1f}° (`angle_deg`). Fitted on arm plus angle, the arm's "
-              f"effect on {decision.DECISION[0]} is {100 * shape['arm_effect']:+.1f} % ± {100 * shape['arm_se']:.1f} % "
+              f"effect on {family[0]} is {100 * shape['arm_effect']:+.1f} % ± {100 * shape['arm_se']:.1f} % "
               f"and the angle's {100 * shape['slope_effect']:+.2f} % ± {100 * shape['slope_se']:.2f} % per degree "
               f"(arm and angle correlate at {shape['correlation']:.2f}"
               + ("; so close to 1 that the fit cannot part them" if abs(shape["correlation"]) > 0.9 else "")
@@ -221,17 +225,24 @@ def verdict(records: Path, plan: Path) -> str:
               f"| statistic | {point} | {layered} | difference | Welch t | p | Holm p | power at "
               f"{decision.EFFECT:.0%} |", "|---|---|---|---|---|---|---|---|"]
     lines += [_row(k, r) for k, r in result["decision"].items()]
-    plan_sd = decision.piles_required(calibration_records(DOCS / "calibration", "calibration records"),
-                                      point, layered)["sd"]
+    plan_sd = reg["scatter"] if "scatter" in reg else decision.piles_required(
+        calibration_records(DOCS / "calibration", "calibration records"), point, layered)["sd"]
     lines += [""] + [f"- {k}: 95 % interval of the difference [{100 * r['ci95'][0]:+.1f} %, "
                      f"{100 * r['ci95'][1]:+.1f} %]; per-pile scatter {r['sd'][0]:.4f} ({point}), "
                      f"{r['sd'][1]:.4f} ({layered})" for k, r in result["decision"].items()]
-    d1 = result["decision"][decision.DECISION[0]]
-    lines += [f"- {layered} alone: {decision.DECISION[0]} {100 * d1['layered'][0]:+.1f} % ± "
+    d1 = result["decision"][family[0]]
+    if margin is not None:
+        eq = result["equivalence"]
+        lines += [f"- Equivalence (two one-sided Welch tests, ±{100 * margin:.0f} %): p {eq['p']:.3g} "
+                  f"(against ≤ −{100 * margin:.0f} %: {eq['p_low']:.3g}; against ≥ +{100 * margin:.0f} %: "
+                  f"{eq['p_high']:.3g}); {'equivalent' if eq['equivalent'] else 'not shown equivalent'} at 5 %."]
+    lines += [f"- {layered} alone: {family[0]} {100 * d1['layered'][0]:+.1f} % ± "
               f"{100 * d1['layered'][1]:.1f} % (t {d1['layered'][0] / d1['layered'][1]:.1f} against 0); the "
               "paper finds no dip under its layered piles."]
     low_power = [k for k, r in result["decision"].items() if r["rejected"] and r["power"] < decision.POWER]
-    lines += [f"- N was set from D1's pooled calibration scatter {plan_sd:.4f}; the power column is at the "
+    lines += [f"- N was set from D1's scatter {plan_sd:.4f} "
+              f"({reg.get('scatter_source', 'pooled over the calibration piles of the two arms')}); "
+              "the power column is at the "
               "ensemble's own scatter" + (
                   f": below the planned {decision.POWER:.0%} for {', '.join(low_power)}, where a test that "
                   "rejects tends to overstate the effect, so the estimate is more likely too large than too "
@@ -239,10 +250,10 @@ def verdict(records: Path, plan: Path) -> str:
               f"- Piles: seeds {reg['seeds'][0]}-{reg['seeds'][-1]}, {have[point]} {point} and "
               f"{have[layered]} {layered} recorded; missing: "
               + (", ".join(f"{r['arm']} seed {r['seed']}" for r in recs
-                           if not math.isfinite(r["quantities"].get(decision.DECISION[0], math.nan))) or "none")
+                           if not math.isfinite(r["quantities"].get(family[0], math.nan))) or "none")
               + "."]
     lines += ["", "Secondary (own Holm family, not the verdict; no power column: the ensemble was powered for "
-              f"{decision.EFFECT:.0%} in {decision.DECISION[0]} alone, and the secondaries' units differ, "
+              f"{decision.EFFECT:.0%} in {family[0]} alone, and the secondaries' units differ, "
               "an angle in degrees among them):", "",
               "| statistic | point | layered | difference | Welch t | p | Holm p |",
               "|---|---|---|---|---|---|---|"]
@@ -266,9 +277,7 @@ def main(argv=None) -> None:
         page = pick(args.records or DOCS / "equal_slope" / "pilot2",
                     args.plan or REPO / "config" / "equal_slope_pilot2.yaml", DOCS / "decision", "wedge funnel")
     elif args.step == "select":
-        if args.plan is None:
-            refuse("select: --plan is missing; allowed is a new plan file (a registered plan is never rewritten)")
-        page = select(args.records or DOCS / "calibration", args.plan)
+        page = select(args.records or DOCS / "calibration", args.plan or PLAN)
     else:
         plan = args.plan or PLAN
         page = verdict(args.records or DOCS / plan.stem, plan)
