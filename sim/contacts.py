@@ -141,7 +141,7 @@ def stretch_body(state, scene, body_id, strain):
     tx, ty = -rows[act, ROW["ny"]], rows[act, ROW["nx"]]
     along = ((rows[act, ROW["sx"]] - scene.body_p[b, 0]) * tx
              + (rows[act, ROW["sy"]] - scene.body_p[b, 1]) * ty)
-    state.bspring[b, act] -= tangential_stiffness(scene.model.youngs_modulus) * strain * along
+    state.bspring[b, act] -= tangential_stiffness(float(scene.model.youngs_modulus)) * strain * along
     return int(act.size)
 
 

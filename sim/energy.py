@@ -33,7 +33,7 @@ def elastic_energy(state, scene):
     by :data:`sim.blowup.ELASTIC_UNDERESTIMATE` of itself.
     """
     e = 0.0
-    kt = tangential_stiffness(scene.model.youngs_modulus)
+    kt = tangential_stiffness(float(scene.model.youngs_modulus))
     n = state.n
     for rows, spring in ((state.pout, state.spring),
                          (state.bout[:, :n].reshape(-1, ROW_SIZE), state.bspring[:, :n].ravel())):

@@ -132,7 +132,7 @@ def stability_bound(youngs_modulus, damping, integrator, mass, inertia, radius,
     l_min = 0.5 * float(np.min(inradius))
     ratio = max_edge / l_min
     k_normal = youngs_modulus * ratio
-    k_tangential = tangential_stiffness(youngs_modulus)
+    k_tangential = tangential_stiffness(float(youngs_modulus))
     omega_n = np.sqrt(k_normal * inv_mass)
     omega_t = np.sqrt(k_tangential * inv_mass)
     zeta_n = 0.5 * damping * np.sqrt(ratio)
@@ -320,7 +320,7 @@ def check_run(scene, what, duration, speed, drag, sources) -> None:
     """
     dt, integrator = scene.dt, scene.model.integrator
     at = f"dt = {dt:.3g} s ({sources['dt']})"
-    steps = duration / dt
+    steps = duration / dt if dt > 0 else math.inf     # dt_safety 5e-324 rounds the step to 0
     if not steps <= MAX_STEPS:
         raise ConfigError(
             f"{what}: {sources['duration']} make up to {duration:.4g} s of simulated time, "

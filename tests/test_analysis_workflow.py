@@ -32,7 +32,7 @@ def _project(tmp_path, analysis_cfg=None):
         from snakemake.utils import validate
         configfile: "config.yaml"
         validate(config["analysis"], "{REPO}/analysis/params.schema.yaml")
-        config.update(committed=None, results="results", outputs=["states", "fields", "strain", "fabric",
+        config.update(committed=None, results="results", outputs=["fields", "strain", "fabric",
                       "fits", "figures"], protocols={{"wedge": {{"seeds": [1, 2]}}, "layered": {{"seeds": [1, 2]}}}},
                       probe={{"levels": [0.1], "tilts": [], "stretch": 0.0, "restore": False}})
         from workflow.study import Study

@@ -24,7 +24,7 @@ from sim.io import StateFileError, read_state, save_state
 from sim.lock import PourLock, PourLockedError
 from sim.pour import LandingError, pile_shapes, pour
 
-TINY = {"pour": {"n_particles": 12, "rate": 400.0, "checkpoint_interval": 0.02,
+TINY = {"pour": {"n_particles": 12, "rate": 400.0, "release_speed": 0.3, "checkpoint_interval": 0.02,
                  "progress_interval": 1e9, "frame_interval": 0.01},
         "model": {"integrator": "verlet"}}
 VARIABLES = ("x", "y", "theta", "vx", "vy", "omega", "contact_i", "contact_j", "force_x",

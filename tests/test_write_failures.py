@@ -84,7 +84,7 @@ def test_the_command_line_says_it_in_one_line(tmp_path, monkeypatch, caplog):
     def pour(*args, **kwargs):
         save_state(None, tmp_path / "p.nc")  # the state's write fails as above
     _failing_netcdf(monkeypatch, written=0)
-    monkeypatch.setattr("sim.io.state_dataset", lambda sim, config=None, **attrs: __import__("xarray").Dataset())
+    monkeypatch.setattr("sim.io.state_dataset", lambda sim, config=None, keep=None, **attrs: __import__("xarray").Dataset())
     monkeypatch.setattr("sim.pour.pour", pour)
     status = sim_main(["pour", "--params", "{}", "--protocol", "wedge", "--seed", "1", "--out", str(tmp_path / "p.nc")])
     assert status == 3
