@@ -269,7 +269,8 @@ def source(cfg: SimConfig, shapes, protocol, gravity):
         elevation = p.outlet_height * mean_diameter(shapes)
         return Source(rate, speed, elevation,
                       (f"the Beverloo rate {rate:.4g}/s of pour.outlet_width = "
-                       f"{p.outlet_width!r} diameters", f"the funnel's stream at {speed:.3g} m/s",
+                       f"{p.outlet_width!r} diameters",
+                       f"pour.outlet_width = {p.outlet_width!r} diameters (its stream falls at {speed:.3g} m/s)",
                        f"pour.outlet_height = {p.outlet_height!r} diameters ({elevation:.3g} m)"))
     return Source(p.rate, p.release_speed, p.release_height,
                   (f"pour.rate = {p.rate!r}/s", f"pour.release_speed = {p.release_speed!r} m/s",

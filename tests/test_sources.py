@@ -202,3 +202,11 @@ def test_a_killed_pour_of_a_new_source_resumes_bit_for_bit(tmp_path, monkeypatch
         for v in ("x", "y", "theta", "vx", "vy", "omega", "contact_i", "contact_j",
                   "force_x", "force_y", "contact_spring"):
             np.testing.assert_array_equal(a[v].values, b[v].values, err_msg=v)
+
+
+def test_the_funnel_s_stream_speed_is_named_by_the_setting_that_sets_it():
+    """A pour that does not land advises lowering its source's speed: for the funnel that is
+    pour.outlet_width (the stream's speed follows from it), not a speed no setting holds."""
+    cfg = SimConfig.from_dict({"pour": {"n_particles": 50, "point_source": "funnel", "outlet_width": 100}})
+    src = source(cfg, pile_shapes(cfg, 1), "wedge", 9.81)
+    assert src.origin[1].startswith("pour.outlet_width = 100 diameters")
