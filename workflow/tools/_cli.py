@@ -64,26 +64,25 @@ def seed(text: str) -> int:
     return value
 
 
-def positive_float(text: str) -> float:
-    """An argument type: a finite number above 0."""
+def _number(text: str, allowed: str, ok) -> float:
+    """`text` as a number for which ``ok(value)`` holds, else an argparse error saying what is `allowed`."""
     try:
         value = float(text)
     except ValueError:
         value = math.nan
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"{text!r}: allowed is a finite number above 0")
+    if not ok(value):
+        raise argparse.ArgumentTypeError(f"{text!r}: allowed is {allowed}")
     return value
+
+
+def positive_float(text: str) -> float:
+    """An argument type: a finite number above 0."""
+    return _number(text, "a finite number above 0", lambda v: math.isfinite(v) and v > 0)
 
 
 def fraction(text: str) -> float:
     """An argument type: a number from 0 up to, not including, 1."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not 0 <= value < 1:
-        raise argparse.ArgumentTypeError(f"{text!r}: allowed is a number from 0 up to, not including, 1")
-    return value
+    return _number(text, "a number from 0 up to, not including, 1", lambda v: 0 <= v < 1)
 
 
 def output_file(text: str) -> Path:
