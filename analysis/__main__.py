@@ -11,6 +11,7 @@ file or variable, and exit status 2 (parameters) or 1 (inputs, failed checks).
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import re
 import sys
@@ -21,11 +22,20 @@ from typing import Any
 from sim.atomic import OutputError, atomic_path
 from sim.digest import code_digest
 
-from . import __version__, draw, film, vtk
+from . import __version__
 from .errors import AnalysisError, InputError, ParamError
-from .fields import QUANTITIES, check_units
-from .params import parse_params
-from .paths import check_paths, labelled
+
+#: The commands whose arguments and work live in a module of their own, imported
+#: only when the command runs (or asks for its --help): ``command: module``.
+MODULE_COMMANDS = {"draw": "draw", "export": "vtk", "film": "film"}
+
+
+def check_units(ds, path: str | None = None) -> None:
+    """:func:`analysis.fields.check_units`, imported when a fields file is read
+    (the command line itself starts without xarray and scipy)."""
+    from .fields import check_units as check
+
+    check(ds, path)
 
 
 def _log(msg: str) -> None:
@@ -55,6 +65,8 @@ def _require(ds, path: str, names: tuple[str, ...]) -> None:
 
 def _labelled(items: list[str]) -> dict[str, str]:
     """``label=path`` pairs (label defaults to the name of the file's folder)."""
+    from .paths import labelled
+
     out = {}
     for it in items:
         path = labelled(it)
@@ -416,7 +428,13 @@ def cmd_figure(args, params) -> None:
 
 
 # ------------------------------------------------------------------ parser
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser of ``python -m analysis``: every command with its help line, and the
+    arguments of `command` (all of them when None is given: every module is then imported).
+
+    A command's arguments are read only for the command that runs, so that ``--help``
+    and a command start without importing the modules of the others (draw, film and the
+    VTK export bring matplotlib, xarray and scipy)."""
     p = argparse.ArgumentParser(
         prog="python -m analysis",
         description="Micro-to-macro analysis of polygon piles (Roul, Schinner & Kassner 2010): RVE fields, "
@@ -429,8 +447,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     def add(name, help_, func):
         sp = sub.add_parser(name, help=help_, description=help_)
+        if command not in (None, name):          # its arguments are read only when it runs
+            return argparse.ArgumentParser(add_help=False)
         sp.add_argument("--params", default="{}", help="the 'analysis' config section as JSON or YAML text, or @file "
                         "(defaults filled in; see analysis/params.py)")
+        if name in MODULE_COMMANDS:
+            module = importlib.import_module(f"analysis.{MODULE_COMMANDS[name]}")
+            module.add_arguments(sp)
+            func = getattr(module, func)
         sp.set_defaults(func=func)
         return sp
 
@@ -438,7 +462,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp = add("fields", "per-pile RVE fields (docs/formats.md#fields) and balance-law checks", cmd_fields)
     sp.add_argument("--relaxed", required=True, help="state file at full gravity")
     sp.add_argument("--reduced", help="state file at reduced gravity (without it: no stress increment, no strain)")
-    sp.add_argument("--quantities", nargs="*", choices=QUANTITIES,
+    sp.add_argument("--quantities", nargs="*",
+                    choices=importlib.import_module("analysis.fields").QUANTITIES if command == "fields" else None,
                     help="optional quantities computed besides the stress (default: fabric, and strain when "
                          "--reduced is given; none listed: the stress only)")
     sp.add_argument("--out", required=True, help="fields netCDF to write")
@@ -479,17 +504,14 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--relaxed", required=True)
     sp.add_argument("--reduced", required=True)
     sp.add_argument("--out", required=True)
-    sp = add("draw", "picture of one particle state: polygons coloured by their Eq. 2 pressure, and the "
-             "contact-force network (PNG/PDF/SVG by extension)", draw.cmd_draw)
-    draw.add_arguments(sp)
-    sp = add("export", "one particle state as VTK files for ParaView: OUT.vtu (polygons with velocity, Eq. 2 "
-             "pressure, coordination, ...) and OUT_contacts.vtu (the contact network with its forces); or a "
-             "pour's frames as a ParaView time series: OUT.pvd and one polygon file per frame in OUT/",
-             vtk.cmd_export)
-    vtk.add_arguments(sp)
-    sp = add("film", "a film of a pour from its frames (python -m sim pour --frames): MP4, and optionally "
-             "an HTML page holding it", film.cmd_film)
-    film.add_arguments(sp)
+    add("draw", "picture of one particle state: polygons coloured by their Eq. 2 pressure, and the "
+        "contact-force network (PNG/PDF/SVG by extension)", "cmd_draw")
+    add("export", "one particle state as VTK files for ParaView: OUT.vtu (polygons with velocity, Eq. 2 "
+        "pressure, coordination, ...) and OUT_contacts.vtu (the contact network with its forces); or a "
+        "pour's frames as a ParaView time series: OUT.pvd and one polygon file per frame in OUT/",
+        "cmd_export")
+    add("film", "a film of a pour from its frames (python -m sim pour --frames): MP4, and optionally "
+        "an HTML page holding it", "cmd_film")
     sp = add("run-times", "table (HTML) of the wall and CPU time and peak memory of simulation jobs, "
              "from their Snakemake benchmark files", cmd_run_times)
     sp.add_argument("--benchmarks", nargs="+", required=True,
@@ -502,11 +524,18 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--inputs", nargs="+", required=True,
                     help="input netCDF files, optionally as label=path (label = protocol; default: folder name)")
     sp.add_argument("--out", nargs="+", required=True, help="output files, e.g. fig.png fig.pdf")
+    p.commands = list(sub.choices)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    commands = _commands()
+    command = next((a for a in argv if a in commands), "")   # "": none, only the commands' list
+    args = build_parser(command).parse_args(argv)
+    from .params import parse_params
+    from .paths import check_paths
+
     try:
         check_paths(args)
         params = parse_params(args.params)
@@ -519,6 +548,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     return 0
+
+
+def _commands() -> list[str]:
+    """The names of the commands (a parser of no command's arguments imports nothing)."""
+    return build_parser("").commands
 
 
 if __name__ == "__main__":

@@ -137,3 +137,21 @@ def test_stress_only_fields_and_their_ensemble(tmp_path, states, capsys):
     assert main(["fields", "--relaxed", relaxed, "--quantities", "strain", "--out", str(out),
                  "--params", SMALL]) == 1
     assert "strain needs the reduced state" in capsys.readouterr().err
+
+
+def test_the_command_list_starts_without_the_heavy_libraries():
+    """``python -m analysis --help`` lists the commands without importing xarray, scipy,
+    matplotlib or numba (the modules of a command are imported when it runs): the help of
+    a command line a user types first is instant."""
+    code = ("import sys, contextlib, io\n"
+            "from analysis.__main__ import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()) as out:\n"
+            "    try:\n"
+            "        main(['--help'])\n"
+            "    except SystemExit:\n"
+            "        pass\n"
+            "assert 'COMMAND' in out.getvalue()\n"
+            "print(sorted(m for m in ('xarray', 'scipy', 'matplotlib', 'numba') if m in sys.modules))\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "[]"
