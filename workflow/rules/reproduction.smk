@@ -77,6 +77,9 @@ if config["committed"]:
     # The levers (config/levers.yaml): calibration arms with one setting changed, records in {committed}/levers/.
     LEVER_RECORDS = sorted(str(p) for p in (study.analysis.committed / "levers").glob("*.json"))
     DECISION_PLAN = study.repo / "config" / "decision.yaml"
+    # Its records, in {committed}/decision/: the verdict page is made when there are any
+    # (decision verdict refuses an empty or missing folder).
+    DECISION_RECORDS = sorted(str(p) for p in (study.analysis.committed / "decision").glob("*.json"))
 
     rule reproduction:
         # make reproduction: the figures and the per-pile table, from the
@@ -93,7 +96,7 @@ if config["committed"]:
                                  variant=SIX_CONSTANT_VARIANTS),
             calibration=[str(study.analysis.committed / "calibration.md")] if CALIBRATION_RECORDS else [],
             levers=[str(study.analysis.committed / "levers.md")] if LEVER_RECORDS else [],
-            decision=[str(study.analysis.committed / "decision.md")] if DECISION_PLAN.exists() else [],
+            decision=[str(study.analysis.committed / "decision.md")] if DECISION_PLAN.exists() and DECISION_RECORDS else [],
         localrule: True
 
     rule reproduction_calibration:
@@ -136,7 +139,7 @@ if config["committed"]:
 
     rule reproduction_decision:
         input:
-            records=lambda wc: sorted(str(p) for p in (study.analysis.committed / "decision").glob("*.json")),
+            records=DECISION_RECORDS,
             calibration=lambda wc: sorted(str(p) for p in (study.analysis.committed / "calibration").glob("*.json")),
             plan=str(DECISION_PLAN),
             tool="workflow/tools/decision.py",
