@@ -351,6 +351,7 @@ def _pour(cfg, protocol, seed, shapes, base, out, checkpoint, settle_time, lock,
     if recorder is not None:
         recorder.finish(sim)
         recorder.save(frames, cfg.to_dict(), **attrs)
+    pairs = None
     if half_width is None:
         save_state(sim, out, cfg.to_dict(), stage="poured", **attrs)
     else:
@@ -359,12 +360,13 @@ def _pour(cfg, protocol, seed, shapes, base, out, checkpoint, settle_time, lock,
                    left_table=int(sim.n - np.sum(kept)), table_half_width=half_width, **attrs)
         log.info("%s: %d of %d particles released stay on the table |x| <= %.4g m, %d left it",
                  what, int(np.sum(kept)), sim.n, half_width, int(sim.n - np.sum(kept)))
-        sim, _ = load_simulation(out)
+        sim, kept_state = load_simulation(out)
+        pairs = (kept_state["contact_i"].values, kept_state["contact_j"].values)
     if finished is not None:
         keep_finished(finished, out, frames)
     if checkpoint is not None:
         remove_checkpoint(checkpoint)
-    summary(sim, f"pour {protocol} seed {seed}", _time.monotonic() - t_wall)
+    summary(sim, f"pour {protocol} seed {seed}", _time.monotonic() - t_wall, pairs)
     return sim
 
 

@@ -198,11 +198,26 @@ def fixed_remaining(end_time):
     return remaining
 
 
-def summary(sim, what, wall):
-    """Log the summary line of a finished stage `what` of `sim` after `wall` s of wall time."""
+def summary(sim, what, wall, contacts=None):
+    """Log the summary line of a finished stage `what` of `sim` after `wall` s of wall time.
+
+    Parameters
+    ----------
+    sim : Simulation
+    what : str
+        The stage, as the line names it.
+    wall : float
+        Its wall time, s.
+    contacts : tuple of numpy.ndarray, optional
+        The contacts' ``(i, j)`` where `sim` has not evaluated its forces since
+        it was loaded (a table pile reloaded without its parked particles);
+        default: those of its last force evaluation.
+    """
     pos = sim.position
-    c = sim.contacts()
+    if contacts is None:
+        c = sim.contacts()
+        contacts = (c["i"], c["j"])
     angle = angle_of_repose(pos[:, 0], pos[:, 1], sim.shapes.radius[:sim.n])
     log.info("%s done: wall %.1f s, %d steps, %d particles, t = %.4f s, angle of repose "
              "%.1f deg, mean coordination %.2f", what, wall, sim.step, sim.n, sim.time,
-             angle, mean_coordination(c["i"], c["j"], sim.n))
+             angle, mean_coordination(*contacts, sim.n))

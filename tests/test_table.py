@@ -9,6 +9,7 @@ particle that left as gone from then on, a killed pour resumes bit for bit,
 and a table setting out of range is refused in one line before anything runs.
 """
 
+import logging
 import math
 
 import numpy as np
@@ -35,13 +36,37 @@ def radii(ds):
                                                            np.split(ds["node_y"].values, cut))])
 
 
+class Lines(logging.Handler):
+    """The log lines of a run, kept."""
+
+    def __init__(self):
+        super().__init__()
+        self.lines = []
+
+    def emit(self, record):
+        self.lines.append(record.getMessage())
+
+
 @pytest.fixture(scope="module")
 def table_pile(tmp_path_factory):
-    """A pile of 150 released particles poured on the table (seed 2), with its frames."""
+    """A pile of 150 released particles poured on the table (seed 2), with its frames and log lines."""
     out = tmp_path_factory.mktemp("table") / "poured.nc"
     cfg = SimConfig.from_dict(TABLE)
-    pour(cfg, "layered", 2, out, frames=out.with_name("frames.nc"))
+    lines, logger = Lines(), logging.getLogger("sim")
+    level = logger.level
+    logger.addHandler(lines)
+    logger.setLevel(logging.INFO)
+    try:
+        pour(cfg, "layered", 2, out, frames=out.with_name("frames.nc"))
+    finally:
+        logger.removeHandler(lines)
+        logger.setLevel(level)
+    TABLE_LOG[:] = lines.lines
     return cfg, out
+
+
+#: The log lines of the module's table pour.
+TABLE_LOG = []
 
 
 def test_the_table_is_the_base_of_the_pile_its_released_particles_fill_twice():
@@ -62,6 +87,17 @@ def test_no_particle_of_the_saved_pile_lies_beyond_the_table(table_pile):
         # and the contacts are among the pile's own particles (or with the support)
         assert ds["contact_i"].values.max() < ds.sizes["particle"]
         assert set(ds["contact_j"].values[ds["contact_j"].values < 0]) <= {-1}
+
+
+def test_the_summary_line_counts_the_saved_piles_contacts(table_pile):
+    """The pour's last line gives the kept pile's coordination, 2 × particle pairs / particles,
+    from the saved contacts (it read 0.00 when the reloaded pile had evaluated no force)."""
+    _, out = table_pile
+    with xr.open_dataset(out) as ds:
+        pairs = int(np.sum(ds["contact_j"].values >= 0))
+        expected = 2 * pairs / ds.sizes["particle"]
+    (line,) = [t for t in TABLE_LOG if " done: wall " in t]
+    assert expected > 1.0 and line.endswith(f"mean coordination {expected:.2f}")
 
 
 def test_released_are_those_on_the_table_plus_those_removed(table_pile):
