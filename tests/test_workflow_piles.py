@@ -248,4 +248,4 @@ def test_the_workflows_modules_import_without_snakemake():
             f"[importlib.import_module('workflow.' + m) for m in {modules!r}]")
     proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
-    assert {"piles", "scene", "analysis_inputs", "numerics_piles", "resources", "commands", "reporting"} <= set(modules)
+    assert {"piles", "outputs", "analysis_inputs", "numerics_piles", "resources", "commands", "reporting"} <= set(modules)
