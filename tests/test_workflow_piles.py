@@ -1,6 +1,6 @@
 """The piles of a configuration (workflow/piles.py): stage names of the
-probes (stages.py), the files of a pile (paths.py), the settings each simulation job receives (jobs.py), and
-the configuration's problems named with setting, value and what is allowed;
+probes (stages.py), the files of a pile (pile_paths.py), the settings each simulation job receives
+(jobs.py), and the configuration's problems named with setting, value and what is allowed;
 with the command lines (workflow/commands.py) and the resources of the jobs
 (workflow/resources.py)."""
 
