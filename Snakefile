@@ -53,7 +53,7 @@ config["_report"] = report_words(
 # What the scene asks for (config `outputs`; by default everything: every pile
 # stage, the picture of every relaxed pile, and the analysis), with the
 # numerical checks' files when it asks for numerics.
-SCENE_TARGETS = study.scene.targets(study.analysis.targets(), list(rules.numerics.input) + study.numerics.targets())
+SCENE_TARGETS = study.outputs.targets(study.analysis.targets(), list(rules.numerics.input) + study.numerics.targets())
 
 
 rule all:

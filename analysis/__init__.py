@@ -5,7 +5,7 @@ the data flows one way, from the simulator to the analysis.  Of the simulator's
 package it imports five light modules only, which import nothing else of it
 and load without Numba: the settings reader :mod:`sim.settings_file`, the
 schema check :mod:`sim.schema`, the command line's path check
-:mod:`sim.paths`, the digests :mod:`sim.digest` and the atomic write
+:mod:`sim.distinct_paths`, the digests :mod:`sim.digest` and the atomic write
 :mod:`sim.atomic` (tests/test_layering.py).  Modules, one concern each:
 
 ``states``        read and validate contract state files

@@ -65,7 +65,7 @@ def _require(ds, path: str, names: tuple[str, ...]) -> None:
 
 def _labelled(items: list[str]) -> dict[str, str]:
     """``label=path`` pairs (label defaults to the name of the file's folder)."""
-    from .paths import labelled
+    from .command_files import labelled
 
     out = {}
     for it in items:
@@ -534,7 +534,7 @@ def main(argv: list[str] | None = None) -> int:
     command = next((a for a in argv if a in commands), "")   # "": none, only the commands' list
     args = build_parser(command).parse_args(argv)
     from .params import parse_params
-    from .paths import check_paths
+    from .command_files import check_paths
 
     try:
         check_paths(args)

@@ -4,7 +4,7 @@ Both packages write every file through :func:`atomic_path` (the simulator's
 states, checkpoints, frames and logs of numbers; the analysis' fields,
 figures, films, exports and pages), so that a killed or failed writer never
 leaves a complete-looking file and a failure reads the same from either
-command line (:class:`OutputError`).  Like :mod:`sim.paths` it is shared with
+command line (:class:`OutputError`).  Like :mod:`sim.distinct_paths` it is shared with
 the analysis: it knows nothing of states or physics, only files.
 """
 

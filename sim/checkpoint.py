@@ -212,7 +212,7 @@ def _copy(source, path):
     """Write a copy of the file `source` to `path` atomically (:func:`sim.atomic.atomic_path`).
 
     A copy, not a hard link: a hard link would make the two one file, which
-    :func:`sim.paths.check_distinct_paths` refuses as ``--out`` and ``--finished``.
+    :func:`sim.distinct_paths.check_distinct_paths` refuses as ``--out`` and ``--finished``.
     """
     with atomic_path(path) as tmp:
         shutil.copyfile(source, tmp)

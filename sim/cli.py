@@ -13,7 +13,7 @@ nothing.  ``relax`` and ``probe`` take ``model.integrator`` and ``model.dt``
 of the state file they read where ``--params`` sets neither.  No output may
 be an input or another output, nor a file the run derives from one (a
 checkpoint's lock, a state's last good state): such a command line is refused
-in one line before anything runs (:mod:`sim.paths`), as are a
+in one line before anything runs (:mod:`sim.distinct_paths`), as are a
 ``--seed`` outside 0 to 2^32 - 1 and ``bench --threads`` beyond Numba's.
 """
 
@@ -33,7 +33,7 @@ from .frames import partial_path
 from .atomic import OutputError
 from .io import code_version, model_from_attrs, read_state
 from .lock import lock_path
-from .paths import PathRoles, at_file, check_distinct_paths
+from .distinct_paths import PathRoles, at_file, check_distinct_paths
 from .settings_file import SettingsFileError, merge_settings, read_settings
 
 
@@ -193,7 +193,7 @@ def _state_outputs(path):
     return [("last good state", last_good_path(path))]
 
 
-#: The files each subcommand reads and writes (:func:`sim.paths.check_distinct_paths`):
+#: The files each subcommand reads and writes (:func:`sim.distinct_paths.check_distinct_paths`):
 #: ``--params @FILE`` is read; the pour's checkpoint brings its lock and its frames so far.
 PATHS = {
     "pour": PathRoles(inputs=("--params",),

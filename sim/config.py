@@ -10,9 +10,12 @@ that holds them, the sections ``model``, ``particles``, ``pour``, ``relax``,
 ``probe`` and ``physics`` of ``sim/config.schema.yaml`` (:data:`SCHEMA_FILE`),
 which ships inside the package and which the workflow's configuration schema
 refers to, so the command line and the workflow agree by construction
-(tests/test_settings_single_source.py probes it), and every setting is checked
-against it by jsonschema (:func:`check_setting`, the simulator's one schema
-checker on :mod:`sim.schema`, which also serves :mod:`sim.numerics`).  What a
+(tests/test_settings_single_source.py probes it).  Each dataclass below names
+a section's settings and their types; :func:`_settings` gives each its
+default from the schema and refuses a class whose fields are not the section's
+settings.  Every setting is checked against the schema by jsonschema
+(:func:`check_setting`, the simulator's one schema checker on
+:mod:`sim.schema`, which also serves :mod:`sim.numerics`).  What a
 schema cannot express (``corners_max >= corners_min``, ``hold_time <=
 max_time``, the walls' order and spacing) is checked in the dataclasses below.
 
@@ -180,7 +183,28 @@ def _check_fields(params: Any, section: str) -> None:
                       LIST_SHAPES.get(key))
 
 
-@dataclass(frozen=True)
+def _settings(section: str):
+    """The decorated class as the frozen dataclass of the settings of ``section``: a field
+    for each annotation, whose default is the setting's default in the schema
+    (:func:`_default`).
+
+    The class names the settings and their types; their defaults and bounds are
+    the schema's alone.  A field that is no setting of ``section``, or a setting
+    without a field, is refused when this module is imported (:class:`TypeError`).
+    """
+    def make(cls):
+        fields, settings = set(cls.__annotations__), set(_SCHEMA["$defs"][section]["properties"])
+        if fields != settings:
+            raise TypeError(f"{cls.__name__}: fields {sorted(fields - settings)} are no settings of "
+                            f"{section} in {SCHEMA_FILE}, and settings {sorted(settings - fields)} "
+                            "have no field")
+        for name in cls.__annotations__:
+            setattr(cls, name, _default(section, name))
+        return dataclass(frozen=True)(cls)
+    return make
+
+
+@_settings("model")
 class ModelParams:
     """Contact law, material and integration parameters.
 
@@ -209,21 +233,21 @@ class ModelParams:
         particle's area stops the run.
     """
 
-    youngs_modulus: float = _default("model", "youngs_modulus")
-    damping: float = _default("model", "damping")
-    friction: float = _default("model", "friction")
-    support_friction: float = _default("model", "support_friction")
-    density: float = _default("model", "density")
-    integrator: str = _default("model", "integrator")
-    dt: float | None = _default("model", "dt")
-    dt_safety: float = _default("model", "dt_safety")
-    max_overlap_fraction: float = _default("model", "max_overlap_fraction")
+    youngs_modulus: float
+    damping: float
+    friction: float
+    support_friction: float
+    density: float
+    integrator: str
+    dt: float | None
+    dt_safety: float
+    max_overlap_fraction: float
 
     def __post_init__(self):
         _check_fields(self, "model")
 
 
-@dataclass(frozen=True)
+@_settings("particles")
 class ParticleParams:
     """How particle shapes are drawn (paper, Section 3.1).
 
@@ -245,13 +269,13 @@ class ParticleParams:
         ``s·√r`` and ``s/√r`` (:func:`sim.shapes.make_shapes`).
     """
 
-    corners_min: int = _default("particles", "corners_min")
-    corners_max: int = _default("particles", "corners_max")
-    semi_axis_mean: float = _default("particles", "semi_axis_mean")
-    semi_axis_spread: float = _default("particles", "semi_axis_spread")
-    min_edge_fraction: float = _default("particles", "min_edge_fraction")
-    min_angle_deg: float = _default("particles", "min_angle_deg")
-    aspect_ratio: float | None = _default("particles", "aspect_ratio")
+    corners_min: int
+    corners_max: int
+    semi_axis_mean: float
+    semi_axis_spread: float
+    min_edge_fraction: float
+    min_angle_deg: float
+    aspect_ratio: float | None
 
     def __post_init__(self):
         _check_fields(self, "particles")
@@ -260,7 +284,7 @@ class ParticleParams:
                               f"particles.corners_min = {self.corners_min}")
 
 
-@dataclass(frozen=True)
+@_settings("pour")
 class PourParams:
     """Pouring protocols (wedge: point source; layered: line source).
 
@@ -307,29 +331,29 @@ class PourParams:
         Simulated seconds between the frames of a pour's film (``pour --frames``).
     """
 
-    n_particles: int = _default("pour", "n_particles")
-    rate: float = _default("pour", "rate")
-    release_height: float = _default("pour", "release_height")
-    release_speed: float = _default("pour", "release_speed")
-    spin_drag: float = _default("pour", "spin_drag")
-    jitter: float = _default("pour", "jitter")
-    line_margin: float = _default("pour", "line_margin")
-    top_band: float = _default("pour", "top_band")
-    layered_slope_deg: float = _default("pour", "layered_slope_deg")
-    point_source: str = _default("pour", "point_source")
-    outlet_width: float = _default("pour", "outlet_width")
-    outlet_height: float = _default("pour", "outlet_height")
-    line_source: str = _default("pour", "line_source")
-    table_slope_deg: float = _default("pour", "table_slope_deg")
-    checkpoint_interval: float = _default("pour", "checkpoint_interval")
-    progress_interval: float = _default("pour", "progress_interval")
-    frame_interval: float = _default("pour", "frame_interval")
+    n_particles: int
+    rate: float
+    release_height: float
+    release_speed: float
+    spin_drag: float
+    jitter: float
+    line_margin: float
+    top_band: float
+    layered_slope_deg: float
+    point_source: str
+    outlet_width: float
+    outlet_height: float
+    line_source: str
+    table_slope_deg: float
+    checkpoint_interval: float
+    progress_interval: float
+    frame_interval: float
 
     def __post_init__(self):
         _check_fields(self, "pour")
 
 
-@dataclass(frozen=True)
+@_settings("relax")
 class RelaxParams:
     """Criterion for "at rest" and the cap on relaxation time.
 
@@ -377,14 +401,14 @@ class RelaxParams:
         criterion, so without this cap the switch would never come.
     """
 
-    kinetic_energy_fraction: float = _default("relax", "kinetic_energy_fraction")
-    max_speed: float = _default("relax", "max_speed")
-    unbalanced_force: float = _default("relax", "unbalanced_force")
-    hold_time: float = _default("relax", "hold_time")
-    max_time: float = _default("relax", "max_time")
-    drag: float = _default("relax", "drag")
-    rocking_drag: float = _default("relax", "rocking_drag")
-    drag_time: float = _default("relax", "drag_time")
+    kinetic_energy_fraction: float
+    max_speed: float
+    unbalanced_force: float
+    hold_time: float
+    max_time: float
+    drag: float
+    rocking_drag: float
+    drag_time: float
 
     def __post_init__(self):
         _check_fields(self, "relax")
@@ -394,7 +418,7 @@ class RelaxParams:
                               "could never hold long enough)")
 
 
-@dataclass(frozen=True)
+@_settings("probe")
 class ProbeParams:
     """The gravity probe: lower gravity by each level Δ and relax again.
 
@@ -419,13 +443,13 @@ class ProbeParams:
         Duration of the stretch, s.
     """
 
-    levels: tuple = _default("probe", "levels")
-    tilts: tuple = _default("probe", "tilts")
-    restore: bool = _default("probe", "restore")
-    mode: str = _default("probe", "mode")
-    ramp_time: float = _default("probe", "ramp_time")
-    stretch: float = _default("probe", "stretch")
-    stretch_time: float = _default("probe", "stretch_time")
+    levels: tuple
+    tilts: tuple
+    restore: bool
+    mode: str
+    ramp_time: float
+    stretch: float
+    stretch_time: float
 
     def __post_init__(self):
         _check_fields(self, "probe")
@@ -436,7 +460,7 @@ class ProbeParams:
                               "gravity needs a gravity reduction first (give a level)")
 
 
-@dataclass(frozen=True)
+@_settings("physics")
 class PhysicsParams:
     """Which bodies and degrees of freedom a scene has.
 
@@ -457,11 +481,11 @@ class PhysicsParams:
         the particles with flanks at this angle (:func:`sim.pour.rough_base`).
     """
 
-    support: bool = _default("physics", "support")
-    walls: tuple | None = _default("physics", "walls")
-    rotation: bool = _default("physics", "rotation")
-    rough_base: bool = _default("physics", "rough_base")
-    rough_base_slope_deg: float = _default("physics", "rough_base_slope_deg")
+    support: bool
+    walls: tuple | None
+    rotation: bool
+    rough_base: bool
+    rough_base_slope_deg: float
 
     def __post_init__(self):
         _check_fields(self, "physics")

@@ -17,7 +17,7 @@ A module that compiles kernels takes its ``njit`` from here
 folder is set before its first kernel is decorated, whichever module is
 imported first.  The package itself (``sim/__init__.py``) sets nothing:
 the modules that the analysis and the workflow share with the simulator
-(:mod:`sim.atomic`, :mod:`sim.digest`, :mod:`sim.paths`, :mod:`sim.schema`,
+(:mod:`sim.atomic`, :mod:`sim.digest`, :mod:`sim.distinct_paths`, :mod:`sim.schema`,
 :mod:`sim.settings_file`) load without Numba.
 """
 

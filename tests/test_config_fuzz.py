@@ -127,7 +127,7 @@ def plan(config):
     its order), ask it for the scene's targets and each stage's resources;
     raises ``ValueError`` for a refused one."""
     study = Study(config, REPO, sys.executable, warn=lambda text: None)
-    targets = study.scene.targets(study.analysis.targets(), study.numerics.targets())
+    targets = study.outputs.targets(study.analysis.targets(), study.numerics.targets())
     for stage in study.stages.all_stages():
         assert study.resources.stage_runtime_min(stage, 1) > 0
         assert math.isfinite(study.resources.stage_cpu_s(stage))

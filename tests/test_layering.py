@@ -5,7 +5,7 @@ files (it reads state files through the contract; settings, which precede
 both, are read by one reader, :mod:`sim.settings_file`, so that a number or a
 repeated key means the same to both), the check of a setting against its JSON
 schema (:mod:`sim.schema`), and the check that no output of a command line is
-an input or another output (:mod:`sim.paths`, one for both command lines), the
+an input or another output (:mod:`sim.distinct_paths`, one for both command lines), the
 digests of code and of a file's content (:mod:`sim.digest`) and the one atomic
 write (:mod:`sim.atomic`).  These import nothing of the simulator, and
 loading one loads no Numba (the package's ``__init__`` runs nothing; the
@@ -61,7 +61,7 @@ def graph():
 #: What the analysis may import of the simulator: the one reader of settings, the
 #: one check of a setting against its schema, the one check of a command line's
 #: paths, the one code digest and data digest, and the one atomic write.
-SHARED = ("sim.settings_file", "sim.schema", "sim.paths", "sim.digest", "sim.atomic")
+SHARED = ("sim.settings_file", "sim.schema", "sim.distinct_paths", "sim.digest", "sim.atomic")
 
 
 @pytest.mark.parametrize("package,forbidden", [("sim", ("analysis", "workflow")), ("analysis", ("sim", "workflow"))])

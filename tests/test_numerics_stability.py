@@ -52,16 +52,16 @@ def test_linear_spring_is_stable_up_to_its_theoretical_limit(integrator, low, hi
     of the amplification matrix) and needs more than the search's 5000 steps
     to show.  Either is well above the automatic step."""
     y = 1e7
-    scene = linear_spring(y, integrator)
-    found = largest_stable_dt(scene, 5000, 0.05, 0.02, oscillator=True)
+    setup = linear_spring(y, integrator)
+    found = largest_stable_dt(setup, 5000, 0.05, 0.02, oscillator=True)
     ratio = found / linear_spring_limit(y, integrator)
     assert low <= ratio <= high
-    assert found >= scene.simulation().bound.dt_limit
+    assert found >= setup.simulation().bound.dt_limit
 
 
 def test_largest_stable_step_scales_as_one_over_root_stiffness():
     """Dimensional analysis: all contact frequencies scale as sqrt(Y), so the
-    largest stable step of the same scene at 1e5 and 1e10 N/m differs by
+    largest stable step of the same setup at 1e5 and 1e10 N/m differs by
     sqrt(1e5), within the search's resolution."""
     steps = [largest_stable_dt(linear_spring(y, "verlet"), 2000, 0.05, 0.02,
                                oscillator=True)
@@ -73,16 +73,16 @@ def test_largest_stable_step_scales_as_one_over_root_stiffness():
 def test_packing_is_stable_beyond_the_rules_limit(integrator):
     """The rule bounds the stiffest conceivable contact, so real packings stay
     stable above its limit (at 1e10 N/m, the stiffest of the suite)."""
-    scene = packing(youngs_modulus=1e10, integrator=integrator)
-    found = largest_stable_dt(scene, 2000, 0.05, 0.1)
-    assert found >= scene.simulation().bound.dt_limit
+    setup = packing(youngs_modulus=1e10, integrator=integrator)
+    found = largest_stable_dt(setup, 2000, 0.05, 0.1)
+    assert found >= setup.simulation().bound.dt_limit
 
 
 def test_detector_still_stops_a_real_blow_up():
     """Verlet at three times its limit on the linear spring: the engine's
     detector (not the suite's check) stops the run."""
-    scene = linear_spring(1e7, "verlet")
-    sim = scene.simulation(3 * linear_spring_limit(1e7, "verlet"))
+    setup = linear_spring(1e7, "verlet")
+    sim = setup.simulation(3 * linear_spring_limit(1e7, "verlet"))
     with pytest.raises(BlowUpError):
         sim.run(steps=5000)
     assert np.all(np.isfinite(sim.position))  # back at the last good state
@@ -149,14 +149,14 @@ def test_rule_resolves_over_critical_damping(integrator):
     from sim.integrators import stability_limit
     from sim.numerics.stability import run_stable
 
-    scene = linear_spring(1e7, integrator)
-    scene.model = replace(scene.model, damping=10.0)
-    bound = scene.simulation().bound
+    setup = linear_spring(1e7, integrator)
+    setup.model = replace(setup.model, damping=10.0)
+    bound = setup.simulation().bound
     assert bound.zeta_normal == pytest.approx(10.0)
     capped = 0.5 * min(stability_limit(integrator, 1.0) / bound.omega_normal,
                        stability_limit(integrator, 0.5) / bound.omega_tangential)
-    assert run_stable(scene.simulation(capped), 2000, 0.05).status == "unstable"
-    assert run_stable(scene.simulation(), 2000, 0.05).status == "stable"
+    assert run_stable(setup.simulation(capped), 2000, 0.05).status == "unstable"
+    assert run_stable(setup.simulation(), 2000, 0.05).status == "stable"
 
 
 @pytest.mark.parametrize("case", ["corners_32", "friction_zero"])

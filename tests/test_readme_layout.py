@@ -1,13 +1,13 @@
 """The README and the pages of docs/ stay usable: the guide's layout
 (docs/guide.md) names every rule file, tool and workflow module by its file
-name, and every folder of the two packages, and its table of configurations
-every file of config/, so that a newcomer finds each one there; the README
-keeps the two commands on its first screen and stays a landing page, well
-under its cap, as docs/performance.md stays short (its measurements live in
-docs/performance/); the lists and numbers the pages repeat from the tree (the
-SLURM test's checkpoint interval, the progress line's intervals) match it;
-and every relative link of these pages points at a file that exists and, with
-a #fragment, at a heading of that page."""
+name, and every folder of the two packages, and every file it names is there;
+its table of configurations every file of config/, so that a newcomer finds
+each one there; the README keeps the two commands on its first screen and
+stays a landing page, well under its cap, as docs/performance.md stays short
+(its measurements live in docs/performance/); the lists and numbers the pages
+repeat from the tree (the SLURM test's checkpoint interval, the progress
+line's intervals) match it; and every relative link of these pages points at
+a file that exists and, with a #fragment, at a heading of that page."""
 
 import re
 from pathlib import Path
@@ -70,6 +70,24 @@ def test_the_layout_names_every_rule_file_tool_and_package_folder():
                for p in sorted((REPO / package).rglob("__init__.py"))]
     missing = [n for n in names if not re.search(rf"\b{re.escape(n)}\b", block)]
     missing += [f for f in folders if not re.search(rf"^{re.escape(f)} ", block, re.M)]
+    assert missing == []
+
+
+def test_every_file_the_layout_names_is_there():
+    """Each file or folder the layout names (``study.py``, ``docs/run_times.md``, ``slurm/``)
+    is in the tree, under its line's folder (the first column; ``workflow/*.py`` is
+    ``workflow/``) or, named with its folder, under the repository; but the folders of
+    results/, which the workflow makes."""
+    missing, folder = [], None
+    for line in layout_block().splitlines():
+        first = re.match(r"(\S+) {2,}", line)
+        folder = first.group(1).removesuffix("*.py") if first else folder
+        if folder == "results/":
+            continue
+        for name in re.findall(r"(?<![\w./-])([\w.-]+(?:/[\w.-]+)*(?:\.(?:py|smk|yaml|json|md|txt)\b|/))",
+                               line[first.end() if first else 0:]):
+            if not any((REPO / base / name).exists() for base in (folder, "")):
+                missing.append(f"{folder} {name}")
     assert missing == []
 
 

@@ -5,8 +5,10 @@ simulator setting, analysis/params.schema.yaml those of every analysis
 setting (each package ships its own; the workflow's schema refers to both).  These tests read the schema files themselves (never
 the copies the packages load) and hold against them:
 
-* the defaults of the dataclasses of sim/config.py and of ``DEFAULTS`` of
-  analysis/params.py, value and type;
+* the dataclasses of sim/config.py, one per section with a field per
+  setting (sim/config.py refuses one that names other settings);
+* their defaults and those of ``DEFAULTS`` of analysis/params.py, value and
+  type;
 * their validation, probed at and just beyond every bound the schema gives
   (minimum / maximum, exclusiveMinimum / exclusiveMaximum), on the
   unbounded side far out, with the wrong types, with integer-valued floats
@@ -37,6 +39,7 @@ from jsonschema import Draft202012Validator
 
 from analysis.errors import ParamError
 from analysis.params import DEFAULTS, resolve_params
+import sim.config as sim_config
 from sim.config import ConfigError, SimConfig
 
 REPO = Path(__file__).resolve().parents[1]
@@ -216,10 +219,24 @@ def _same(a, b):
     return type(a) is type(b) and a == b
 
 
+def test_the_dataclasses_are_the_schema_sections():
+    assert list(SECTIONS) == list(SIM) == list(sim_config.SECTIONS)
+
+
 @pytest.mark.parametrize("section", sorted(SECTIONS))
 def test_the_dataclass_fields_are_the_schema_settings(section):
     fields = [f.name for f in dataclasses.fields(SECTIONS[section])]
     assert set(fields) == set(SIM[section]["properties"]), section
+
+
+def test_a_dataclass_that_names_other_settings_than_the_schema_is_refused():
+    class Model:
+        youngs_modulus: float
+        young_modulus: float
+
+    with pytest.raises(TypeError, match=r"Model: fields \['young_modulus'\] are no settings of model .*"
+                                        r"settings \['damping', .*\] have no field"):
+        sim_config._settings("model")(Model)
 
 
 @pytest.mark.parametrize("section, name", SIM_SETTINGS, ids=_ids(SIM_SETTINGS))

@@ -1,6 +1,6 @@
 """The piles of a configuration (workflow/piles.py): stage names of the
-probes (stages.py), the files of a pile (paths.py), the settings each simulation job receives (jobs.py), and
-the configuration's problems named with setting, value and what is allowed;
+probes (stages.py), the files of a pile (pile_paths.py), the settings each simulation job receives
+(jobs.py), and the configuration's problems named with setting, value and what is allowed;
 with the command lines (workflow/commands.py) and the resources of the jobs
 (workflow/resources.py)."""
 
@@ -248,4 +248,4 @@ def test_the_workflows_modules_import_without_snakemake():
             f"[importlib.import_module('workflow.' + m) for m in {modules!r}]")
     proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
-    assert {"piles", "scene", "analysis_inputs", "numerics_piles", "resources", "commands", "reporting"} <= set(modules)
+    assert {"piles", "outputs", "analysis_inputs", "numerics_piles", "resources", "commands", "reporting"} <= set(modules)

@@ -1,5 +1,5 @@
 """Validated workflow configurations for the tests of the workflow's modules
-(workflow/piles.py, scene.py, analysis_inputs.py, ...): a configuration file of
+(workflow/piles.py, outputs.py, analysis_inputs.py, ...): a configuration file of
 config/ with overrides laid over it as Snakemake merges a further
 --configfile, validated with its defaults filled in as the Snakefile does."""
 

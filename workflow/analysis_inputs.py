@@ -37,16 +37,16 @@ class AnalysisInputs:
 
     Parameters
     ----------
-    scene : workflow.scene.Scene
-        The outputs of the configuration, with its piles (``scene.piles``).
+    outputs : workflow.outputs.Outputs
+        The outputs of the configuration, with its piles (``outputs.piles``).
     repo : pathlib.Path
         The repository, which config ``committed`` is relative to.
     """
 
-    def __init__(self, scene, repo):
-        self.scene = scene
-        self.piles = piles = scene.piles
-        self.config = config = scene.config
+    def __init__(self, outputs, repo):
+        self.outputs = outputs
+        self.piles = piles = outputs.piles
+        self.config = config = outputs.config
         #: The analysis section.
         self.cfg = config.get("analysis", {}) or {}
         #: One line of YAML flow text, keys sorted ({rve: {size: 0.08}, ...}):
@@ -116,7 +116,7 @@ class AnalysisInputs:
     def reported_general_protocols(self):
         """The protocols whose general fit is built and reported: those of
         :meth:`general_fit_protocols` when the scene wants the fits, else none."""
-        return self.general_fit_protocols() if self.scene.wants("fits") else []
+        return self.general_fit_protocols() if self.outputs.wants("fits") else []
 
     def reported_probes(self):
         """(protocol, probes file) of every pile whose extra probes enter the
@@ -159,7 +159,7 @@ class AnalysisInputs:
 
     def fields_reduced(self, wildcards):
         """The reduced state of a pile's fields: with a gravity probe only (the stress increment and strain)."""
-        return self.piles.paths.pile(wildcards.protocol, wildcards.seed, "reduced") if self.scene.has_probes() else []
+        return self.piles.paths.pile(wildcards.protocol, wildcards.seed, "reduced") if self.outputs.has_probes() else []
 
     @staticmethod
     def reduced_option(wildcards, input):
@@ -172,7 +172,7 @@ class AnalysisInputs:
         """The final outputs of the analysis that the scene asks for (for rule ``all``):
         with the piles' states (output ``states``, not from committed results) each
         pile's run summary, its height, width and flanks per stage."""
-        wants, results_path = self.scene.wants, self.piles.paths.results_path
+        wants, results_path = self.outputs.wants, self.piles.paths.results_path
         names = [name for output, files in ANALYSIS_ENSEMBLE.items() if wants(output) for name in files]
         targets = [results_path(f"ensemble/{p}/{name}") for p in self.piles.protocols for name in names]
         if wants("states") and self.committed is None:

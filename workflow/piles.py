@@ -2,13 +2,13 @@
 make them (targets), and the checks of them before any job.
 
 Their stages are :class:`workflow.stages.Stages`, the paths of their files
-:class:`workflow.paths.PilePaths`; the settings each simulation job receives
+:class:`workflow.pile_paths.PilePaths`; the settings each simulation job receives
 are :class:`workflow.jobs.JobSettings`. The rule files reach all of them
 through :class:`workflow.study.Study`.
 """
 
 from sim.preflight import check_piles
-from workflow.paths import PilePaths
+from workflow.pile_paths import PilePaths
 from workflow.stages import Stages
 
 #: The two protocols the simulator knows, in the workflow's fixed order.

@@ -6,7 +6,7 @@ simulator's settings, which write each simulation job's ``--params``),
 ``study.piles`` (which piles), ``study.stages`` (their stages),
 ``study.paths`` (where their files lie), ``study.jobs`` (what the workflow
 adds to a job's settings: a probe's own keys, the unrecorded bookkeeping),
-``study.resources`` (runtime and memory of those jobs), ``study.scene`` (the
+``study.resources`` (runtime and memory of those jobs), ``study.outputs`` (the
 outputs asked for), ``study.analysis`` (the analysis' inputs and targets),
 ``study.numerics`` (the pile numerics), ``study.commands`` (the command
 lines) and ``study.code`` (the digests of the code the jobs run). Building it
@@ -25,7 +25,7 @@ from workflow.jobs import JobSettings
 from workflow.numerics_piles import NumericsPiles
 from workflow.piles import Piles
 from workflow.resources import SimResources
-from workflow.scene import Scene
+from workflow.outputs import Outputs
 from workflow.validation import check_config_files, check_problems, validate_config
 
 
@@ -119,9 +119,9 @@ class Study:
         self.jobs = JobSettings(self.sim)
         self.resources = SimResources(config)
         self.resources.check_size(mem_mb, local, warn)
-        self.scene = Scene(self.piles)
-        check_problems(self.scene.problems(self.repo), "scene")
-        self.analysis = AnalysisInputs(self.scene, self.repo)
+        self.outputs = Outputs(self.piles)
+        check_problems(self.outputs.problems(self.repo), "scene")
+        self.analysis = AnalysisInputs(self.outputs, self.repo)
         self.numerics = NumericsPiles(self.piles)
         check_problems(self.numerics.problems())
         #: A project-local Numba cache, filled once by rule compile_kernels

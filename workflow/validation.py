@@ -26,7 +26,7 @@ Between the last two, :func:`check_results_folder` refuses a ``results``
 folder in the project's own source (sim/, docs/, ..., the repository itself).
 A job therefore never meets a setting that its program would refuse. The
 workflow's own checks (its stage names, scenes and pile numerics:
-``problems()`` of the classes in workflow/piles.py, scene.py and
+``problems()`` of the classes in workflow/piles.py, outputs.py and
 numerics_piles.py) are raised by :func:`check_problems`.
 
 Before them, :func:`check_config_files` reads each ``--configfile`` again

@@ -13,7 +13,7 @@ from typing import Callable
 
 import xarray as xr
 
-from ..paths import check_paths
+from ..command_files import check_paths
 
 log = logging.getLogger("analysis.numerics")
 
@@ -43,7 +43,7 @@ def data_or_figure(argv: list[str] | None, parser: argparse.ArgumentParser,
     -------
     int
         0, or 2 after logging a ValueError or FileNotFoundError (bad input;
-        an output that is an input or another output, :func:`analysis.paths.check_paths`).
+        an output that is an input or another output, :func:`analysis.command_files.check_paths`).
     """
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, stream=sys.stderr, format="%(asctime)s %(levelname)s %(message)s")

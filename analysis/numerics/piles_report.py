@@ -22,7 +22,7 @@ import xarray as xr
 
 from .ensemble_cost import HEADLINES
 from ..netcdf import write_text
-from ..paths import PathsError, check_paths
+from ..command_files import PathsError, check_paths
 from .pile_precision import OBSERVABLES, RESOLVED
 
 

@@ -12,7 +12,7 @@ import sys
 
 from ..config import ConfigError
 from ..io import atomic_text, atomic_write, cf_attributes
-from ..paths import PathRoles, at_file, check_distinct_paths
+from ..distinct_paths import PathRoles, at_file, check_distinct_paths
 from ..settings_file import SettingsFileError, read_settings
 
 
@@ -45,7 +45,7 @@ def load_section(params, section):
     return sub
 
 
-#: The files of a check's command line (:func:`sim.paths.check_distinct_paths`).
+#: The files of a check's command line (:func:`sim.distinct_paths.check_distinct_paths`).
 PATHS = PathRoles(inputs=("--params",), outputs=("--nc", "--figure", "--table"),
                   read={"--params": at_file})
 

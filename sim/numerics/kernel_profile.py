@@ -34,7 +34,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..paths import PathRoles, check_distinct_paths
+from ..distinct_paths import PathRoles, check_distinct_paths
 
 #: Set in the environment of the process that ``perf record`` runs.
 CHILD = "POLYPILE_KERNEL_PROFILE_CHILD"
@@ -42,7 +42,7 @@ KERNELS = ("pairs", "gather", "predict")
 WINDOW = 128  # bytes of machine code per line of the summary's hot windows
 
 
-#: The files of the command line (:func:`sim.paths.check_distinct_paths`).
+#: The files of the command line (:func:`sim.distinct_paths.check_distinct_paths`).
 PATHS = PathRoles(inputs=("--state",), outputs=("--out",))
 
 

@@ -1,6 +1,6 @@
 """Stability on stiff and extreme cases, and the largest stable time step.
 
-**The suite.**  Each case is a small scene (:data:`CASES`): stiffness from
+**The suite.**  Each case is a small setup (:data:`CASES`): stiffness from
 1e5 to 1e10 N/m, size ratio 1:20, aspect ratio 1:5, 3 and 32 corners, nearly
 degenerate shapes (an edge of 0.2 % of the diameter, a 178° corner), impacts
 at 10 m/s, a deep initial overlap, a jammed box, μ = 0 and 2, γ = 0, critical
@@ -17,11 +17,11 @@ elastic energy counts with its uncertainty
 *refused* before it runs by the simulator, with the message it gives.
 Anything else is *unstable*, a bug in the time-step rule or the detector.
 
-**The largest stable step.**  For each stiffness and integrator, two scenes
-are run with a given ``dt`` (beyond the rule's limit too; the refusal of
-:func:`sim.timestep.choose_dt` is bypassed for this measurement only) and the
-largest ``dt`` that stays stable over ``search_steps`` steps is bracketed by
-bisection in ``log dt``:
+**The largest stable step.**  For each stiffness and integrator, two setups
+(the dataset's ``scene``: :data:`SEARCH_SCENES`) are run with a given ``dt``
+(beyond the rule's limit too; the refusal of :func:`sim.timestep.choose_dt` is
+bypassed for this measurement only) and the largest ``dt`` that stays stable
+over ``search_steps`` steps is bracketed by bisection in ``log dt``:
 
 * ``linear_spring``: a square resting flat on the support, no rotation, no
   damping or friction: a linear spring ``k = Y L / l`` (``L`` the edge,
@@ -29,7 +29,7 @@ bisection in ``log dt``:
   :func:`sim.integrators.stability_limit` (Gear 0.313, Verlet 2);
 * ``packing``: the ``stiffness`` case, twelve of the paper's particles in a box.
 
-The scenes of the cases are built in :mod:`sim.numerics.stability_cases`;
+The setups of the cases are built in :mod:`sim.numerics.stability_cases`;
 this module holds the settings, the runner and the dataset, table and figure.
 """
 
@@ -200,9 +200,9 @@ def run_case(builder, integrator, steps, tolerance):
     the simulator refusing the case: status ``refused`` with its message.
     """
     try:
-        scene = builder()
-        scene.model = replace(scene.model, integrator=integrator)
-        sim = scene.simulation()
+        setup = builder()
+        setup.model = replace(setup.model, integrator=integrator)
+        sim = setup.simulation()
     except ValueError as exc:
         return RunResult("refused", str(exc))
     return run_stable(sim, steps, tolerance)
@@ -218,8 +218,8 @@ def run_case(builder, integrator, steps, tolerance):
 ENERGY_GROWTH = 0.1
 
 
-def largest_stable_dt(scene, steps, tolerance, resolution, oscillator=False):
-    """Largest stable step of a scene, bracketed by bisection in log dt.
+def largest_stable_dt(setup, steps, tolerance, resolution, oscillator=False):
+    """Largest stable step of a setup (:class:`~.stability_cases.Setup`), by bisection in log dt.
 
     A trial is stable if :func:`run_stable` says so and, for an undamped
     closed ``oscillator``, its energy does not grow (:data:`ENERGY_GROWTH`);
@@ -232,10 +232,10 @@ def largest_stable_dt(scene, steps, tolerance, resolution, oscillator=False):
     float
         The largest step found stable, s (NaN if the automatic step is not).
     """
-    lo = scene.simulation().dt
+    lo = setup.simulation().dt
 
     def stable(dt):
-        res = run_stable(scene.simulation(dt), steps, tolerance)
+        res = run_stable(setup.simulation(dt), steps, tolerance)
         return res.status == "stable" and not (oscillator and
                                                 res.energy_growth > ENERGY_GROWTH)
 
@@ -244,7 +244,7 @@ def largest_stable_dt(scene, steps, tolerance, resolution, oscillator=False):
     hi = 2 * lo
     while stable(hi):
         lo, hi = hi, 2 * hi
-        if hi > 1e3 * scene.simulation().bound.dt_limit:
+        if hi > 1e3 * setup.simulation().bound.dt_limit:
             return math.inf
     while hi / lo > 1 + resolution:
         mid = math.sqrt(lo * hi)
@@ -281,13 +281,13 @@ def run_suite(settings: StabilitySettings) -> xr.Dataset:
     for s, scene_name in enumerate(SEARCH_SCENES):
         for k, integrator in enumerate(integrators):
             for y, ym in enumerate(ys):
-                scene = (linear_spring(ym, integrator) if scene_name == "linear_spring" else
+                setup = (linear_spring(ym, integrator) if scene_name == "linear_spring" else
                          packing(youngs_modulus=ym, integrator=integrator))
-                sim = scene.simulation()
+                sim = setup.simulation()
                 rule[s, k, y], auto[s, k, y] = sim.bound.dt_limit, sim.dt
                 if scene_name == "linear_spring":
                     theory[s, k, y] = linear_spring_limit(ym, integrator)
-                found[s, k, y] = largest_stable_dt(scene, settings.search_steps,
+                found[s, k, y] = largest_stable_dt(setup, settings.search_steps,
                                                    settings.energy_tolerance,
                                                    settings.search_resolution,
                                                    oscillator=scene_name == "linear_spring")

@@ -1,6 +1,6 @@
-"""The catalogue of the stability suite: the scenes of its cases.
+"""The catalogue of the stability suite: the setups of its cases.
 
-Each case of :mod:`sim.numerics.stability` is a small :class:`Scene`, built
+Each case of :mod:`sim.numerics.stability` is a small :class:`Setup`, built
 by a function of this module: :func:`packing` (twelve of the paper's
 particles in a box; the stiffness cases, the jammed box, the friction and
 damping variants), :func:`linear_spring` (a square between two walls, with
@@ -28,8 +28,8 @@ SIZE = 3.4e-3
 
 
 @dataclass
-class Scene:
-    """A scene before it is simulated.
+class Setup:
+    """Particles, their start states, the law and the bodies, before they are simulated.
 
     Attributes
     ----------
@@ -82,7 +82,7 @@ def _box(polygons, spacing, columns, rng, speed=0.05, **model):
         states.append((-0.5 * width + (col + 0.5) * spacing, (row + 0.5) * spacing,
                        rng.uniform(0, 2 * np.pi), *rng.uniform(-speed, speed, 2),
                        rng.uniform(-speed, speed) / spacing))
-    return Scene(shapes_of(*polygons), states, ModelParams(**model),
+    return Setup(shapes_of(*polygons), states, ModelParams(**model),
                  walls=(-0.5 * width, 0.5 * width))
 
 
@@ -121,7 +121,7 @@ def linear_spring(youngs_modulus=1.0e7, integrator="gear"):
                         support_friction=0.0, integrator=integrator)
     depth = SPRING_COMPRESSION * SIZE
     omega = math.sqrt(2 * linear_spring_stiffness(youngs_modulus) / shapes.mass[0])
-    return Scene(shapes, [(0.0, 0.0, 0.0, 0.1 * depth * omega, 0.0, 0.0)], model,
+    return Setup(shapes, [(0.0, 0.0, 0.0, 0.1 * depth * omega, 0.0, 0.0)], model,
                  gravity=(0.0, 0.0), support=False, walls=(-SIZE + depth, SIZE - depth),
                  rotate=False)
 
@@ -164,7 +164,7 @@ def _size_ratio(ratio=20.0, speed=0.5):
               (0.2 * big, 2 * h + hs, 0.0, 0.0, -speed, 0.0),
               (-big - small, h, 0.0, speed, 0.0, 0.0)]
     polygons = [regular_polygon(6, big), regular_polygon(6, small), regular_polygon(6, small)]
-    return Scene(shapes_of(*polygons), states, ModelParams())
+    return Setup(shapes_of(*polygons), states, ModelParams())
 
 
 def _stacked_elongated(aspect=5.0, layers=3):
@@ -175,7 +175,7 @@ def _stacked_elongated(aspect=5.0, layers=3):
     thick = float(np.max(poly[1]))   # half thickness: corners at ±b on the minor axis
     states = [(0.1 * a * k, thick * (1 + 2 * k) * 0.98, 0.0, 0.0, 0.0, 0.0)
               for k in range(layers)]
-    return Scene(shapes_of(*[poly] * layers), states, ModelParams())
+    return Setup(shapes_of(*[poly] * layers), states, ModelParams())
 
 
 def _impact(speed, **model):
@@ -185,23 +185,23 @@ def _impact(speed, **model):
     states = [(0.0, r[0] + 1e-4, 0.3, 0.0, -speed, 0.0),
               (0.03, r[1], 0.0, 0.0, 0.0, 0.0),
               (0.03, 2 * r[1] + r[2] + 1e-4, 1.1, 0.0, -speed, 0.0)]
-    return Scene(shapes_of(*polygons), states, ModelParams(**model))
+    return Setup(shapes_of(*polygons), states, ModelParams(**model))
 
 
 def _deep_overlap(fraction):
     """Two squares overlapping edge-on-edge by ``fraction`` of their area, at rest."""
     sq = rectangle(2 * SIZE, 2 * SIZE)
     gap = 2 * SIZE * (1 - fraction)
-    return Scene(shapes_of(sq, sq), [(0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    return Setup(shapes_of(sq, sq), [(0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
                                      (gap, 0.1 * SIZE, 0.0, 0.0, 0.0, 0.0)],
                  ModelParams(damping=0.0, friction=0.0), gravity=(0.0, 0.0), support=False)
 
 
 def _overdamped_spring(damping):
     """:func:`linear_spring` with normal damping γ (its contacts' ζ = γ sqrt(L/l) / 2)."""
-    scene = linear_spring()
-    scene.model = replace(scene.model, damping=damping)
-    return scene
+    setup = linear_spring()
+    setup.model = replace(setup.model, damping=damping)
+    return setup
 
 
 def _critical_damping():
@@ -212,7 +212,7 @@ def _critical_damping():
 
 
 def case_builders():
-    """Name → (description, function returning a :class:`Scene`) of every suite case
+    """Name → (description, function returning a :class:`Setup`) of every suite case
     other than the stiffness ones."""
     rng = np.random.default_rng
     return {

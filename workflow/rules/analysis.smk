@@ -24,7 +24,7 @@ rule analysis_fields:
         code=study.code.analysis,
         cfg=study.analysis.params,
         reduced=study.analysis.reduced_option,
-        quantities=study.scene.field_quantities(),
+        quantities=study.outputs.field_quantities(),
     log:
         study.paths.results_path("logs/analysis/fields/{protocol}/seed{seed}.log"),
     benchmark:

@@ -1,5 +1,5 @@
 # The one name the rule files read: `study` (workflow/study.py), the validated
-# configuration and its piles, stages, paths, job settings, resources, scene,
+# configuration and its piles, stages, paths, job settings, resources, outputs,
 # analysis, numerics, command lines and code digests; every rule file calls
 # study.<part>.<method>(...). Building it runs every check of the
 # configuration before any job; a refusal is the user's: its lines, not a traceback.

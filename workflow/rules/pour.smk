@@ -40,7 +40,7 @@ rule pour:
     output:
         poured=study.paths.pile("{protocol}", "{seed}", "poured"),
         # the frames of a film of the pour, only when the scene asks for one
-        **({"frames": study.paths.pile_frames("{protocol}", "{seed}")} if study.scene.wants("film") else {}),
+        **({"frames": study.paths.pile_frames("{protocol}", "{seed}")} if study.outputs.wants("film") else {}),
     params:
         code=study.code.sim,
         sim=study.sim.job_params("pour"),
@@ -55,7 +55,7 @@ rule pour:
         # empty: no frames (an empty :q field vanishes, leaving --frames without
         # a value, which the simulator reads as none); Unrecorded, so that a
         # scene without film re-pours nothing that a scene with film poured
-        frames=lambda wildcards, output: Unrecorded(output.frames if study.scene.wants("film") else ""),
+        frames=lambda wildcards, output: Unrecorded(output.frames if study.outputs.wants("film") else ""),
         # the pile's log over every run of its pour (study.paths.pour_log())
         run_log=lambda wildcards: Unrecorded(study.paths.pour_log(wildcards.protocol, wildcards.seed)),
     log:

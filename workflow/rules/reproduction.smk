@@ -87,7 +87,7 @@ if config["committed"]:
         input:
             study.analysis.targets(),
             figures=expand(str(study.analysis.committed / "figures" / "{stem}.png"),
-                           stem=[stem for stem, output in ANALYSIS_FIGURES.items() if study.scene.wants(output)]
+                           stem=[stem for stem, output in ANALYSIS_FIGURES.items() if study.outputs.wants(output)]
                            + (["general_fit"] if study.analysis.reported_general_protocols() else [])),
             table=str(study.analysis.committed / "piles.md"),
             numbers=str(study.analysis.committed / "numbers.md"),

@@ -1,5 +1,5 @@
 """No output of a command line is one of its inputs or another of its outputs
-(sim.paths, issue 47 item 5): ``pour --out a.nc --checkpoint a.nc`` said
+(sim.distinct_paths, issue 47 item 5): ``pour --out a.nc --checkpoint a.nc`` said
 "done" and left no a.nc, ``--frames b.nc --out b.nc`` lost the frames,
 ``analysis fields --relaxed R.nc --out R.nc`` replaced its input. Every such
 command line is refused in one line naming both options and the file, before
@@ -17,10 +17,10 @@ import pytest
 
 import analysis.__main__ as analysis_main
 from analysis.numerics import ensemble_cost, pile_precision, piles_report
-from analysis.paths import NUMERICS_PATHS, PATHS as ANALYSIS_PATHS, labelled
+from analysis.command_files import NUMERICS_PATHS, PATHS as ANALYSIS_PATHS, labelled
 from sim import cli
 from sim.numerics import command, kernel_profile
-from sim.paths import PathCollision, PathRoles, at_file, check_distinct_paths
+from sim.distinct_paths import PathCollision, PathRoles, at_file, check_distinct_paths
 
 REPO = Path(__file__).resolve().parents[1]
 TINY = '{"pour": {"n_particles": 20}}'   # should a refused pour run after all: seconds, not hours

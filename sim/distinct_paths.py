@@ -6,7 +6,7 @@ which is then the pile; frames written to the state file's path are replaced by
 the state; an analysis writing its fields over the state it read loses the
 state.  :func:`check_distinct_paths` refuses such a command line in one line,
 before anything runs; both command lines call it with a :class:`PathRoles` per
-subcommand (``sim.cli.PATHS``, ``analysis.__main__.PATHS``), and tests walk
+subcommand (``sim.cli.PATHS``, ``analysis.command_files.PATHS``), and tests walk
 every option of every subcommand through it.
 
 Two paths are one file when they resolve to the same path (relative or

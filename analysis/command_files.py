@@ -2,16 +2,16 @@
 writes over a file it reads or over another of its outputs (``fields --relaxed
 R.nc --out R.nc`` replaced the state it computed from): :func:`check_paths`
 refuses such a command line in one line before anything is read, with the
-simulator's :func:`sim.paths.check_distinct_paths`, which the simulator's own
-command line uses too; so do the command lines of the pile numerics
-(:data:`NUMERICS_PATHS`).
+simulator's :func:`sim.distinct_paths.check_distinct_paths`, which the
+simulator's own command line uses too; so do the command lines of the pile
+numerics (:data:`NUMERICS_PATHS`).
 """
 
 from __future__ import annotations
 
 import argparse
 
-from sim.paths import PathCollision, PathRoles, at_file, check_distinct_paths
+from sim.distinct_paths import PathCollision, PathRoles, at_file, check_distinct_paths
 
 from .errors import ParamError
 from .vtk import contacts_path, series_folder
@@ -36,7 +36,8 @@ def _vtk_outputs(path: str) -> list[tuple[str, str]]:
 
 
 def _roles(inputs: tuple[str, ...], outputs: tuple[str, ...], **kwargs) -> PathRoles:
-    """A command's :class:`~sim.paths.PathRoles`, with the ``--params @FILE`` that every command reads."""
+    """A command's :class:`~sim.distinct_paths.PathRoles`, with the ``--params @FILE`` that every
+    command reads."""
     return PathRoles(inputs=("--params", *inputs), outputs=outputs,
                      read={"--params": at_file, **kwargs.pop("read", {})}, **kwargs)
 

@@ -1,5 +1,5 @@
-"""The scene: what a configuration asks the workflow to build (config
-``outputs``) and the physics it declares (model.friction, model.damping,
+"""The outputs a scene asks the workflow to build (config ``outputs``),
+checked against the physics it declares (model.friction, model.damping,
 physics, probe.levels). Only the targets of the asked outputs are built, so a
 stress-only scene never runs a gravity probe, a strain fit or a figure.
 """
@@ -10,8 +10,8 @@ PILE_OUTPUTS = {"states", "fields", "strain", "fabric", "fits", "vtk", "film"}
 OUTPUT_NEEDS = {"strain": "fields", "fabric": "fields", "fits": "strain"}
 
 
-class Scene:
-    """The outputs a validated configuration asks for.
+class Outputs:
+    """The outputs a validated configuration (a scene) asks for.
 
     Parameters
     ----------
@@ -22,11 +22,11 @@ class Scene:
     def __init__(self, piles):
         self.piles = piles
         self.config = piles.config
-        self.outputs = set(self.config["outputs"])
+        self.asked = set(self.config["outputs"])
 
     def wants(self, output):
         """Whether the scene asks for `output` (one of the names of config ``outputs``)."""
-        return output in self.outputs
+        return output in self.asked
 
     def has_probes(self):
         """Whether the scene has gravity probes (config probe.levels not empty)."""
@@ -57,7 +57,7 @@ class Scene:
         """
         piles = self.piles
         targets = piles.targets() if self.wants("states") else []
-        if self.wants("figures") and self.outputs & PILE_OUTPUTS and not self.config["committed"]:
+        if self.wants("figures") and self.asked & PILE_OUTPUTS and not self.config["committed"]:
             targets += piles.figure_targets("relaxed") + [piles.paths.run_times_table]
         if self.wants("vtk"):
             targets += [piles.paths.pile_vtk(protocol, seed, "relaxed") for protocol, seed in piles.each()]
@@ -91,7 +91,7 @@ class Scene:
                 f"probe.levels is {config['probe']['levels']}; give a level (e.g. [0.10]) "
                 "or leave strain (and fits) out"
             )
-        if not config["physics"]["support"] and self.outputs & PILE_OUTPUTS:
+        if not config["physics"]["support"] and self.asked & PILE_OUTPUTS:
             problems.append(
                 f"physics.support = false with outputs {asked}: the piles are poured onto "
                 f"the support; without it the only allowed output is [numerics]"
@@ -133,7 +133,7 @@ class Scene:
             return problems
         if not (repo / committed).is_dir():
             problems.append(f"committed = {committed!r}: no such folder under {repo}")
-        if self.outputs & {"states", "vtk", "film", "numerics"}:
+        if self.asked & {"states", "vtk", "film", "numerics"}:
             problems.append(
                 f"committed = {committed!r} with outputs {self.config['outputs']}: committed results "
                 "replace the simulation, so states, vtk, film and numerics cannot be asked for; "

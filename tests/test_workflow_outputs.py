@@ -1,4 +1,4 @@
-"""What a scene asks for (workflow/scene.py) and which per-pile results the
+"""The outputs a scene asks for (workflow/outputs.py) and which per-pile results the
 analysis reads (workflow/analysis_inputs.py): the files of the targets of a
 scene, the seeds of committed results, the protocols of the general fit, and
 the problems of a scene named with setting, value and what to change."""
@@ -11,23 +11,23 @@ from workflow_config import configuration
 
 from workflow.analysis_inputs import AnalysisInputs, labelled
 from workflow.piles import Piles
-from workflow.scene import Scene
+from workflow.outputs import Outputs
 from workflow.validation import merge_configs
 
 NUMERICS = ["results/smoke/numerics/collisions.nc"]
 
 
 def study(*layers, base="config/smoke.yaml", repo=Path("/nowhere"), config=None):
-    """(piles, scene, analysis inputs) of a configuration."""
+    """(piles, outputs, analysis inputs) of a configuration."""
     config = configuration(*layers, base=base) if config is None else config
     piles = Piles(config)
-    scene = Scene(piles)
-    return piles, scene, AnalysisInputs(scene, repo)
+    outputs = Outputs(piles)
+    return piles, outputs, AnalysisInputs(outputs, repo)
 
 
 def targets(*layers, **kwargs):
-    piles, scene, analysis = study(*layers, **kwargs)
-    return scene.targets(analysis.targets(), NUMERICS)
+    piles, outputs, analysis = study(*layers, **kwargs)
+    return outputs.targets(analysis.targets(), NUMERICS)
 
 
 # --- targets -------------------------------------------------------------------
@@ -97,20 +97,20 @@ def test_a_scene_its_physics_cannot_give_is_refused_naming_the_settings(override
     """The settings laid over the smoke study unvalidated: the simulator's own
     checks refuse some of them too, before these."""
     config = merge_configs(configuration(), override)
-    problems = Scene(Piles(config)).problems(Path("/"))
+    problems = Outputs(Piles(config)).problems(Path("/"))
     assert problems and all(any(w in p for p in problems) for w in words), problems
 
 
 def test_committed_results_must_be_there_and_replace_the_simulation(tmp_path):
     config = configuration({"committed": "records", "outputs": ["states", "fields"]})
-    problems = Scene(Piles(config)).problems(tmp_path)
+    problems = Outputs(Piles(config)).problems(tmp_path)
     assert problems == [
         f"committed = 'records': no such folder under {tmp_path}",
         "committed = 'records' with outputs ['states', 'fields']: committed results replace the simulation, "
         "so states, vtk, film and numerics cannot be asked for; leave them out of outputs"]
     (tmp_path / "records").mkdir()
     config = configuration({"committed": "records", "outputs": ["fields"]})
-    assert Scene(Piles(config)).problems(tmp_path) == []
+    assert Outputs(Piles(config)).problems(tmp_path) == []
 
 
 # --- the analysis' inputs -----------------------------------------------------------
@@ -124,7 +124,7 @@ def test_committed_results_enter_the_ensembles_pile_by_pile_as_recorded(tmp_path
     write(tmp_path / "records" / "wedge" / "seed2.fields.nc")
     write(tmp_path / "records" / "layered" / "seed1.fields.nc")
     write(tmp_path / "records" / "layered" / "seed2.fields.nc")
-    piles, scene, analysis = study({"committed": "records", "outputs": ["fields"]}, repo=tmp_path)
+    piles, outputs, analysis = study({"committed": "records", "outputs": ["fields"]}, repo=tmp_path)
     assert analysis.pile_result("wedge", 2, "fields") == str(tmp_path / "records" / "wedge" / "seed2.fields.nc")
     assert analysis.analysis_seeds("wedge") == [2]
     assert analysis.analysis_seeds("layered") == [1, 2]
@@ -135,7 +135,7 @@ def test_committed_results_enter_the_ensembles_pile_by_pile_as_recorded(tmp_path
 
 
 def test_computed_results_of_every_pile_enter_the_ensembles():
-    piles, scene, analysis = study()
+    piles, outputs, analysis = study()
     assert analysis.pile_result("layered", 1, "fields") == "results/smoke/fields/layered/seed1.nc"
     assert analysis.pile_result("layered", 1, "checks") == "results/smoke/fields/layered/seed1.checks.json"
     assert analysis.analysis_seeds("layered", "convergence") == [1, 2]
@@ -147,7 +147,7 @@ def test_the_general_fit_takes_the_protocols_with_recorded_probes(tmp_path):
     assert study("config/scenes/elastic_probes.yaml")[2].general_fit_protocols() == ["wedge", "layered"]
     write(tmp_path / "records" / "layered" / "seed2.probes.nc")
     write(tmp_path / "records" / "layered" / "seed2.fields.nc")
-    piles, scene, analysis = study("config/scenes/elastic_probes.yaml",
+    piles, outputs, analysis = study("config/scenes/elastic_probes.yaml",
                                    {"committed": "records", "outputs": ["fields", "strain", "fits"]}, repo=tmp_path)
     assert analysis.general_fit_protocols() == ["layered"]
     assert analysis.reported_probes() == [("layered", str(tmp_path / "records/layered/seed2.probes.nc"))]
