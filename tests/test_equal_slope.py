@@ -19,7 +19,8 @@ from workflow.tools._records import check_registered, read_records
 REPO = Path(__file__).resolve().parents[1]
 DOCS = REPO / "docs" / "reproduction"
 PLANS = [(REPO / "config" / "decision_equal_slope.yaml", DOCS / "decision_equal_slope"),
-         (REPO / "config" / "decision_equal_slope_3500.yaml", DOCS / "decision_equal_slope_3500")]
+         (REPO / "config" / "decision_equal_slope_3500.yaml", DOCS / "decision_equal_slope_3500"),
+         (REPO / "config" / "step_error.yaml", DOCS / "step_error")]
 
 
 def test_the_pick_page_is_the_rule_read_from_the_committed_pilot():
