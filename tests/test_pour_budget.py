@@ -3,7 +3,7 @@
 Particles released at a constant rate give the delivery's particle-steps in
 closed form; the pour's CPU split between delivery and settling adds back to
 it; a job sampled the way Snakemake's benchmark samples it gets its unsampled
-tail back.
+tail back; and the pour's log lines are read as the simulator writes them.
 """
 
 import math
@@ -13,6 +13,7 @@ import pytest
 
 from analysis.pour_budget import (apportion, arm_summary, cost_fit, delivery_particle_steps, last_release,
                                   last_sample, pile_budget, release_knots, settling_wall_share, tail_estimate)
+from workflow.tools.pour_budget import pour_log
 
 DT = 7e-6          # s, the decision piles' step
 RATE = 200.0       # releases per s
@@ -127,3 +128,27 @@ def test_settling_wall_share_reads_the_clock_between_its_points():
 def test_arm_summary_takes_median_and_range_of_the_finite_values():
     s = arm_summary([{"a": 1.0}, {"a": 5.0}, {"a": 2.0}, {"a": math.nan}])["a"]
     assert s == {"median": 2.0, "min": 1.0, "max": 5.0, "n": 3}
+
+
+LOG = """\
+2026-12-07 22:40:50,859 INFO pour wedge seed 2017: started by process vm 24897
+2026-12-07 22:40:50,888 INFO pouring 1600 particles (wedge, seed 2017), dt = 7.07e-06 s (verlet; limit 1.41e-05 s)
+2026-12-07 22:41:01,900 INFO pour wedge seed 2017: released 491 of 1600 (30 %), ETA 0:01:41; t = 2.3107 s \
+simulated, about 5.3284 s to go, 326950 steps, 125 ns per particle-step
+2026-12-07 22:42:51,074 INFO frames: 148 written to results/study/piles/wedge/seed2017/pour.checkpoint.frames.nc \
+(4.04 MB), 0.21 s of wall time spent taking them
+2026-12-07 22:43:01,928 INFO pour wedge seed 2017 done: wall 131.0 s, 1088556 steps, 1600 particles, t = 7.6933 s, \
+angle of repose 28.5 deg, mean coordination 3.06
+"""
+
+
+def test_a_pour_log_gives_its_release_counts_and_wall_clock(tmp_path):
+    path = tmp_path / "seed2017.log"
+    path.write_text(LOG)
+    log = pour_log(path)
+    assert log["times"] == [2.3107] and log["released"] == [491]
+    steps = [s for s, _ in log["clock"]]
+    assert steps == [0, 326950, 1088556]
+    assert log["clock"][2][1] - log["clock"][0][1] == pytest.approx(131.04)
+    path.write_text(LOG + LOG)                     # a resumed pour: its wall clock is not one run's
+    assert pour_log(path)["clock"] == []
