@@ -150,5 +150,6 @@ def test_a_pour_log_gives_its_release_counts_and_wall_clock(tmp_path):
     steps = [s for s, _ in log["clock"]]
     assert steps == [0, 326950, 1088556]
     assert log["clock"][2][1] - log["clock"][0][1] == pytest.approx(131.04)
+    assert log["runs"] == 1
     path.write_text(LOG + LOG)                     # a resumed pour: its wall clock is not one run's
-    assert pour_log(path)["clock"] == []
+    assert pour_log(path)["clock"] == [] and pour_log(path)["runs"] == 2

@@ -27,7 +27,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import xarray as xr
 
 from analysis.pour_budget import PHASES, arm_summary, cost_fit, pile_budget, settling_wall_share, tail_estimate
@@ -52,8 +51,9 @@ def _clock(stamp: str) -> float:
 
 def pour_log(path: Path) -> dict:
     """The known release counts (times, counts) of a pour's log and its wall clock against its
-    steps (``[(steps, s)]``, the last run's lines: from its ``pouring`` line, at step 0, to ``done``;
-    empty when the log holds a resumed pour, whose steps did not all run in this job)."""
+    steps (``[(steps, s)]``: from its ``pouring`` line, at step 0, to ``done``), and ``runs``, how many
+    runs of the pour it holds (more than one: a resumed or retaken pour, whose steps did not all run
+    in the job its benchmark file measured; its wall clock is then left empty)."""
     lines = path.read_text(encoding="utf-8").splitlines()
     times, counts, clock = [], [], []
     for line in lines:
@@ -65,9 +65,8 @@ def pour_log(path: Path) -> dict:
             clock.append((0, _clock(m[1])))
         elif (m := DONE.match(line)):
             clock.append((int(m[2]), _clock(m[1])))
-    if sum(STARTED in line for line in lines) != 1:
-        clock = []
-    return {"times": times, "released": counts, "clock": clock}
+    runs = sum(STARTED in line for line in lines)
+    return {"times": times, "released": counts, "clock": clock if runs == 1 else [], "runs": runs}
 
 
 def state_point(path: Path) -> tuple[float, int, float, int]:
@@ -90,14 +89,14 @@ def benchmark(path: Path) -> dict:
 def find_piles(folders: list[Path], records: Path) -> list[tuple[str, int, Path]]:
     """``(arm slug, seed, work folder)`` of every pile under `folders` whose record ``ARM-seedS.json``
     is in `records`."""
-    found = []
+    found = {}
     for folder in folders:
         for cfg in sorted(folder.glob("*/seed*/config.yaml")):
             work = cfg.parent
             arm, seed = work.parent.name, work.name.removeprefix("seed")
             if seed.isdigit() and (records / f"{arm}-seed{seed}.json").is_file():
-                found.append((arm, int(seed), work))
-    return found
+                found.setdefault(work.resolve(), (arm, int(seed), work))
+    return list(found.values())
 
 
 def gather(arm: str, seed: int, work: Path, records: Path) -> dict:
@@ -132,6 +131,8 @@ def gather(arm: str, seed: int, work: Path, records: Path) -> dict:
     except (OSError, KeyError, ValueError) as exc:
         refuse(f"{frames}: not a pour's frames with time and released ({type(exc).__name__}: {exc})")
     log = pour_log(res / "logs" / "pour" / protocol / f"seed{seed}.log")
+    if log["runs"] != 1:                            # the benchmark measured only the last run
+        cpu["pour"] = wall["pour"] = math.nan
     release = (times + log["times"], released + log["released"])
     try:
         relax = (t_rel - t_pour, s_rel - s_pour, kept)
@@ -145,7 +146,7 @@ def gather(arm: str, seed: int, work: Path, records: Path) -> dict:
     budget["settling_wall_share"] = settling_wall_share(log["clock"], budget["delivery_steps"])
     budget["settling_ps_share"] = budget["settling_ps"] / (budget["delivery_ps"] + budget["settling_ps"])
     return {"arm": record.get("arm", arm), "seed": seed, "commit": record.get("commit", "?"), "n": n,
-            "dt": dt, "probes": len(probes), "budget": budget}
+            "dt": dt, "probes": len(probes), "runs": log["runs"], "budget": budget}
 
 
 #: The phases and jobs as the page names them.
@@ -305,6 +306,13 @@ def findings(piles: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def rerun_note(piles: list[dict]) -> str:
+    """A paragraph naming the piles whose pour log holds more than one run (their pour's CPU left out)."""
+    rerun = [f"{p['arm']} {p['seed']}" for p in piles if p["runs"] != 1]
+    return (f"Pours run more than once (resumed or retaken; the benchmark measured the last run only), their "
+            f"pour CPU left out: {', '.join(rerun)}.\n\n" if rerun else "")
+
+
 def page(piles: list[dict], argv: list[str], folders: list[Path]) -> str:
     """The Markdown page: how it was made, the per-arm and per-pile tables, what the statistics read."""
     command = "python -m workflow.tools pour_budget " + " ".join(shlex.quote(a) for a in argv)
@@ -313,8 +321,8 @@ def page(piles: list[dict], argv: list[str], folders: list[Path]) -> str:
     dt = sorted({f"{p['dt']:.3g}" for p in piles})
     return (
         "# Where a pile's CPU goes: delivery, settling, relaxation, probes\n\n"
-        f"Made by `{command}` on {_dt.date.today().isoformat()}, host {host()} (the piles' jobs ran on "
-        f"it, two piles side by side on 2 cores); the piles were poured by {checkouts} "
+        f"Made by `{command}` on {_dt.date.today().isoformat()} on a host "
+        f"{host()}; the piles were poured by {checkouts} "
         f"(their records name {commits}).  Piles of {', '.join(sorted({str(p['n']) for p in piles}))} particles, "
         f"dt = {', '.join(dt)} s.  Per arm: median [smallest–largest] over its piles.\n\n"
         "**Phases.** *Delivery*: from the first release (t = 0) to the last; its particle-steps are "
@@ -331,11 +339,13 @@ def page(piles: list[dict], argv: list[str], folders: list[Path]) -> str:
         "is recorded with the CPU of its first 15 s (the records' many 15.0-15.2 s), a pour of "
         "130 s with that of its first 105 s.  *With the unsampled tail* adds it back at the load the "
         "samples saw (`analysis.pour_budget.tail_estimate`; none when the job ended within 1 s of a "
-        "sample's time).  The pour's CPU is shared between delivery and settling by their "
-        "particle-steps; the last row checks that against the pour log's wall clock (the wall time "
-        "after the step of the last release, interpolated between progress lines).  Shares are of "
-        "the pile's CPU with the tail, unless *recorded*.\n\n"
-        + findings(piles) + "\n" + arm_table(piles) + "\n## Per pile\n\n" + pile_table(piles) + "\n" + STATISTICS)
+        "sample's time).  Wall times grow with whatever else ran beside a job (the calibration tool "
+        "runs two piles side by side); CPU times hardly do.  The pour's CPU is shared between delivery "
+        "and settling by their particle-steps (*CPU s by phase*); the last row checks that against the "
+        "pour log's wall clock (the wall time after the step of the last release, interpolated between "
+        "progress lines).  Shares are of the pile's CPU with the tail, unless *recorded*.\n\n"
+        + rerun_note(piles) + findings(piles) + "\n" + arm_table(piles)
+        + "\n## Per pile\n\n" + pile_table(piles) + "\n" + STATISTICS)
 
 
 def main(argv=None) -> None:
@@ -353,7 +363,13 @@ def main(argv=None) -> None:
     if not found:
         refuse(f"FOLDER {' '.join(map(str, args.folders))}: no pile ARM/seedS/ with a record in --records "
                f"{args.records}; allowed: calibration work folders whose piles are recorded there")
-    piles = [gather(arm, seed, work, args.records) for arm, seed, work in found]
+    piles = []
+    for arm, seed, work in found:
+        try:
+            piles.append(gather(arm, seed, work, args.records))
+        except (OSError, KeyError, ValueError, TypeError) as exc:
+            refuse(f"{work}: not a finished calibration pile ({type(exc).__name__}: {exc}); allowed: a work "
+                   "folder with its config.yaml, states, frames, pour log and benchmark files")
     text = page(piles, argv, args.folders)
     if args.out:
         args.out.write_text(text, encoding="utf-8")
