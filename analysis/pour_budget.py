@@ -71,6 +71,16 @@ def tail_estimate(cpu_s: float, wall_s: float) -> float:
     return cpu_s * wall_s / t if certain else math.nan
 
 
+def first_long_sample_jobs(cpu_s, wall_s) -> tuple[int, float]:
+    """The jobs last sampled at the first long-interval sample (wall time from 15 s plus
+    :data:`SAMPLE_LAG` to 45 s): how many, and the largest CPU seconds recorded for one of them,
+    which the sampling caps near 15 s for a single-threaded job however long it ran (NaN for none)."""
+    cpu, wall = np.asarray(cpu_s, float), np.asarray(wall_s, float)
+    start = SHORT_SAMPLES * SAMPLE_SHORT
+    inside = (wall >= start + SAMPLE_LAG) & (wall < start + SAMPLE_LONG) & np.isfinite(cpu)
+    return int(inside.sum()), float(cpu[inside].max()) if inside.any() else math.nan
+
+
 def release_knots(times, released, n: int) -> tuple[np.ndarray, np.ndarray]:
     """The release count's known points: ``(0, 1)`` (the first particle is placed before
     the first step) and each ``(time, released)`` given, sorted by time, duplicates merged.

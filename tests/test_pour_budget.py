@@ -11,8 +11,9 @@ import math
 import numpy as np
 import pytest
 
-from analysis.pour_budget import (apportion, arm_summary, cost_fit, delivery_particle_steps, last_release,
-                                  last_sample, pile_budget, release_knots, settling_wall_share, tail_estimate)
+from analysis.pour_budget import (apportion, arm_summary, cost_fit, delivery_particle_steps, first_long_sample_jobs,
+                                  last_release, last_sample, pile_budget, release_knots, settling_wall_share,
+                                  tail_estimate)
 from workflow.tools.pour_budget import pour_log
 
 DT = 7e-6          # s, the decision piles' step
@@ -102,6 +103,12 @@ def test_the_unsampled_tail_comes_back(wall):
     recorded = sampled(0.9, wall)
     assert recorded < 0.9 * wall
     assert tail_estimate(recorded, wall) == pytest.approx(0.9 * wall)
+
+
+def test_jobs_sampled_last_at_15_s_are_counted_with_their_largest_record():
+    walls = [10.0, 20.0, 30.0, 44.0, 60.0]
+    assert first_long_sample_jobs([sampled(1.0, w) for w in walls], walls) == (3, 15.0)
+    assert first_long_sample_jobs([5.0], [10.0])[0] == 0
 
 
 def test_the_tail_is_left_alone_where_the_samples_reach_the_end_or_are_in_doubt():

@@ -29,7 +29,8 @@ from pathlib import Path
 
 import xarray as xr
 
-from analysis.pour_budget import PHASES, arm_summary, cost_fit, pile_budget, settling_wall_share, tail_estimate
+from analysis.pour_budget import (PHASES, arm_summary, cost_fit, first_long_sample_jobs, pile_budget,
+                                  settling_wall_share, tail_estimate)
 from analysis.run_times import benchmark_row
 from sim.settings_file import read_settings_file
 from workflow.stages import probe_input_stage
@@ -298,6 +299,11 @@ def findings(piles: list[dict]) -> str:
             ps.append(steps)
             cpu.append(b[f"cpu_est_{job}"])
     overhead, ns, jobs = cost_fit(ps, cpu)
+    capped, largest = first_long_sample_jobs(*zip(*[(p["budget"][f"cpu_{job}"], p["budget"][f"wall_{job}"])
+                                                    for p in piles for job in ("pour", "relax", "probe")]))
+    if capped:
+        lines.append(f"- The sampling's cap: of the {capped} jobs here of 16 to 45 s wall time, the most CPU "
+                     f"recorded for one is {largest:.1f} s.")
     lines.append(f"- Over all {jobs} jobs (pours, relaxations, probes), CPU with the tail ≈ {overhead:.1f} s + "
                  f"{ns:.0f} ns × particle-steps (least squares, `analysis.pour_budget.cost_fit`): a job costs "
                  "some seconds before and after its steps (start-up, the kernels' cache, the states), which a "
