@@ -101,12 +101,14 @@ def release_knots(times, released, n: int) -> tuple[np.ndarray, np.ndarray]:
     return t, r
 
 
-def last_release(times, released, n: int) -> tuple[float, float, float]:
+def last_release(times, released, n: int, latest: float = math.inf) -> tuple[float, float, float]:
     """When the last of `n` particles was released: ``(estimate, after, by)`` (s).
 
     ``after`` is the latest known time with fewer than `n` released, ``by`` the
-    earliest with all `n`; the estimate goes on from ``after`` at the release
-    rate between the two known points before it, and stays at most ``by``.
+    earliest with all `n`, or `latest` where that is earlier (and later than
+    ``after``): the latest time the pour's schedule allows; the estimate goes on
+    from ``after`` at the release rate between the two known points before it,
+    and stays at most ``by``.
 
     Raises
     ------
@@ -121,9 +123,10 @@ def last_release(times, released, n: int) -> tuple[float, float, float]:
     a = b - 1
     if a < 0:
         return float(t[b]), float(t[b]), float(t[b])
+    by = float(min(t[b], latest)) if latest > t[a] else float(t[b])
     rate = (r[a] - r[a - 1]) / (t[a] - t[a - 1]) if a >= 1 else math.nan
-    step = (n - r[a]) / rate if rate > 0 else 0.5 * (t[b] - t[a])
-    return float(min(t[a] + step, t[b])), float(t[a]), float(t[b])
+    step = (n - r[a]) / rate if rate > 0 else 0.5 * (by - t[a])
+    return float(min(t[a] + step, by)), float(t[a]), by
 
 
 def delivery_particle_steps(times, released, t_last: float, dt: float, n: int) -> float:
@@ -148,7 +151,8 @@ def apportion(total: float, weights: dict[str, float]) -> dict[str, float]:
 
 
 def pile_budget(n: int, dt: float, pour: tuple[float, int], release: tuple, relax: tuple[float, int, int],
-                probes: list[tuple[float, int, int]], cpu: dict[str, float], wall: dict[str, float]) -> dict[str, Any]:
+                probes: list[tuple[float, int, int]], cpu: dict[str, float], wall: dict[str, float],
+                settle_min: float = 0.0) -> dict[str, Any]:
     """One pile's phases: simulated time, steps, particle-steps and CPU.
 
     Parameters
@@ -169,6 +173,10 @@ def pile_budget(n: int, dt: float, pour: tuple[float, int], release: tuple, rela
     cpu, wall : dict
         CPU and wall seconds of the jobs ``pour``, ``relax``, ``probe`` (the probes summed),
         as the benchmark files give them.
+    settle_min : float
+        The least simulated time (s) the pour runs after its last release (its settling time
+        and one landing window, :func:`sim.pour.pour`): the last release is at most the
+        pour's end less this (:func:`last_release`).
 
     Returns
     -------
@@ -181,7 +189,7 @@ def pile_budget(n: int, dt: float, pour: tuple[float, int], release: tuple, rela
         particle-steps) and ``share_{phase}`` (of the estimated total); ``cpu_total``,
         ``cpu_est_total``.
     """
-    t_last, after, by = last_release(*release, n)
+    t_last, after, by = last_release(*release, n, latest=pour[0] - settle_min)
     out: dict[str, Any] = {"last_release_after": after, "last_release_by": by}
     delivery_steps = t_last / dt
     out.update(delivery_s=t_last, delivery_steps=delivery_steps,

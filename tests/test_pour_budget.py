@@ -51,6 +51,9 @@ def test_the_last_release_goes_on_at_the_rate_before_it():
     # a release held back: the estimate never passes the first point with all of them
     estimate, _, hi = last_release(np.r_[times, times[-1] + 1e-3], np.r_[released, n], n)
     assert estimate == hi
+    # nor the latest time the pour's schedule allows
+    estimate, _, hi = last_release(np.r_[times, after], np.r_[released, n], n, latest=times[-1] + 1e-3)
+    assert estimate == hi == times[-1] + 1e-3
 
 
 def test_known_points_are_sorted_merged_and_checked():

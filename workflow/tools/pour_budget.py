@@ -20,6 +20,7 @@ Usage::
 from __future__ import annotations
 
 import datetime as _dt
+import inspect
 import math
 import re
 import shlex
@@ -32,6 +33,7 @@ import xarray as xr
 from analysis.pour_budget import (PHASES, arm_summary, cost_fit, first_long_sample_jobs, pile_budget,
                                   settling_wall_share, tail_estimate)
 from analysis.run_times import benchmark_row
+from sim.pour import LANDING_WINDOW, pour
 from sim.settings_file import read_settings_file
 from workflow.stages import probe_input_stage
 
@@ -43,6 +45,9 @@ PROGRESS = re.compile(r"^(\S+ \S+) INFO .*: released (\d+) of \d+ .*; t = ([0-9.
 POURING = re.compile(r"^(\S+ \S+) INFO pouring \d+ particles")
 DONE = re.compile(r"^(\S+ \S+) INFO pour \S+ seed \d+ done: wall [0-9.]+ s, (\d+) steps")
 STARTED = "started by process"
+#: The least simulated time a pour runs after its last release: its settling time (``pour``'s
+#: ``settle_time``, which the workflow leaves at its default) and one landing window (``sim.pour._land``).
+SETTLE_MIN = inspect.signature(pour).parameters["settle_time"].default + LANDING_WINDOW
 
 
 def _clock(stamp: str) -> float:
@@ -137,7 +142,7 @@ def gather(arm: str, seed: int, work: Path, records: Path) -> dict:
     release = (times + log["times"], released + log["released"])
     try:
         relax = (t_rel - t_pour, s_rel - s_pour, kept)
-        budget = pile_budget(n, dt, (t_pour, s_pour), release, relax, probes, cpu, wall)
+        budget = pile_budget(n, dt, (t_pour, s_pour), release, relax, probes, cpu, wall, SETTLE_MIN)
     except ValueError as exc:
         refuse(f"{frames}: {exc}")
     compiled = bench / "compile_kernels.tsv"
@@ -334,7 +339,8 @@ def page(piles: list[dict], argv: list[str], folders: list[Path]) -> str:
         "**Phases.** *Delivery*: from the first release (t = 0) to the last; its particle-steps are "
         "the release count integrated over its steps, the count known exactly at each frame of "
         "`frames.nc` and each progress line of the pour's log and linear between them; the last "
-        "release is placed in its bracket (the row *known within*) by the release rate before it. "
+        f"release is placed in its bracket (the row *known within*; it ends at most {SETTLE_MIN:g} s, the "
+        "pour's settling time and one landing window, before the pour's end) by the release rate before it. "
         "*Settling*: from the last release to the pour's stop criterion (`sim.pour._land`), all "
         "particles present.  *Relaxation* and *probes*: their steps from the states' `step` "
         "(relaxed − poured; each probe's state − its input's).  Steps and times are the states' own "
@@ -346,7 +352,7 @@ def page(piles: list[dict], argv: list[str], folders: list[Path]) -> str:
         "130 s with that of its first 105 s.  *With the unsampled tail* adds it back at the load the "
         "samples saw (`analysis.pour_budget.tail_estimate`; none when the job ended within 1 s of a "
         "sample's time).  Wall times grow with whatever else ran beside a job (the calibration tool "
-        "runs two piles side by side); CPU times hardly do.  The pour's CPU is shared between delivery "
+        "runs two piles side by side); CPU times much less.  The pour's CPU is shared between delivery "
         "and settling by their particle-steps (*CPU s by phase*); the last row checks that against the "
         "pour log's wall clock (the wall time after the step of the last release, interpolated between "
         "progress lines).  Shares are of the pile's CPU with the tail, unless *recorded*.\n\n"
