@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import math
+import resource
 import time as _time
 
 from .durations import hms
@@ -219,5 +220,17 @@ def summary(sim, what, wall, contacts=None):
         contacts = (c["i"], c["j"])
     angle = angle_of_repose(pos[:, 0], pos[:, 1], sim.shapes.radius[:sim.n])
     log.info("%s done: wall %.1f s, %d steps, %d particles, t = %.4f s, angle of repose "
-             "%.1f deg, mean coordination %.2f", what, wall, sim.step, sim.n, sim.time,
-             angle, mean_coordination(*contacts, sim.n))
+             "%.1f deg, mean coordination %.2f; CPU %.1f s in this process", what, wall, sim.step, sim.n,
+             sim.time, angle, mean_coordination(*contacts, sim.n), process_cpu())
+
+
+def process_cpu() -> float:
+    """CPU seconds (user + system, all threads) this process has used so far.
+
+    A stage's own count, read when its summary line is written: Snakemake's
+    benchmark files sample a job's CPU every 0.5 s for its first 15 s and every
+    30 s after, with no sample at its end, so they miss a job's last seconds
+    (docs/performance/pour_budget.md).
+    """
+    use = resource.getrusage(resource.RUSAGE_SELF)
+    return use.ru_utime + use.ru_stime

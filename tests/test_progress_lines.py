@@ -5,6 +5,7 @@ since the start of pouring, not counting the start-up before it."""
 import logging
 import math
 import re
+import time
 from types import SimpleNamespace
 
 import pytest
@@ -121,3 +122,15 @@ def test_relax_line_says_at_most_in_hms(caplog):
                     "at most 9.8000 s to go, 3500 particles, 10100 steps, 343 ns per "
                     "particle-step, KE per particle 0.1 m g d")
     assert hms(expected) == "0:19:36"  # 12 s per 0.1 s simulated: 98 x 12 s
+
+
+def test_the_summary_lines_cpu_is_the_process_own_count():
+    """sim.progress.process_cpu reads getrusage; Python's process_time reads the same
+    user + system time through another call: over a busy loop of about 0.3 s both
+    rise alike (to the kernel's accounting tick, 10 ms, and a margin)."""
+    from sim.progress import process_cpu
+
+    a, b = process_cpu(), time.process_time()
+    while time.process_time() - b < 0.3:
+        sum(range(1000))
+    assert process_cpu() - a == pytest.approx(time.process_time() - b, abs=0.03)
