@@ -34,6 +34,11 @@ from .history import holm, mean_sem, piles_for_power, row_contrast, t_power, tos
 DECISION = ("stress_column", "base_pressure_column")
 #: The secondary statistics, reported with their own Holm correction.
 SECONDARY = ("strain@4.5", "solid_fraction@4.5", "gravity_gap", "stress_fabric")
+#: The equal-slope decision's secondaries (docs/reproduction/preregistration_equal_slope.md,
+#: "Secondary"), one Holm family: D2, D1 in windows scaled to each pile's half width, the
+#: interior measure, the centre's share of its own column, then the first decision's.
+EQUAL_SLOPE_SECONDARY = ("base_pressure_column", "scaled_stress_column", "interior_share",
+                         "centre_column") + SECONDARY
 #: The effect the ensemble is powered for, in D1 (a fraction of the uniform pile's pressure).
 EFFECT = 0.05
 LEVEL, POWER = 0.05, 0.8
@@ -113,9 +118,19 @@ def pooled_sd(a, b) -> tuple[float, int]:
     return float(math.sqrt(ss / df)), int(df)
 
 
+def statistic(record: dict, key: str) -> float:
+    """One pile's statistic `key`: ``quantities[key]``, the interior measure ``growth.interior_share``,
+    or D1 in scaled windows (:func:`scaled_stress_column`, from the record's inputs)."""
+    if key == "scaled_stress_column":
+        return scaled_stress_column(record)
+    if key == "interior_share":
+        return record["growth"].get(key, math.nan)
+    return record["quantities"].get(key, math.nan)
+
+
 def values(records: list[dict], arm: str, key: str) -> list[float]:
-    """``quantities[key]`` of the arm's piles, in seed order."""
-    return [r["quantities"][key] for r in sorted(records, key=lambda r: r["seed"]) if r["arm"] == arm]
+    """The statistic `key` (:func:`statistic`) of the arm's piles, in seed order."""
+    return [statistic(r, key) for r in sorted(records, key=lambda r: r["seed"]) if r["arm"] == arm]
 
 
 def piles_required(records: list[dict], point: str, layered: str) -> dict[str, Any]:
@@ -175,7 +190,8 @@ def verdict(records: list[dict], point: str, layered: str, n: int, family: tuple
         if have < n:
             raise ValueError(f"{arm}: {have} of the registered {n} piles; the verdict waits for all of them")
     out: dict[str, Any] = {}
-    for part, keys in (("decision", family), ("secondary", SECONDARY)):
+    secondary = SECONDARY if margin is None else EQUAL_SLOPE_SECONDARY
+    for part, keys in (("decision", family), ("secondary", secondary)):
         rows = {}
         for key in keys:
             a, b = values(records, point, key), values(records, layered, key)

@@ -14,13 +14,13 @@ import pytest
 from scipy import stats
 
 from analysis import decision
-from analysis.decision import DECISION, EFFECT, SECONDARY
+from analysis.decision import DECISION, EFFECT, EQUAL_SLOPE_SECONDARY, SECONDARY
 from analysis.history import row_contrast, tost
 
 
 def record(arm, seed, flow=0.5, p90=20.0, angle=27.0, **q):
     """A calibration record with the numbers the rules read."""
-    quantities = {"angle_deg": angle, **{k: 0.0 for k in DECISION + SECONDARY}, **q}
+    quantities = {"angle_deg": angle, **{k: 0.0 for k in DECISION + EQUAL_SLOPE_SECONDARY}, **q}
     return {"arm": arm, "protocol": arm.split()[0], "seed": seed,
             "growth": {"flow_fraction": flow, "flank_p90_deg": p90}, "quantities": quantities}
 
@@ -99,7 +99,7 @@ def decision_records(shift, n=12, seed=3):
     for arm, mean in (("wedge funnel", shift), ("layered rain", 0.0)):
         for s in range(n):
             q = {DECISION[0]: rng.normal(mean, 0.05), DECISION[1]: rng.normal(mean, 0.09),
-                 **{k: rng.normal(0, 1) for k in SECONDARY}}
+                 **{k: rng.normal(0, 1) for k in SECONDARY}, "centre_column": 0.01 * (s % 3)}
             out.append(record(arm, 1001 + s, **q))
     return out
 

@@ -9,6 +9,7 @@
   older than every pile it judges.
 """
 
+import re
 from pathlib import Path
 
 import pytest
@@ -33,3 +34,26 @@ def test_the_pick_page_is_the_rule_read_from_the_committed_pilot():
 def test_every_decision_record_was_poured_after_its_registration(plan, folder):
     records = read_records(folder) if any(folder.glob("*.json")) else {}
     check_registered(records, plan, replaces="stress_column")
+
+
+def test_the_verdict_page_is_the_tools_reading_of_the_committed_records():
+    """docs/reproduction/decision_equal_slope.md is what ``decision verdict`` prints now."""
+    plan = REPO / "config" / "decision_equal_slope.yaml"
+    page = decision.verdict(DOCS / "decision_equal_slope", plan)
+    assert page == (DOCS / "decision_equal_slope.md").read_text()
+
+
+def test_the_verdict_reports_every_secondary_the_registration_names():
+    """Each statistic in the registration's "Secondary" section is a row of the verdict's
+    secondary table, or (D1 on arm plus angle) the shape check's sentence."""
+    text = (DOCS / "preregistration_equal_slope.md").read_text()
+    section = text.split("## Secondary")[1].split("**At the paper's size**")[0]
+    named = [t.removeprefix("analysis.decision.") for t in re.findall(r"`([^`]+)`", section)]
+    page = (DOCS / "decision_equal_slope.md").read_text()
+    secondary = page.split("Secondary (own Holm family")[1]
+    assert len(named) == 9
+    for name in named:
+        if name == "shape_check":
+            assert "Fitted on arm plus angle" in page
+        else:
+            assert f"\n| {name} |" in secondary, name
