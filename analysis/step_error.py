@@ -98,7 +98,7 @@ def paired_bias(candidate: dict[int, float], reference: dict[int, float], scatte
     return Cell(len(d), float(d.mean()), se, half, sigma, sd / sigma)
 
 
-def choose_step(cost: dict[str, float], reference_cost: float, complete: dict[str, bool],
+def choose_step(cost: dict[str, float], reference_cost: float, piles: dict[str, tuple[int, int]],
                 cells: dict[str, list[Cell]], quarter: float) -> tuple[str | None, list[str]]:
     """The rule of docs/reproduction/step_error_plan.md: the cheapest admissible candidate.
 
@@ -108,8 +108,9 @@ def choose_step(cost: dict[str, float], reference_cost: float, complete: dict[st
         ``{candidate: CPU s per pile}`` (mean over its arms).
     reference_cost : float
         The reference step's CPU s per pile, the same way.
-    complete : dict
-        ``{candidate: whether every one of its piles completed}``.
+    piles : dict
+        ``{candidate: (piles completed, piles registered)}``; a candidate is
+        admissible only with all of them (a refused or failed pile counts against it).
     cells : dict
         ``{candidate: its cells}``.
     quarter : float
@@ -124,8 +125,9 @@ def choose_step(cost: dict[str, float], reference_cost: float, complete: dict[st
     reasons, admissible = [], []
     for name in cost:
         failed = [c for c in cells[name] if c.fails(quarter)]
-        if not complete[name]:
-            reasons.append(f"{name}: not admissible, not every pile completed")
+        done, registered = piles[name]
+        if done < registered:
+            reasons.append(f"{name}: not admissible, {done} of its {registered} piles completed")
         elif failed:
             reasons.append(f"{name}: not admissible, {len(failed)} cell(s) biased beyond {quarter} scatters")
         else:

@@ -65,9 +65,10 @@ def test_choose_step_takes_the_cheapest_admissible_below_the_reference():
     ok, bad = Cell(6, 0.0, 0.1, 0.2, 1.0, 1.0), Cell(6, 1.0, 0.01, 0.02, 1.0, 0.1)
     cells = {"a": [ok], "b": [ok], "c": [bad], "d": [ok]}
     cost = {"a": 90.0, "b": 70.0, "c": 50.0, "d": 40.0}
-    chosen, reasons = choose_step(cost, 110.0, {"a": True, "b": True, "c": True, "d": False}, cells, 0.25)
-    assert chosen == "b" and len(reasons) == 4
-    assert choose_step({"a": 120.0}, 110.0, {"a": True}, {"a": [ok]}, 0.25)[0] is None
+    chosen, reasons = choose_step(cost, 110.0, {"a": (12, 12), "b": (12, 12), "c": (12, 12), "d": (11, 12)},
+                                  cells, 0.25)
+    assert chosen == "b" and "d: not admissible, 11 of its 12 piles completed" in reasons
+    assert choose_step({"a": 120.0}, 110.0, {"a": (12, 12)}, {"a": [ok]}, 0.25)[0] is None
 
 
 def test_the_tool_finds_a_bias_put_into_copies_of_the_decision_piles(tmp_path):

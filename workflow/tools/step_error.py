@@ -106,7 +106,7 @@ def page(plan: Path, records_folder: Path) -> str:
     complete = {}
     for step in steps:
         mine = [r for r in records if reg["arms"][r["arm"]]["step"] == step]
-        complete[step] = len(mine) == len(ref_arms) * len(reg["seeds"])
+        complete[step] = (len(mine), len(ref_arms) * len(reg["seeds"]))
         cost[step] = float(np.mean([np.mean([value(r, cpu) for r in mine if r["arm"] == arm_of[(step, a)]] or [math.nan])
                                     for a in ref_arms]))
     ref_cost = float(np.mean([np.mean([value(r, cpu) for r in reference if r["arm"] == a and r["seed"] in paired_seeds])
@@ -128,7 +128,11 @@ def page(plan: Path, records_folder: Path) -> str:
             "(about 1.4 when the two steps give unrelated piles of one seed); the pairs. A cell **fails** when "
             f"the interval lies wholly beyond ±{reg['quarter']} σ. CPU seconds are each job's own (Snakemake's "
             "benchmark files), two piles side by side on a 2-core host; the paired ratio is the median over "
-            "seeds of candidate over reference CPU, the reference poured in another window on the same host.\n")
+            "seeds of candidate over reference CPU, the reference poured in another window on the same host. "
+            "Those files sample a job's CPU every 30 s after its first 15 s and miss its last seconds "
+            "(docs/performance/pour_budget.md), so every CPU figure here is low by up to 30 s per job; the "
+            "pile a candidate does not complete is named in the calibration tool's log (a refused step: "
+            "its settings' own message).\n")
     return head + "\n".join(lines) + "\n\n## The rule\n\n" + "\n".join(f"- {r}" for r in reasons) + "\n\n" + verdict + "\n"
 
 
