@@ -76,10 +76,14 @@ if config["committed"]:
     CALIBRATION_RECORDS = sorted(str(p) for p in (study.analysis.committed / "calibration").glob("*.json"))
     # The levers (config/levers.yaml): calibration arms with one setting changed, records in {committed}/levers/.
     LEVER_RECORDS = sorted(str(p) for p in (study.analysis.committed / "levers").glob("*.json"))
-    DECISION_PLAN = study.repo / "config" / "decision.yaml"
-    # Its records, in {committed}/decision/: the verdict page is made when there are any
-    # (decision verdict refuses an empty or missing folder).
-    DECISION_RECORDS = sorted(str(p) for p in (study.analysis.committed / "decision").glob("*.json"))
+    # The registered decisions (config/NAME.yaml, records in {committed}/NAME/, verdict page
+    # {committed}/NAME.md): the first (decision), the equal-slope one and its 3500-particle
+    # secondary. A verdict page is made when its plan and records are there (decision verdict
+    # refuses an empty or missing folder; short of N piles it writes how far the ensemble is).
+    DECISION_RECORDS = {name: sorted(str(p) for p in (study.analysis.committed / name).glob("*.json"))
+                        for name in ("decision", "decision_equal_slope", "decision_equal_slope_3500")
+                        if (study.repo / "config" / f"{name}.yaml").exists()}
+    DECISION_RECORDS = {name: records for name, records in DECISION_RECORDS.items() if records}
 
     rule reproduction:
         # make reproduction: the figures and the per-pile table, from the
@@ -96,7 +100,7 @@ if config["committed"]:
                                  variant=SIX_CONSTANT_VARIANTS),
             calibration=[str(study.analysis.committed / "calibration.md")] if CALIBRATION_RECORDS else [],
             levers=[str(study.analysis.committed / "levers.md")] if LEVER_RECORDS else [],
-            decision=[str(study.analysis.committed / "decision.md")] if DECISION_PLAN.exists() and DECISION_RECORDS else [],
+            decisions=[str(study.analysis.committed / f"{name}.md") for name in DECISION_RECORDS],
         localrule: True
 
     rule reproduction_calibration:
@@ -139,21 +143,24 @@ if config["committed"]:
 
     rule reproduction_decision:
         input:
-            records=DECISION_RECORDS,
+            records=lambda wc: DECISION_RECORDS[wc.name],
             calibration=lambda wc: sorted(str(p) for p in (study.analysis.committed / "calibration").glob("*.json")),
-            plan=str(DECISION_PLAN),
+            plan=lambda wc: str(study.repo / "config" / f"{wc.name}.yaml"),
             tool="workflow/tools/decision.py",
         output:
-            str(study.analysis.committed / "decision.md"),
+            str(study.analysis.committed / "{name}.md"),
+        wildcard_constraints:
+            name="|".join(DECISION_RECORDS) or "(?!)",
         params:
-            records=str(study.analysis.committed / "decision"),
+            records=lambda wc: str(study.analysis.committed / wc.name),
         log:
-            study.paths.results_path("logs/reproduction/decision.log"),
+            study.paths.results_path("logs/reproduction/{name}.log"),
         localrule: True
         conda:
             "../envs/polypile.yaml"
         shell:
-            study.commands.py_shell("-m workflow.tools decision verdict --records {params.records:q} --out {output:q} > {log:q} 2>&1")
+            study.commands.py_shell("-m workflow.tools decision verdict --plan {input.plan:q} --records {params.records:q} "
+                                    "--out {output:q} > {log:q} 2>&1")
 
     rule reproduction_figure:
         input:
