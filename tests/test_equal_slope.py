@@ -21,7 +21,8 @@ REPO = Path(__file__).resolve().parents[1]
 DOCS = REPO / "docs" / "reproduction"
 PLANS = [(REPO / "config" / "decision_equal_slope.yaml", DOCS / "decision_equal_slope"),
          (REPO / "config" / "decision_equal_slope_3500.yaml", DOCS / "decision_equal_slope_3500"),
-         (REPO / "config" / "step_error.yaml", DOCS / "step_error")]
+         (REPO / "config" / "step_error.yaml", DOCS / "step_error"),
+         (REPO / "config" / "step_error_limit.yaml", DOCS / "step_error_limit")]
 
 
 def test_the_pick_page_is_the_rule_read_from_the_committed_pilot():

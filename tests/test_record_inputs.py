@@ -25,7 +25,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 #: The folders of per-pile records (one JSON object per pile).
 FOLDERS = ("decision", "calibration", "levers", "equal_slope", "decision_equal_slope", "decision_equal_slope_3500",
-           "step_error")
+           "step_error", "step_error_limit")
 RECORDS = sorted(p for folder in FOLDERS for p in (REPO / "docs" / "reproduction" / folder).rglob("*.json")
                  if "inputs" in json.loads(p.read_text()))
 
