@@ -47,3 +47,31 @@ def test_ratio_per_simulated_second_compares_cpu_time_at_each_codes_step():
     assert out["ratio_to_lammps_per_simulated_s"] == pytest.approx(3.0)
     assert "ratio_to_lammps_per_simulated_s" not in ratios(
         [{k: v for k, v in ours.items() if not k.startswith("cpu_s")}], [peer])[0]
+
+
+def test_a_peer_failing_on_one_pile_is_reported_and_the_bench_goes_on(monkeypatch, capsys):
+    from types import SimpleNamespace
+
+    from sim.numerics import bench
+    monkeypatch.setattr(bench, "_load", lambda path, integrator: SimpleNamespace(n=300))
+
+    def timer(sim, t, steps, repeats, cache):
+        if t == 2:
+            raise RuntimeError("LAMMPS polygon peer: 300 polygons not settled")
+        return {"n_particles": 300, "ranks": t, "contacts_per_particle": 1.6, "dt": 7e-6,
+                "lammps_ns_per_particle_step": 80.0, "lammps_cpu_ns_per_particle_step": 70.0,
+                "lammps_ns_per_contact": 50.0, "neighbor_builds": [0, 1],
+                "breakdown": {"pair": 0.5, "modify": 0.4, "other": 0.1},
+                "rms_speed": [1e-3, 2e-3],
+                "lammps_build": {"version": "29 Sep 2021 - Update 2", "path": "lmp",
+                                 "compiler": "GNU", "mpi": "MPI", "accelerators": [],
+                                 "flags": [], "packages": ["GRANULAR"]}}
+    monkeypatch.setitem(bench.PEER_TIMERS, "lammps", timer)
+    rows, failures = bench._time_peer("lammps", ["pile.nc"], (1, 2), 200, 2, None)
+    assert [r["ranks"] for r in rows] == [1]
+    assert rows[0]["cpu_s_per_particle_simulated_s"] == pytest.approx(70e-9 / 7e-6)
+    assert failures == [{"n_particles": 300, "ranks": 2,
+                         "error": "LAMMPS polygon peer: 300 polygons not settled"}]
+    out = capsys.readouterr().out
+    assert "LAMMPS 29 Sep 2021 - Update 2" in out and "no row: LAMMPS polygon peer" in out
+    assert "1/400" in out  # neighbour-list builds in the timed steps

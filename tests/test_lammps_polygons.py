@@ -315,3 +315,29 @@ def test_lammps_times_a_small_settled_pile(tmp_path):
         assert "BODY" in r["lammps_build"]["packages"]
         assert r["lammps_polygons_cpu_ns_per_particle_step"] > 0.0
     assert len(list(tmp_path.glob("lammps-polygons-n40-*.data"))) == 1  # settled once
+
+
+def test_a_settling_stopped_at_its_wall_time_limit_says_what_it_reached(monkeypatch, tmp_path):
+    """Without LAMMPS: a stand-in run stops as LAMMPS does at its ``timer timeout``."""
+    shapes, theta, pile = _pile(20)
+    monkeypatch.setattr(lp, "find_lmp", lambda: ("lmp", None))
+    mass = float(pile["mass"].sum())
+    ke = 0.5 * mass * 2.0 ** 2  # LAMMPS units: 2 cm/s
+
+    def run(folder, lmp, mpirun, ranks, what):
+        (folder / "log.lammps").write_text(
+            f"timestep 1.4e-05\nrun 30000\nStep Atoms KinEng \n       0      20   0 \n"
+            f"     714      20   {ke:.10g} \nWARNING: Wall time limit reached (src/timer.cpp:238)\n"
+            "Loop time of 900.1 on 1 procs for 800 steps with 20 atoms\n\n"
+            'print "SETTLED 0 ${vrms}"\n'
+            "ERROR: Compute used in variable thermo keyword between runs is not current\n")
+        raise RuntimeError(f"{what} failed (exit 1)")
+    monkeypatch.setattr(lp, "run_lmp", run)
+    with pytest.raises(RuntimeError) as caught:
+        lp.settled_peer(shapes, theta, 7e-6, 1e-3, ModelParams(), tmp_path, target=0.005)
+    message = str(caught.value)
+    assert "not settled: stopped at the wall-time limit of 900 s" in message
+    assert "0.01 s simulated" in message  # 800 steps of 1.4e-5 s
+    assert "rms speed 20 mm/s at its last thermo line" in message and "target 5 mm/s" in message
+    assert not list(tmp_path.glob("*.data"))  # nothing kept to be timed
+    assert len(list(tmp_path.glob("*.settle-failed.log"))) == 1

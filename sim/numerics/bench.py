@@ -418,8 +418,9 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
                       f"{r['share_gather']:>6.0%} {_cost_columns(r, 'cpu_ns_per_particle_step')} "
                       f"{_per_steps(r['list_refreshes'], steps):>12} "
                       f"{_speeds(r['rms_speed']):>11}", flush=True)
-    peers, polygon_peers = (_time_peer(name, paths, threads, steps, repeats, cache)
-                            if name in peers_asked else [] for name in PEERS)
+    (peers, failed), (polygon_peers, polygons_failed) = (
+        _time_peer(name, paths, threads, steps, repeats, cache) if name in peers_asked
+        else ([], []) for name in PEERS)
     rows = lammps_peer.ratios(lammps_peer.ratios(rows, peers), polygon_peers, "lammps_polygons")
     for r in rows:
         for name, key in (("disks", "ratio_to_lammps"), ("polygons", "ratio_to_lammps_polygons")):
@@ -440,7 +441,8 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
               f"{r['against_n']}, {r['integrator']}, {r['threads']} thread(s): {r['ratio']:.2f}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     print(json.dumps({"bench": rows, **derived, "lammps": peers,
-                      "lammps_polygons": polygon_peers, "peak_rss_bytes": peak,
+                      "lammps_polygons": polygon_peers, "lammps_failures": failed,
+                      "lammps_polygons_failures": polygons_failed, "peak_rss_bytes": peak,
                       "threads_available": numba.config.NUMBA_NUM_THREADS}))
     return rows
 
@@ -485,16 +487,30 @@ def _time_peer(peer, paths, threads, steps, repeats, cache):
     printed as a table under a line naming its LAMMPS build, with LAMMPS's
     neighbour-list builds and timing breakdown.  Its figures are keyed by the
     peer's name with ``_`` (``lammps_polygons_ns_per_particle_step``); each row
-    gains the cost per simulated second (:func:`cost_per_simulated_second`)."""
+    gains the cost per simulated second (:func:`cost_per_simulated_second`).
+    A pile the peer fails on (LAMMPS failed, or its box did not settle in
+    time) gets no row: the failure is printed and the bench goes on.
+
+    Returns
+    -------
+    (list of dict, list of dict)
+        The rows, and the failures (``n_particles``, ``ranks``, ``error``).
+    """
     key = peer.replace("-", "_")
     header = (f"{'N':>6} {'peer':>16} {'rk':>3} {'contacts/N':>10} {'ns/p-step':>9} "
               f"{'ns/contact':>10} {COST_HEADER} {'rebuilds':>10} "
               + " ".join(f"{s:>6}" for s in SECTIONS) + f" {'rms mm/s':>11}")
-    peers = []
+    peers, failures = [], []
     for path in paths:
         sim = _load(path, "verlet")
         for t in threads:
-            p = PEER_TIMERS[peer](sim, t, steps, repeats, cache)
+            try:
+                p = PEER_TIMERS[peer](sim, t, steps, repeats, cache)
+            except RuntimeError as exc:
+                log.warning("bench: no %s row for N = %d on %d rank(s): %s", peer, sim.n, t, exc)
+                print(f"{sim.n:>6} {peer:>16} {t:>3} no row: {exc}", flush=True)
+                failures.append({"n_particles": sim.n, "ranks": t, "error": str(exc)})
+                continue
             p.update(cost_per_simulated_second(p[key + "_cpu_ns_per_particle_step"],
                                                p["n_particles"], p["dt"]))
             if not peers:
@@ -511,7 +527,7 @@ def _time_peer(peer, paths, threads, steps, repeats, cache):
                   + f" {_speeds(p['rms_speed']):>11}", flush=True)
             if p.get("settle"):
                 print(f"{'':>6} settled: {_settle_line(p['settle'])}", flush=True)
-    return peers
+    return peers, failures
 
 
 def _settle_line(settle):

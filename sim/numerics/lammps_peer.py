@@ -371,6 +371,11 @@ def loop_times(text):
     return [(float(t), int(p), int(s), int(a)) for t, p, s, a in _LOOP.findall(text)]
 
 
+def kinetic_energies(text):
+    """The kinetic energies of a LAMMPS log's thermo lines, in order (LAMMPS units)."""
+    return [float(e) for _, _, e in _THERMO.findall(text)]
+
+
 def parse_runs(text):
     """Each ``run`` of a LAMMPS log: its loop time, thermo lines and, after a
     run with ``post yes``, LAMMPS's statistics of it.
@@ -398,7 +403,7 @@ def parse_runs(text):
         sections = {name.lower(): float(avg) for name, _, avg, _, _, _ in _SECTION.findall(after)}
         runs.append({"seconds": float(m.group(1)), "ranks": int(m.group(2)),
                      "steps": int(m.group(3)), "atoms": int(m.group(4)),
-                     "kinetic": [float(e) for _, _, e in _THERMO.findall(before)],
+                     "kinetic": kinetic_energies(before),
                      "cpu_use": float(cpu.group(1)) / 100.0 if cpu else None,
                      "threads": int(cpu.group(3)) if cpu else None,
                      "sections": sections or None,

@@ -77,8 +77,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .lammps_peer import (LMP, PeerUnavailable, parse_log as _parse_log, peer_terms, run_lmp,
-                          settle_time, timed_runs)
+from .lammps_peer import (LMP, PeerUnavailable, kinetic_energies, parse_log as _parse_log,
+                          peer_terms, rms_speed, run_lmp, settle_time, timed_runs)
 
 log = logging.getLogger("sim")
 
@@ -115,6 +115,9 @@ SETTLE_ROUND_DRAG = 100.0
 #: contacts' period, 2π √(m / k_n) ≈ 0.4 ms for the lightest particle, spans
 #: some 30 such steps.
 SETTLE_DT_FACTOR = 2.0
+#: The settling stops after this much wall time, s (LAMMPS's ``timer
+#: timeout``): the box is then neither timed nor kept (:func:`settled_peer`).
+SETTLE_WALL_LIMIT = 900.0
 #: Names the settling rule in the settled piles' file names: a change of the
 #: rule above must change it, so that no pile settled by another rule is timed.
 SETTLE_RULE = "r3"
@@ -366,7 +369,8 @@ jump SELF rounds
 label settled
 """
         # the rms speed in cm/s, from the kinetic energy of the last thermo line
-        return setup + f"""thermo {max(int(round(0.01 / coarse)), 1)}
+        return setup + f"""timer timeout {int(SETTLE_WALL_LIMIT)} every 100
+thermo {max(int(round(0.01 / coarse)), 1)}
 thermo_modify flush yes
 variable vrms equal sqrt(2*ke/v_mtot)
 timestep {coarse:.8g}
@@ -479,15 +483,21 @@ def settle_report(text, target):
     speeds = [float(v) * LENGTH_UNIT for _, v in _SETTLED.findall(text)]
     if not speeds:
         raise RuntimeError("LAMMPS polygon peer: the settling printed no SETTLED lines")
+    return {"rule": SETTLE_RULE, "target_rms_speed": target, "rms_speed": speeds,
+            "rounds": len(speeds) - 1, "reached": target is None or speeds[-1] <= target,
+            "settle_time": simulated_time(text)}
+
+
+def simulated_time(text):
+    """Simulated time of the runs of a LAMMPS log, s: the steps of each
+    (``Loop time`` line) at the ``timestep`` the log echoes before it."""
     dt, simulated = None, 0.0
     for step, loop in _STEP_OR_LOOP.findall(text):
         if step:
             dt = float(step)
         else:
             simulated += int(loop) * dt
-    return {"rule": SETTLE_RULE, "target_rms_speed": target, "rms_speed": speeds,
-            "rounds": len(speeds) - 1, "reached": target is None or speeds[-1] <= target,
-            "settle_time": simulated}
+    return simulated
 
 
 def settled_peer(shapes, theta, dt, skin, model, cache=Path(".bench"), target=None):
@@ -526,7 +536,12 @@ def settled_peer(shapes, theta, dt, skin, model, cache=Path(".bench"), target=No
         (tmp / "in.lammps").write_text(lammps_input(pile, model, dt, skin, stage="settle",
                                                     target=target))
         log.info("LAMMPS polygon peer: settling %d polygons (log: %s)", n, tmp / "log.lammps")
-        text = run_lmp(tmp, lmp, mpirun, 1, f"LAMMPS polygon peer, settling {n} polygons")
+        try:
+            text = run_lmp(tmp, lmp, mpirun, 1, f"LAMMPS polygon peer, settling {n} polygons")
+        except RuntimeError as exc:
+            text = (tmp / "log.lammps").read_text() if (tmp / "log.lammps").exists() else ""
+            raise RuntimeError(_not_settled(text, path, n, float(pile["mass"].sum()), target,
+                                            time.monotonic() - t0, exc)) from exc
         report = {**settle_report(text, target), "wall_seconds": time.monotonic() - t0}
         settle_json(path).write_text(json.dumps(report) + "\n")
         path.with_suffix(".settle.log").write_text(text)
@@ -542,6 +557,25 @@ def settled_peer(shapes, theta, dt, skin, model, cache=Path(".bench"), target=No
                     "timed as they are", n, target * 1e3, report["rounds"], SETTLE_ROUND,
                     speeds)
     return path
+
+
+def _not_settled(text, path, n, mass, target, wall, exc):
+    """The message of a settling that stopped (LAMMPS's wall-time limit,
+    :data:`SETTLE_WALL_LIMIT`, or a failure): what it reached, from the log
+    ``text``, which is kept as ``….settle-failed.log`` beside ``path``."""
+    kept = path.with_suffix(".settle-failed.log")
+    kept.write_text(text)
+    kinetic = kinetic_energies(text)
+    reached = (f"rms speed {rms_speed(kinetic[-1] * LENGTH_UNIT ** 2, mass) * 1e3:.2g} mm/s "
+               "at its last thermo line" if kinetic else "no thermo line")
+    after = ", ".join(f"{float(v) * LENGTH_UNIT * 1e3:.2g}" for _, v in _SETTLED.findall(text))
+    why = ("stopped at the wall-time limit of "
+           f"{SETTLE_WALL_LIMIT:.0f} s" if "Wall time limit reached" in text else f"failed ({exc})")
+    return (f"LAMMPS polygon peer: {n} polygons not settled: {why}, after {wall:.0f} s "
+            f"and {simulated_time(text):.2f} s simulated; {reached}" + (f" (after the first settling and each round: {after} mm/s)"
+                            if after else "")
+            + ("" if target is None else f", target {target * 1e3:.2g} mm/s")
+            + f"; LAMMPS's log kept as {kept}")
 
 
 def settle_json(path):
