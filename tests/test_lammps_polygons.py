@@ -1,5 +1,6 @@
 """The bench's LAMMPS polygon peer: the bodies it hands LAMMPS and what it reads back."""
 
+import json
 import re
 
 import numpy as np
@@ -134,13 +135,15 @@ def test_input_uses_the_study_stiffness_friction_step_and_skin():
         pytest.approx(1.1e-3)
     assert float(re.search(r"^fix weight all gravity (\S+)", text, re.M).group(1)) * u == \
         pytest.approx(9.81)
-    assert text.count("run ${steps} pre no post no") == 4
+    assert text.count("run ${steps} pre no post yes") == 4  # with LAMMPS's statistics
+    assert text.index("run 0 post no") < text.index("run ${steps} pre no post yes")
     assert re.search(r"^variable steps equal 150$", text, re.M)
     assert re.search(r"^read_data settled.data$", text, re.M) and "viscous" not in text
     settle = lp.lammps_input(pile, model, dt=3e-5, skin=1.1e-3, stage="settle")
     assert re.search(r"^read_data pile.data$", settle, re.M)
     assert re.search(r"^fix settle all viscous", settle, re.M) and "unfix settle" in settle
     assert settle.rstrip().endswith("write_data settled.data") and "${steps}" not in settle
+    assert "jump" not in settle  # no target, no rounds
     with pytest.raises(ValueError, match="stage"):
         lp.lammps_input(pile, model, 3e-5, 1e-3, stage="pour")
 
@@ -156,6 +159,7 @@ def test_contacts_of_rounded_bodies_are_counted_once():
 
 # Lines of a LAMMPS 22 Jul 2025 log of this input (300 bodies, 3 timed runs).
 LOG = """\
+LAMMPS (22 Jul 2025 - Update 4)
 print "MASS ${mtot}"
 MASS 23.66776356255
    Step        Atoms        KinEng    
@@ -177,9 +181,74 @@ def test_log_parser_reads_loop_times_marks_and_kinetic_energy():
     parsed = lp.parse_log(LOG)
     assert parsed["loops"][1] == (0.145286, 1, 200, 300)
     assert parsed["steps"] == 200 and parsed["mass"] == pytest.approx(23.66776356255)
-    assert parsed["kinetic"][0] == 0.2928 and parsed["kinetic"][-1] == 0.3105
+    assert parsed["version"] == "22 Jul 2025 - Update 4"
+    assert parsed["runs"][0]["kinetic"] == [0.2928, 0.3016]
+    assert parsed["runs"][1]["kinetic"] == [0.3016, 0.3105]
     with pytest.raises(RuntimeError, match="lacks"):
         lp.parse_log(LOG.replace("STEPS 200", ""))
+
+
+def test_settling_runs_rounds_under_the_heaps_last_drag_until_its_target():
+    model = ModelParams()
+    _, _, pile = _pile()
+    text = lp.lammps_input(pile, model, dt=7e-6, skin=1e-3, stage="settle", target=0.0048)
+    drags = [float(g) for g in re.findall(r"^fix settle all viscous (\S+)$", text, re.M)]
+    m_mean = np.mean(pile["mass"])
+    assert drags == pytest.approx([lp.SETTLE_DRAG * m_mean, lp.SETTLE_ROUND_DRAG * m_mean])
+    assert re.search(rf"^variable round loop {lp.SETTLE_ROUNDS}$", text, re.M)
+    # the target in LAMMPS's unit of speed (cm/s), checked before each round
+    assert re.search(r'^if "\$\{vrms\} <= 0.48" then "jump SELF settled"$', text, re.M)
+    assert re.search(r"^variable vrms equal sqrt\(2\*ke/v_mtot\)$", text, re.M)
+    assert re.search(r"^timestep 1.4e-05$", text, re.M)  # SETTLE_DT_FACTOR x dt
+    assert text.index("label settled") < text.index("write_data settled.data")
+
+
+# The settling lines of a log of that input (made-up speeds; dt 7e-6 s, coarse 1.4e-5 s).
+SETTLE_LOG = """\
+timestep 7e-06
+timestep 1.4e-05
+run 30000
+Loop time of 90.1 on 1 procs for 30000 steps with 300 atoms
+SETTLED 0 1.2
+run 3571
+Loop time of 10.2 on 1 procs for 3571 steps with 300 atoms
+SETTLED 1 0.61
+run 3571
+Loop time of 10.3 on 1 procs for 3571 steps with 300 atoms
+SETTLED 2 0.45
+"""
+
+
+def test_settle_report_says_what_the_settling_reached():
+    r = lp.settle_report(SETTLE_LOG, 0.0048)
+    assert r["rms_speed"] == pytest.approx([0.012, 0.0061, 0.0045])  # cm/s to m/s
+    assert r["rounds"] == 2 and r["reached"] and r["rule"] == lp.SETTLE_RULE
+    assert r["settle_time"] == pytest.approx((30000 + 2 * 3571) * 1.4e-5)
+    assert not lp.settle_report(SETTLE_LOG, 0.004)["reached"]
+    with pytest.raises(RuntimeError, match="SETTLED"):
+        lp.settle_report("run 10\n", 0.004)
+
+
+def test_settled_bodies_are_kept_by_rule_and_target_and_say_what_they_reached(
+        monkeypatch, tmp_path, caplog):
+    """Without LAMMPS: a stand-in run writes the data and the log of a settling."""
+    shapes, theta, _ = _pile(20)
+    monkeypatch.setattr(lp, "find_lmp", lambda: ("lmp", None))
+
+    def run(folder, lmp, mpirun, ranks, what):
+        (folder / "settled.data").write_text("data\n")
+        return SETTLE_LOG
+    monkeypatch.setattr(lp, "run_lmp", run)
+    model = ModelParams()
+    path = lp.settled_peer(shapes, theta, 7e-6, 1e-3, model, tmp_path, target=0.004)
+    assert f"-settle{lp.SETTLE_RULE}-to4mms" in path.name and path.read_text() == "data\n"
+    report = json.loads(lp.settle_json(path).read_text())
+    assert report["rms_speed"][-1] == pytest.approx(0.0045) and not report["reached"]
+    assert "NOT settled to the target rms speed 4 mm/s" in caplog.text
+    assert path.with_suffix(".settle.log").read_text() == SETTLE_LOG
+    # another rule settles anew
+    monkeypatch.setattr(lp, "SETTLE_RULE", "other")
+    assert lp.settled_peer(shapes, theta, 7e-6, 1e-3, model, tmp_path, target=0.004) != path
 
 
 def test_ratios_pair_rows_with_the_peer_of_the_same_n_and_parallelism():
@@ -238,4 +307,37 @@ def test_lammps_times_a_small_settled_pile(tmp_path):
         assert r["lammps_polygons_ns_per_particle_step"] > 0.0
         # at rest: far below a particle falling its own size (m g d ≈ 5e-3 J/m)
         assert max(r["kinetic_energy_per_particle"]) < 1e-6
+        # the terms of the row, from LAMMPS's own statistics and lmp -h
+        assert len(r["neighbor_builds"]) == 2 and r["dt"] == 7e-6
+        assert {"pair", "neigh", "comm", "modify", "other"} <= set(r["breakdown"])
+        assert 0.0 < r["breakdown"]["pair"] < 1.0
+        assert r["lammps_build"]["version"] == r["lammps_version"] and r["lammps_build"]["mpi"]
+        assert "BODY" in r["lammps_build"]["packages"]
+        assert r["lammps_polygons_cpu_ns_per_particle_step"] > 0.0
     assert len(list(tmp_path.glob("lammps-polygons-n40-*.data"))) == 1  # settled once
+
+
+def test_a_settling_stopped_at_its_wall_time_limit_says_what_it_reached(monkeypatch, tmp_path):
+    """Without LAMMPS: a stand-in run stops as LAMMPS does at its ``timer timeout``."""
+    shapes, theta, pile = _pile(20)
+    monkeypatch.setattr(lp, "find_lmp", lambda: ("lmp", None))
+    mass = float(pile["mass"].sum())
+    ke = 0.5 * mass * 2.0 ** 2  # LAMMPS units: 2 cm/s
+
+    def run(folder, lmp, mpirun, ranks, what):
+        (folder / "log.lammps").write_text(
+            f"timestep 1.4e-05\nrun 30000\nStep Atoms KinEng \n       0      20   0 \n"
+            f"     714      20   {ke:.10g} \nWARNING: Wall time limit reached (src/timer.cpp:238)\n"
+            "Loop time of 900.1 on 1 procs for 800 steps with 20 atoms\n\n"
+            'print "SETTLED 0 ${vrms}"\n'
+            "ERROR: Compute used in variable thermo keyword between runs is not current\n")
+        raise RuntimeError(f"{what} failed (exit 1)")
+    monkeypatch.setattr(lp, "run_lmp", run)
+    with pytest.raises(RuntimeError) as caught:
+        lp.settled_peer(shapes, theta, 7e-6, 1e-3, ModelParams(), tmp_path, target=0.005)
+    message = str(caught.value)
+    assert "not settled: stopped at the wall-time limit of 900 s" in message
+    assert "0.01 s simulated" in message  # 800 steps of 1.4e-5 s
+    assert "rms speed 20 mm/s at its last thermo line" in message and "target 5 mm/s" in message
+    assert not list(tmp_path.glob("*.data"))  # nothing kept to be timed
+    assert len(list(tmp_path.glob("*.settle-failed.log"))) == 1

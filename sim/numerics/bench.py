@@ -10,7 +10,13 @@ and 2 threads: wall and CPU time of ``steps`` steps, medians of ``repeats``,
 giving ns per particle-step, ns per contact, the contacts per particle (of
 particle–particle contacts; the support's are counted apart) and the CPU
 cores used (CPU time / wall time).  A second, kernel-by-kernel timing gives
-the share of the predictor, the pair pass and the gather.  It prints a table,
+the share of the predictor, the pair pass and the gather.  Each row also
+gives the pile's time step, the CPU cost per simulated second
+(:func:`cost_per_simulated_second`), the pair-list refreshes in the timed
+steps and the pile's rms speed (:func:`rms_speed`) as loaded and after the
+timing.  With ``--peer`` each peer's rows follow under a line naming its
+LAMMPS build, with the same columns and LAMMPS's neighbour-list builds and
+timing breakdown (:mod:`sim.numerics.lammps_peer`).  It prints a table,
 the parallel efficiency and the cost across sizes (:func:`derived_figures`,
 the figures the performance targets are stated in), and ends with one JSON
 line of all of them.  ``--state FILE`` times a saved pile instead (e.g. a
@@ -157,6 +163,16 @@ def loaded_pile(n, seed=0, cache=Path(".bench")):
     return path
 
 
+def rms_speed(sim):
+    """Root-mean-square speed of the particles of ``sim``, weighted by mass
+    (translational, as LAMMPS's ``ke``: :func:`sim.numerics.lammps_peer.rms_speed`), m/s."""
+    n = sim.n
+    v = sim.state.r[1, :2, :n] / sim.dt
+    mass = sim.shapes.mass[:n]
+    return lammps_peer.rms_speed(0.5 * float(np.sum(mass * (v * v).sum(axis=0))),
+                                 float(mass.sum()))
+
+
 def _particle_contacts(sim):
     """Particle–particle contacts of the last force evaluation."""
     return int(np.count_nonzero(sim.contacts()["j"] >= 0))
@@ -224,20 +240,32 @@ def measure(path, integrator, threads, steps=200, repeats=5):
     dict
         ``n_particles``, ``threads``, ``integrator``, ``contacts_per_particle``
         (particle–particle), ``body_contacts``, ``ns_per_particle_step``,
-        ``ns_per_contact``, ``cpu_ns_per_particle_step``, ``cores_used`` and
-        the kernel shares ``share_predict``, ``share_pairs``, ``share_gather``.
+        ``ns_per_contact``, ``cpu_ns_per_particle_step``, ``cores_used``,
+        the kernel shares ``share_predict``, ``share_pairs``,
+        ``share_gather``; ``dt`` (the pile's step), ``list_refreshes`` (of
+        the pair list, :mod:`sim.rebuild`, in the timed runs, each), the
+        cost per simulated second (:func:`cost_per_simulated_second`) and
+        ``rms_speed`` (:func:`rms_speed`) of the pile as loaded and after
+        the timed runs.
     """
     numba.set_num_threads(threads)
     try:
         sim = _load(path, integrator)
+        speeds = [rms_speed(sim)]
         sim.run(steps=20)  # compiles outside the timing
-        walls, cpus = [], []
+        walls, cpus, refreshes = [], [], []
         for _ in range(repeats):
+            count = []
+            # after each chunk of steps: whether the list is refreshed before the next
+            sim.heartbeat = lambda s: count.append(s.state.stale or s.state.moved)
             t0 = time.perf_counter()
             c0 = time.process_time()
             sim.run(steps=steps)
             cpus.append(time.process_time() - c0)
             walls.append(time.perf_counter() - t0)
+            sim.heartbeat = None
+            refreshes.append(int(sum(count)))
+        speeds.append(rms_speed(sim))
         contacts = _particle_contacts(sim)
         shares = kernel_shares(sim, min(steps, 50))
     finally:
@@ -252,7 +280,25 @@ def measure(path, integrator, threads, steps=200, repeats=5):
             "ns_per_contact": wall / steps / max(contacts, 1) * 1e9,
             "cpu_ns_per_particle_step": cpu / steps / n * 1e9,
             "cores_used": cpu / wall,
-            **{f"share_{k}": v for k, v in shares.items()}}
+            **{f"share_{k}": v for k, v in shares.items()},
+            "dt": sim.dt, "steps": steps, "list_refreshes": refreshes,
+            **cost_per_simulated_second(cpu / steps / n * 1e9, n, sim.dt),
+            "rms_speed": speeds}
+
+
+def cost_per_simulated_second(cpu_ns_per_particle_step, n, dt):
+    """What a simulated second costs at ``cpu_ns_per_particle_step`` (CPU ns) and step ``dt`` (s).
+
+    Returns
+    -------
+    dict
+        ``cpu_s_per_simulated_s``: CPU seconds per simulated second of the
+        pile of ``n`` particles; ``cpu_s_per_particle_simulated_s``: of one
+        particle (CPU ns per particle-step over the step).
+    """
+    per_particle = cpu_ns_per_particle_step * 1e-9 / dt
+    return {"cpu_s_per_simulated_s": per_particle * n,
+            "cpu_s_per_particle_simulated_s": per_particle}
 
 
 # name: (model settings changed, Simulation options changed)
@@ -354,8 +400,8 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
     paths = [Path(state)] if state else [loaded_pile(n, cache=cache) for n in sizes]
     rows = []
     print(f"{'N':>6} {'integrator':>10} {'thr':>3} {'contacts/N':>10} {'ns/p-step':>9} "
-          f"{'ns/contact':>10} {'cores':>5} {'predict':>7} {'pairs':>6} {'gather':>6}",
-          flush=True)
+          f"{'ns/contact':>10} {'cores':>5} {'predict':>7} {'pairs':>6} {'gather':>6} "
+          f"{COST_HEADER} {'refreshes':>12} {'rms mm/s':>11}", flush=True)
     for path in paths:
         for integrator in integrators:
             for t in threads:
@@ -369,16 +415,23 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
                       f"{r['contacts_per_particle']:>10.2f} {r['ns_per_particle_step']:>9.1f} "
                       f"{r['ns_per_contact']:>10.1f} {r['cores_used']:>5.2f} "
                       f"{r['share_predict']:>7.0%} {r['share_pairs']:>6.0%} "
-                      f"{r['share_gather']:>6.0%}", flush=True)
-    peers, polygon_peers = (_time_peer(name, paths, threads, steps, repeats, cache)
-                            if name in peers_asked else [] for name in PEERS)
+                      f"{r['share_gather']:>6.0%} {_cost_columns(r, 'cpu_ns_per_particle_step')} "
+                      f"{_per_steps(r['list_refreshes'], steps):>12} "
+                      f"{_speeds(r['rms_speed']):>11}", flush=True)
+    (peers, failed), (polygon_peers, polygons_failed) = (
+        _time_peer(name, paths, threads, steps, repeats, cache) if name in peers_asked
+        else ([], []) for name in PEERS)
     rows = lammps_peer.ratios(lammps_peer.ratios(rows, peers), polygon_peers, "lammps_polygons")
     for r in rows:
         for name, key in (("disks", "ratio_to_lammps"), ("polygons", "ratio_to_lammps_polygons")):
             if key in r:
                 print(f"against LAMMPS {name}, N = {r['n_particles']}, {r['integrator']}, "
                       f"{r['threads']} thread(s)/rank(s): {r[key]:.2f}x per "
-                      f"particle-step, {r[key + '_per_contact']:.2f}x per contact")
+                      f"particle-step, {r[key + '_per_contact']:.2f}x per contact, "
+                      f"{r[key + '_per_simulated_s']:.2f}x CPU per simulated second")
+    if polygon_peers:
+        print("(LAMMPS's polygons are frictionless, their contact force linear in the depth "
+              "of each vertex: the ratios compare codes on like piles, not the same physics)")
     derived = derived_figures(rows)
     for r in derived["parallel_efficiency"]:
         print(f"parallel efficiency, N = {r['n_particles']}, {r['integrator']}, "
@@ -388,40 +441,102 @@ def main(sizes=(3000, 10000), steps=200, repeats=5, integrators=("verlet", "gear
               f"{r['against_n']}, {r['integrator']}, {r['threads']} thread(s): {r['ratio']:.2f}")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     print(json.dumps({"bench": rows, **derived, "lammps": peers,
-                      "lammps_polygons": polygon_peers, "peak_rss_bytes": peak,
+                      "lammps_polygons": polygon_peers, "lammps_failures": failed,
+                      "lammps_polygons_failures": polygons_failed, "peak_rss_bytes": peak,
                       "threads_available": numba.config.NUMBA_NUM_THREADS}))
     return rows
 
 
 #: How each peer of :data:`PEERS` times the pile of a :class:`Simulation` on
-#: ``t`` MPI ranks: ``timer(sim, t, steps, repeats, cache)``.
+#: ``t`` MPI ranks: ``timer(sim, t, steps, repeats, cache)``; the polygon
+#: peer's bodies settle to the rms speed of the pile as loaded (:func:`rms_speed`).
 PEER_TIMERS = {
     "lammps": lambda sim, t, steps, repeats, cache: lammps_peer.time_peer(
         sim.shapes, t, sim.dt, sim.skin, sim.model, steps, repeats, cache),
     "lammps-polygons": lambda sim, t, steps, repeats, cache: lammps_polygons.time_peer(
-        sim.shapes, sim.theta, t, sim.dt, sim.skin, sim.model, steps, repeats, cache),
+        sim.shapes, sim.theta, t, sim.dt, sim.skin, sim.model, steps, repeats, cache,
+        rms_speed(sim)),
 }
+
+#: Header of the cost columns of both tables (:func:`_cost_columns`).
+COST_HEADER = f"{'dt µs':>6} {'CPU ns/p-step':>13} {'CPU s/sim s':>11} {'CPU ms/p/sim s':>14}"
+#: LAMMPS's sections of its timing breakdown, as the peers' table shows them.
+SECTIONS = ("pair", "neigh", "comm", "modify", "output", "other")
+
+
+def _cost_columns(r, cpu_key):
+    """The cost columns of a row: its step, CPU ns per particle-step (``r[cpu_key]``)
+    and the cost per simulated second (:func:`cost_per_simulated_second`)."""
+    return (f"{r['dt'] * 1e6:>6.2f} {r[cpu_key]:>13.1f} {r['cpu_s_per_simulated_s']:>11.0f} "
+            f"{r['cpu_s_per_particle_simulated_s'] * 1e3:>14.2f}")
+
+
+def _per_steps(counts, steps):
+    """List rebuilds (or refreshes) in the timed runs: ``total/steps in all``."""
+    return f"{sum(counts)}/{steps * len(counts)}"
+
+
+def _speeds(speeds):
+    """rms speeds (m/s) at the start and end of a timing, in mm/s."""
+    return "→".join(f"{v * 1e3:.2g}" for v in speeds)
 
 
 def _time_peer(peer, paths, threads, steps, repeats, cache):
     """The peer ``peer`` (:data:`PEER_TIMERS`) for each pile, at its time step and
     skin, on each thread count as MPI ranks (settled once, kept in ``cache``);
-    printed as a table.  Its figures are keyed by the peer's name with ``_``
-    (``lammps_polygons_ns_per_particle_step``)."""
+    printed as a table under a line naming its LAMMPS build, with LAMMPS's
+    neighbour-list builds and timing breakdown.  Its figures are keyed by the
+    peer's name with ``_`` (``lammps_polygons_ns_per_particle_step``); each row
+    gains the cost per simulated second (:func:`cost_per_simulated_second`).
+    A pile the peer fails on (LAMMPS failed, or its box did not settle in
+    time) gets no row: the failure is printed and the bench goes on.
+
+    Returns
+    -------
+    (list of dict, list of dict)
+        The rows, and the failures (``n_particles``, ``ranks``, ``error``).
+    """
     key = peer.replace("-", "_")
-    print(f"{'N':>6} {'peer':>16} {'rk':>3} {'contacts/N':>10} {'ns/p-step':>9} "
-          f"{'ns/contact':>10}", flush=True)
-    peers = []
+    header = (f"{'N':>6} {'peer':>16} {'rk':>3} {'contacts/N':>10} {'ns/p-step':>9} "
+              f"{'ns/contact':>10} {COST_HEADER} {'rebuilds':>10} "
+              + " ".join(f"{s:>6}" for s in SECTIONS) + f" {'rms mm/s':>11}")
+    peers, failures = [], []
     for path in paths:
         sim = _load(path, "verlet")
         for t in threads:
-            p = PEER_TIMERS[peer](sim, t, steps, repeats, cache)
+            try:
+                p = PEER_TIMERS[peer](sim, t, steps, repeats, cache)
+            except RuntimeError as exc:
+                log.warning("bench: no %s row for N = %d on %d rank(s): %s", peer, sim.n, t, exc)
+                print(f"{sim.n:>6} {peer:>16} {t:>3} no row: {exc}", flush=True)
+                failures.append({"n_particles": sim.n, "ranks": t, "error": str(exc)})
+                continue
+            p.update(cost_per_simulated_second(p[key + "_cpu_ns_per_particle_step"],
+                                               p["n_particles"], p["dt"]))
+            if not peers:
+                print(f"{peer}: {lammps_peer.build_line(p['lammps_build'])}", flush=True)
+                print(header, flush=True)
             peers.append(p)
             print(f"{p['n_particles']:>6} {peer:>16} {t:>3} "
                   f"{p['contacts_per_particle']:>10.2f} "
                   f"{p[key + '_ns_per_particle_step']:>9.1f} "
-                  f"{p[key + '_ns_per_contact']:>10.1f}", flush=True)
-    return peers
+                  f"{p[key + '_ns_per_contact']:>10.1f} "
+                  f"{_cost_columns(p, key + '_cpu_ns_per_particle_step')} "
+                  f"{_per_steps(p['neighbor_builds'], steps):>10} "
+                  + " ".join(f"{p['breakdown'].get(s, 0.0):>6.1%}" for s in SECTIONS)
+                  + f" {_speeds(p['rms_speed']):>11}", flush=True)
+            if p.get("settle"):
+                print(f"{'':>6} settled: {_settle_line(p['settle'])}", flush=True)
+    return peers, failures
+
+
+def _settle_line(settle):
+    """What the settling of a polygon peer's box reached (:func:`sim.numerics.lammps_polygons.settle_report`)."""
+    target = settle["target_rms_speed"]
+    return (f"{settle['settle_time']:.2f} s simulated ({settle['rounds']} more rounds), rms "
+            f"{_speeds(settle['rms_speed'])} mm/s after each, target (ours as loaded) "
+            + ("none" if target is None else f"{target * 1e3:.2g} mm/s")
+            + (": reached" if settle["reached"] else ": NOT REACHED, timed as it is"))
 
 
 def derived_figures(rows):

@@ -32,10 +32,19 @@ The timing is LAMMPS's own ``Loop time`` of ``steps`` steps, the median of
 particle–particle contacts (``compute contact/atom``, each counted once), as
 in the polygon rows.  The input is written by :func:`lammps_input`; it is
 documented in ``docs/performance.md``.
+
+The terms of a peer's row, shared with the polygon peer: the build of its
+``lmp`` (:func:`lmp_build`, from ``lmp -h``: version, compiler and OpenMP,
+MPI, compile flags, packages) and, read from each timed run's log
+(:func:`parse_runs`, :func:`timed_terms`), LAMMPS's own timing breakdown
+(``MPI task timing breakdown``: Pair, Neigh, Comm, Modify, Output, Other),
+its neighbour-list builds, its CPU use and the translational kinetic energy
+of the pile at the start and end of the timed runs.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import re
@@ -62,6 +71,19 @@ DAMPING_RATIO = 0.3
 _LOOP = re.compile(r"^Loop time of ([0-9.eE+-]+) on (\d+) procs for (\d+) steps with (\d+) atoms",
                    re.M)
 _MARK = re.compile(r"^(CONTACTS|MASS|STEPS) ([0-9.eE+-]+)\s*$", re.M)
+#: A log's first line: ``LAMMPS (29 Sep 2021 - Update 2)``.
+_VERSION = re.compile(r"^LAMMPS \((.+)\)\s*$", re.M)
+#: A thermo line of this module's and the polygon peer's inputs: step, atoms,
+#: kinetic energy, then other columns.
+_THERMO = re.compile(r"^[ \t]*(\d+)[ \t]+(\d+)[ \t]+([0-9.eE+-]+)(?:[ \t]+[0-9.eE+-]+)*[ \t]*$",
+                     re.M)
+#: After a run with ``post yes``: the CPU use, the rows of the ``MPI task timing
+#: breakdown`` (section, min, avg, max, %varavg, %total) and the neighbour counts.
+_CPU_USE = re.compile(r"^([0-9.]+)% CPU use with (\d+) MPI tasks x (\d+) OpenMP threads", re.M)
+_SECTION = re.compile(
+    r"^(\w+)[ \t]*\|([^|\n]*)\|([^|\n]*)\|([^|\n]*)\|([^|\n]*)\|[ \t]*([0-9.eE+-]+)[ \t]*$", re.M)
+_BUILDS = re.compile(r"^Neighbor list builds = (\d+)", re.M)
+_DANGEROUS = re.compile(r"^Dangerous builds = (\d+)", re.M)
 
 
 class PeerUnavailable(RuntimeError):
@@ -75,6 +97,66 @@ def find_lmp():
         raise PeerUnavailable("bench --peer lammps: no 'lmp' on PATH; install Debian's "
                               "'lammps' package (make bench-peers does) or leave out --peer")
     return path
+
+
+@functools.lru_cache(maxsize=None)
+def lmp_build(lmp):
+    """The build of the LAMMPS executable ``lmp``, from its ``lmp -h``.
+
+    Returns
+    -------
+    dict
+        ``version`` (``"29 Sep 2021 - Update 2"``), ``compiler`` (with its
+        OpenMP, ``"GNU C++ 12.2.0 with OpenMP 4.5"``), ``mpi``, ``os``,
+        ``accelerators`` (the lines of its ``Accelerator configuration``,
+        e.g. the OPENMP package's), ``flags`` (the ``-D`` compile flags) and
+        ``packages`` (installed), from :func:`parse_build` (None and empty
+        where ``lmp -h`` cannot run); and ``path``.
+    """
+    try:
+        text = subprocess.run([lmp, "-h"], capture_output=True, text=True,
+                              env=dict(os.environ, OMP_NUM_THREADS="1")).stdout
+    except OSError:
+        text = ""
+    return {**parse_build(text), "path": str(lmp)}
+
+
+def parse_build(text):
+    """The version and build of LAMMPS from the text of ``lmp -h`` (:func:`lmp_build`)."""
+    def line(prefix):
+        m = re.search(rf"^{prefix}:?\s*(.+?)\s*$", text, re.M)
+        return m.group(1) if m else None
+
+    lines = text.splitlines()
+
+    def section(title):
+        """The non-blank lines after the header ``title:`` up to the next header."""
+        if f"{title}:" not in lines:
+            return []
+        out = []
+        for x in lines[lines.index(f"{title}:") + 1:]:
+            if re.match(r"^([A-Z][\w ]*:\s*$|List of )", x):
+                break
+            out += [x.strip()] if x.strip() else []
+        return out
+
+    version = re.search(r"^Large-scale Atomic/Molecular Massively Parallel Simulator - (.+?)\s*$",
+                        text, re.M)
+    mpi = re.search(r"^(MPI v[^\n]*?)(?:, package:.*)?$", text, re.M)
+    return {"version": version.group(1) if version else None,
+            "compiler": line("Compiler"), "mpi": mpi.group(1) if mpi else None,
+            "os": line("OS"),
+            "accelerators": section("Accelerator configuration"),
+            "flags": re.findall(r"^(-D\w+)", text, re.M),
+            "packages": " ".join(section("Installed packages")).split()}
+
+
+def build_line(build):
+    """One line naming a peer's LAMMPS build (:func:`lmp_build`), for the bench's table."""
+    acc = "; ".join(build["accelerators"]) or "no accelerator package"
+    return (f"LAMMPS {build['version']} ({build['path']}): {build['compiler']}; "
+            f"{build['mpi']}; {acc}; flags {' '.join(build['flags'])}; "
+            f"{len(build['packages'])} packages ({' '.join(build['packages'])})")
 
 
 def disk_pile(shapes):
@@ -188,15 +270,24 @@ thermo 100000000
 run {max(int(round(settle_time(pile) / dt)), 1)}
 write_data settled.data
 """
-    timed = "\n".join(["run ${steps} pre no post no"] * repeats)
     return setup + f"""run {max(int(round(0.1 / dt)), 1)}
-variable steps equal {steps}
-print "STEPS ${{steps}}"
-{timed}
+{timed_runs(steps, repeats)}
 run 0 post no
 variable pairs equal c_contacts/2
 print "CONTACTS ${{pairs}}"
 """
+
+
+def timed_runs(steps, repeats):
+    """The timed runs of a peer's input (this module's and the polygon
+    peer's): a ``run 0`` whose setup starts LAMMPS's count of neighbour-list
+    builds from 0, then ``repeats`` runs of ``steps`` steps without a setup,
+    each followed by LAMMPS's statistics (:func:`timed_terms`)."""
+    runs = "\n".join(["run ${steps} pre no post yes"] * repeats)
+    return f"""variable steps equal {steps}
+print "STEPS ${{steps}}"
+run 0 post no
+{runs}"""
 
 
 #: How the disk peer starts ``lmp`` on several ranks (Debian's Open MPI, as root too).
@@ -280,21 +371,114 @@ def loop_times(text):
     return [(float(t), int(p), int(s), int(a)) for t, p, s, a in _LOOP.findall(text)]
 
 
-def parse_log(text):
-    """Loop times and the marks of a LAMMPS log of :func:`lammps_input`.
+def kinetic_energies(text):
+    """The kinetic energies of a LAMMPS log's thermo lines, in order (LAMMPS units)."""
+    return [float(e) for _, _, e in _THERMO.findall(text)]
+
+
+def parse_runs(text):
+    """Each ``run`` of a LAMMPS log: its loop time, thermo lines and, after a
+    run with ``post yes``, LAMMPS's statistics of it.
+
+    Returns
+    -------
+    list of dict
+        One per ``Loop time`` line: ``seconds``, ``ranks``, ``steps``,
+        ``atoms``; ``kinetic``, the kinetic energies of its thermo lines
+        (third column, LAMMPS units); and, None after ``post no``:
+        ``cpu_use`` (LAMMPS's CPU time over wall time of the loop, averaged
+        over the ranks), ``threads`` (OpenMP threads per rank), ``sections``
+        (section of the ``MPI task timing breakdown``, lower case → its
+        average time over the ranks, s), ``neighbor_builds`` and
+        ``dangerous_builds`` (LAMMPS's counts, which run on from the last
+        run with a setup: see :func:`timed_terms`).
+    """
+    loops = list(_LOOP.finditer(text))
+    runs = []
+    for k, m in enumerate(loops):
+        before = text[loops[k - 1].end() if k else 0:m.start()]
+        after = text[m.end():loops[k + 1].start() if k + 1 < len(loops) else len(text)]
+        cpu = _CPU_USE.search(after)
+        builds, dangerous = _BUILDS.search(after), _DANGEROUS.search(after)
+        sections = {name.lower(): float(avg) for name, _, avg, _, _, _ in _SECTION.findall(after)}
+        runs.append({"seconds": float(m.group(1)), "ranks": int(m.group(2)),
+                     "steps": int(m.group(3)), "atoms": int(m.group(4)),
+                     "kinetic": kinetic_energies(before),
+                     "cpu_use": float(cpu.group(1)) / 100.0 if cpu else None,
+                     "threads": int(cpu.group(3)) if cpu else None,
+                     "sections": sections or None,
+                     "neighbor_builds": int(builds.group(1)) if builds else None,
+                     "dangerous_builds": int(dangerous.group(1)) if dangerous else None})
+    return runs
+
+
+def timed_terms(runs, steps, repeats):
+    """What a peer's row says of its timed runs: the last ``repeats`` runs of
+    ``steps`` steps among ``runs`` (:func:`parse_runs`).
+
+    The timed runs are ``run N pre no post yes`` after a ``run 0`` (whose
+    setup sets LAMMPS's count of neighbour-list builds to 0): without a
+    setup LAMMPS's count runs on, so the builds of each timed run are the
+    differences of the counts it prints.
+
+    Returns
+    -------
+    dict
+        ``seconds`` (median loop time), ``cpu_seconds`` (median of loop time
+        × ranks × CPU use), ``neighbor_builds`` (per timed run),
+        ``dangerous_builds`` (the largest count printed; 0: none),
+        ``breakdown`` (each section's
+        share of the timed runs' loop time, summed over them), ``threads``
+        (OpenMP threads per rank) and ``kinetic`` (the kinetic energy at the
+        start and at the end of the timed runs, LAMMPS units).
+    """
+    timed = [r for r in runs if r["steps"] == steps][-repeats:]
+    if len(timed) < repeats:
+        raise RuntimeError(f"LAMMPS log holds {len(timed)} runs of {steps} steps, "
+                           f"{repeats} expected")
+    missing = [k for k, r in enumerate(timed) if r["sections"] is None]
+    if missing:
+        raise RuntimeError(f"LAMMPS log lacks the timing breakdown of timed runs {missing} "
+                           "(run with post yes)")
+    counts = [0] + [r["neighbor_builds"] for r in timed]
+    loop = sum(r["seconds"] for r in timed)
+    names = list(timed[0]["sections"])
+    return {"seconds": float(np.median([r["seconds"] for r in timed])),
+            "cpu_seconds": float(np.median([r["seconds"] * r["ranks"] * r["cpu_use"]
+                                            for r in timed])),
+            "neighbor_builds": [b - a for a, b in zip(counts, counts[1:])],
+            "dangerous_builds": max(r["dangerous_builds"] for r in timed),
+            "breakdown": {s: sum(r["sections"].get(s, 0.0) for r in timed) / loop for s in names},
+            "threads": timed[0]["threads"],
+            "kinetic": [timed[0]["kinetic"][0], timed[-1]["kinetic"][-1]]}
+
+
+def rms_speed(kinetic, mass):
+    """Root-mean-square speed, weighted by mass, of a pile of total ``mass``
+    and translational kinetic energy ``kinetic``: ``sqrt(2 E / M)``."""
+    return float(np.sqrt(2.0 * max(kinetic, 0.0) / mass))
+
+
+def parse_log(text, marks=("contacts", "mass", "steps"), pattern=_MARK):
+    """Loop times, runs and the marks of a LAMMPS log of :func:`lammps_input`
+    (or, with its ``marks`` and their ``pattern``, of the polygon peer's).
 
     Returns
     -------
     dict
         ``loops``: list of (seconds, ranks, steps, atoms), one per ``run``;
-        ``contacts``, ``mass`` and ``steps`` from the printed marks.
+        ``runs``: :func:`parse_runs`; ``version``: LAMMPS's, from the log's
+        first line; and the printed ``marks`` (``contacts``, ``mass`` and
+        ``steps``).
     """
     loops = loop_times(text)
-    marks = {k.lower(): float(v) for k, v in _MARK.findall(text)}
-    missing = {"contacts", "mass", "steps"} - set(marks)
+    found = {k.lower(): float(v) for k, v in pattern.findall(text)}
+    missing = set(marks) - set(found)
     if missing or not loops:
         raise RuntimeError(f"LAMMPS log lacks {sorted(missing) or 'Loop time lines'}")
-    return {"loops": loops, **marks}
+    version = _VERSION.search(text)
+    return {"loops": loops, "runs": parse_runs(text),
+            "version": version.group(1) if version else None, **found}
 
 
 def time_peer(shapes, ranks, dt, skin, model, steps=200, repeats=5, cache=Path(".bench")):
@@ -334,13 +518,57 @@ def time_peer(shapes, ranks, dt, skin, model, steps=200, repeats=5, cache=Path("
     if abs(mass_error) > 1e-6:
         raise RuntimeError(f"LAMMPS peer: its disks weigh {mass_error:+.2e} (relative) "
                            "against the polygons; the data file's densities are wrong")
-    timed = [t for t, _, s, _ in parsed["loops"] if s == int(parsed["steps"])][-repeats:]
-    seconds = float(np.median(timed))
     pairs = parsed["contacts"]
+    terms = peer_terms(parsed, "lammps", find_lmp(), n, float(pile["mass"].sum()), dt, steps,
+                       repeats)
     return {"n_particles": n, "ranks": ranks, "contacts_per_particle": pairs / n,
-            "lammps_ns_per_particle_step": seconds / steps / n * 1e9,
-            "lammps_ns_per_contact": seconds / steps / max(pairs, 1.0) * 1e9,
-            "mass_error": mass_error}
+            **terms, "lammps_ns_per_contact": terms["lammps_ns_per_particle_step"] * n
+            / max(pairs, 1.0), "mass_error": mass_error}
+
+
+def peer_terms(parsed, peer, lmp, n, mass, dt, steps, repeats, energy_unit=1.0):
+    """The terms of a peer's row from the log of its timed runs (:func:`parse_log`).
+
+    Parameters
+    ----------
+    parsed : dict
+        From :func:`parse_log`.
+    peer : {"lammps", "lammps_polygons"}
+        The peer's name in the keys.
+    lmp : str
+        The LAMMPS executable that ran (:func:`lmp_build`).
+    n : int
+        Particles.
+    mass : float
+        Their total mass, kg/m.
+    dt : float
+        The peer's time step, s.
+    steps, repeats : int
+    energy_unit : float
+        LAMMPS's unit of energy in J/m.
+
+    Returns
+    -------
+    dict
+        ``{peer}_ns_per_particle_step`` (wall, median of the timed runs),
+        ``{peer}_cpu_ns_per_particle_step`` (CPU of all ranks),
+        ``dt``, ``steps``, ``neighbor_builds`` (per timed run),
+        ``dangerous_builds``, ``breakdown`` (LAMMPS's sections' shares of
+        the loop time), ``omp_threads``, ``lammps_version``, ``lammps_build``
+        (:func:`lmp_build`), ``kinetic_energy_per_particle`` (translational,
+        J/m) and ``rms_speed`` (m/s, :func:`rms_speed`), each at the start
+        and at the end of the timed runs.
+    """
+    terms = timed_terms(parsed["runs"], steps, repeats)
+    kinetic = [e * energy_unit for e in terms["kinetic"]]
+    return {f"{peer}_ns_per_particle_step": terms["seconds"] / steps / n * 1e9,
+            f"{peer}_cpu_ns_per_particle_step": terms["cpu_seconds"] / steps / n * 1e9,
+            "dt": dt, "steps": steps, "neighbor_builds": terms["neighbor_builds"],
+            "dangerous_builds": terms["dangerous_builds"], "breakdown": terms["breakdown"],
+            "omp_threads": terms["threads"], "lammps_version": parsed["version"],
+            "lammps_build": lmp_build(lmp),
+            "kinetic_energy_per_particle": [e / n for e in kinetic],
+            "rms_speed": [rms_speed(e, mass) for e in kinetic]}
 
 
 def ratios(rows, peers, peer="lammps"):
@@ -362,7 +590,8 @@ def ratios(rows, peers, peer="lammps"):
     list of dict
         The rows with ``{peer}_ns_per_particle_step``, ``ratio_to_{peer}``
         (per particle-step) and ``ratio_to_{peer}_per_contact`` added where a
-        peer of the same N and parallelism was timed.
+        peer of the same N and parallelism was timed, and, where both carry
+        their cost per simulated second (CPU), ``ratio_to_{peer}_per_simulated_s``.
     """
     by_key = {(p["n_particles"], p["ranks"]): p for p in peers}
     out = []
@@ -374,4 +603,7 @@ def ratios(rows, peers, peer="lammps"):
         out.append({**r, f"{peer}_ns_per_particle_step": p[f"{peer}_ns_per_particle_step"],
                     f"ratio_to_{peer}": r["ns_per_particle_step"] / p[f"{peer}_ns_per_particle_step"],
                     f"ratio_to_{peer}_per_contact": r["ns_per_contact"] / p[f"{peer}_ns_per_contact"]})
+        if "cpu_s_per_simulated_s" in p and "cpu_s_per_simulated_s" in r:
+            out[-1][f"ratio_to_{peer}_per_simulated_s"] = (r["cpu_s_per_simulated_s"]
+                                                           / p["cpu_s_per_simulated_s"])
     return out

