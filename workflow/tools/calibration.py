@@ -57,6 +57,7 @@ import math
 import os
 import subprocess
 import sys
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -175,6 +176,12 @@ def commit_of(folder: Path) -> str:
                           capture_output=True, text=True, check=True).stdout.strip()
 
 
+#: Held while a pile's files are read: the piles run side by side in threads, and the
+#: netCDF/HDF5 library is not thread-safe (two reads at once failed with "NetCDF: Can't open
+#: HDF5 attribute" and stopped the run).
+READING = threading.Lock()
+
+
 def run_pile(cal: dict, arm: str, seed: int, records: Path) -> Path:
     """Pour, relax, probe and analyse one pile in its own working directory; write its record."""
     cfg = arm_config(cal, arm, seed)
@@ -192,6 +199,20 @@ def run_pile(cal: dict, arm: str, seed: int, records: Path) -> Path:
     print(f"{arm} seed {seed}: {work.relative_to(REPO)} (log {log.name})", flush=True)
     with open(log, "a") as out:
         subprocess.run(cmd, check=True, stdout=out, stderr=subprocess.STDOUT, env={**os.environ, "NUMBA_NUM_THREADS": "1"})
+    with READING:                                     # HDF5 is not thread-safe: one pile's files at a time
+        record = pile_record(cal, arm, seed, cfg, protocol, work, files)
+    records.mkdir(parents=True, exist_ok=True)
+    dest = records / f"{slug(arm)}-seed{seed}.json"
+    tmp = dest.with_suffix(".part")
+    tmp.write_text(json.dumps(record, indent=1) + "\n")
+    tmp.replace(dest)
+    print(f"{arm} seed {seed}: recorded {dest} ({record['cpu_s']['total']:.0f} CPU s, "
+          f"flanks flow {100 * record['growth']['flow_fraction']:.0f} % of the growth)", flush=True)
+    return dest
+
+
+def pile_record(cal: dict, arm: str, seed: int, cfg: dict, protocol: str, work: Path, files: dict) -> dict:
+    """The record of one poured, relaxed, probed and analysed pile, read from its working directory."""
     params = parse_params(json.dumps(cfg["analysis"]))
     path = {k: work / v for k, v in files.items()}
     q = pile_quantities(path["summary"], path["fields"], path["base_pressure"], params)
@@ -209,14 +230,7 @@ def run_pile(cal: dict, arm: str, seed: int, records: Path) -> Path:
               "quantities": q, "inputs": inputs, "cpu_s": cpu_seconds(path["benchmarks"], protocol, seed),
               "definitions": {"flow_min": FLOW_MIN, "old_s": OLD, "start": START,
                               "frame_interval": cal["frame_interval"]}}
-    records.mkdir(parents=True, exist_ok=True)
-    dest = records / f"{slug(arm)}-seed{seed}.json"
-    tmp = dest.with_suffix(".part")
-    tmp.write_text(json.dumps(record, indent=1) + "\n")
-    tmp.replace(dest)
-    print(f"{arm} seed {seed}: recorded {dest} ({record['cpu_s']['total']:.0f} CPU s, "
-          f"flanks flow {100 * record['growth']['flow_fraction']:.0f} % of the growth)", flush=True)
-    return dest
+    return record
 
 
 GROWTH = {"flow_fraction": "fraction of the growth the flanks flow",
