@@ -189,6 +189,85 @@ def reversibility(strain: np.ndarray, probes: list[str]) -> np.ndarray:
     return np.where(np.isfinite(out), out, np.nan)
 
 
+
+#: Depth bands (m below the top filled RVE of each grid column) of :func:`reversibility_by_depth`.
+DEPTHS = (0.0, 0.03, 0.06, 0.10, np.inf)
+
+
+def reversibility_by_depth(rev: np.ndarray, y: np.ndarray) -> list[tuple[float, float, float, float, int]]:
+    """The reversibility (:func:`reversibility`, ``(y, x)``) by depth below the surface.
+
+    A column's surface is its top filled RVE (finite reversibility); per band
+    of :data:`DEPTHS` below it that holds an RVE: the band's edges (m), the
+    median reversibility, its 10 % quantile and the RVEs in the band.
+    """
+    filled = np.isfinite(rev)
+    top = np.array([y[filled[:, j]].max() if filled[:, j].any() else np.nan for j in range(rev.shape[1])])
+    depth = top[None, :] - y[:, None]
+    out = []
+    for lo, hi in zip(DEPTHS[:-1], DEPTHS[1:]):
+        band = filled & (depth >= lo) & (depth < hi)
+        if band.any():
+            out.append((lo, hi, float(np.median(rev[band])), float(np.percentile(rev[band], 10)), int(band.sum())))
+    return out
+
+
+def tilt_asymmetry(pr: xr.Dataset, name: str) -> np.ndarray | None:
+    """``|Δ(+) + Δ(−)| / (|Δ(+)| + |Δ(−)|)`` per RVE of the increment `name` of a pile's opposite
+    tilts (the first pair of tiltpNN / tiltmNN probes of its ``probes.nc``): 0 in a linear pile;
+    None without such a pair."""
+    probes = [str(p) for p in pr["probe"].values]
+    plus = [p for p in probes if p.startswith("tiltp")]
+    minus = [p.replace("tiltp", "tiltm") for p in plus]
+    if not plus or minus[0] not in probes:
+        return None
+    a, b = pr[name].sel(probe=plus[0]).values, pr[name].sel(probe=minus[0]).values
+    norm_a, norm_b = np.linalg.norm(a, axis=(-2, -1)), np.linalg.norm(b, axis=(-2, -1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.linalg.norm(a + b, axis=(-2, -1)) / (norm_a + norm_b)
+
+
+#: The gravity reductions of the probe-level scenes, by probe stage.
+LEVELS = {"reduced05": 0.05, "reduced": 0.10, "reduced15": 0.15}
+
+
+def level_of(stage: str) -> float:
+    """The reduction of a probe stage (``reduced`` is 10 %, ``reducedNN`` NN %)."""
+    return LEVELS[stage]
+
+
+def pile_levels(pr: xr.Dataset, params: dict) -> dict:
+    """Is one pile's probe response linear in the gravity reduction (``config/scenes/probe_levels.yaml``)?
+
+    From the pile's ``probes.nc``: ``compliance``, per reduction of
+    :data:`LEVELS`, the median over the core RVEs (``analysis.history``:
+    ``|x| <= shoulder_outer``, ``y <= core_height``) of ``u_yy / Delta``;
+    ``linearity``, ``c(Delta) / c(10 %) - 1`` at the other levels (0 for a pile
+    that answers in proportion); ``slips``, per probe the RVEs of
+    :func:`analysis.ensemble.slipped`; ``reversibility``, the median over RVEs
+    of :func:`reversibility`.
+    """
+    h = params["history"]
+    probes = [str(p) for p in pr["probe"].values]
+    x, y = pr["x"].values, pr["y"].values
+    core = (np.abs(x)[None, :] <= h["shoulder_outer"] + 1e-9) & (y[:, None] <= h["core_height"] + 1e-9)
+    strain = pr["strain_increment"].transpose("probe", "y", "x", "i", "j").values
+    ratio = params["ensemble"]["slip_strain_ratio"]
+    out = {"compliance": {}, "slips": {}}
+    for k, stage in enumerate(probes):
+        u = strain[k]
+        out["slips"][stage] = int(slipped(u, ratio).sum())
+        if stage in LEVELS:
+            uyy = np.where(core, u[..., 1, 1], np.nan) / level_of(stage)
+            finite = uyy[np.isfinite(uyy)]
+            out["compliance"][stage] = float(np.median(finite)) if finite.size else float("nan")
+    base = out["compliance"].get("reduced", float("nan"))
+    out["linearity"] = {s: c / base - 1.0 for s, c in out["compliance"].items() if s != "reduced"}
+    rev = reversibility(strain, probes)
+    out["reversibility"] = float(np.nanmedian(rev)) if np.isfinite(rev).any() else float("nan")
+    return out
+
+
 SCALARS = ("condition", "axis_deg", "E_max", "E_min", "anisotropy", "explained_general",
            "explained_isotropic", "explained_cubic")
 #: Scalars of each pile's own fit kept per pile (dimension ``pile``).

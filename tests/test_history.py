@@ -10,8 +10,8 @@ import xarray as xr
 from scipy import integrate
 
 from analysis.errors import ParamError
-from analysis.history import (bonferroni_z, compare, detection_factor, pile_history, primary_names,
-                              uniform_pile_pressure)
+from analysis.ensemble_statistics import bonferroni_z, compare, detection_factor
+from analysis.history import pile_history, primary_names, uniform_pile_pressure
 from analysis.params import resolve_params
 
 PARAMS = resolve_params({})

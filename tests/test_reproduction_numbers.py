@@ -1,5 +1,5 @@
 """The extra probes' numbers of the reproduction report
-(workflow/tools/reproduction_numbers.py) on a small general_moduli file
+(workflow/tools/reproduction_numbers.py, analysis.probes) on a small general_moduli file
 whose medians, counts and axis angles are known by hand."""
 
 
@@ -7,6 +7,7 @@ import numpy as np
 import xarray as xr
 
 from analysis.general_elastic import GENERAL_FLAGS
+from analysis.probes import tilt_asymmetry
 
 from workflow.tools import reproduction_numbers as numbers
 
@@ -60,8 +61,8 @@ def test_opposite_tilts_of_a_linear_pile_cancel_and_equal_ones_do_not():
     data = np.stack([plus, minus])                                          # (probe, y, x, 2, 2)
     pr = xr.Dataset({"strain_increment": (("probe", "y", "x", "i", "j"), data)},
                     coords={"probe": ["tiltp05", "tiltm05"]})
-    np.testing.assert_allclose(numbers.tilt_asymmetry(pr, "strain_increment"), [[0.0, 1.0, 1.0 / 3.0]])
-    assert numbers.tilt_asymmetry(pr.sel(probe=["tiltp05"]), "strain_increment") is None
+    np.testing.assert_allclose(tilt_asymmetry(pr, "strain_increment"), [[0.0, 1.0, 1.0 / 3.0]])
+    assert tilt_asymmetry(pr.sel(probe=["tiltp05"]), "strain_increment") is None
 
 
 def test_reversibility_by_depth_counts_from_the_top_filled_rve_of_each_column():
@@ -73,7 +74,7 @@ def test_reversibility_by_depth_counts_from_the_top_filled_rve_of_each_column():
     rev[:, 0] = [1.0, 0.98, 0.96, 0.90, 0.8, 0.5, 0.1]   # top at row 6: depths 13.5, 11.25, 9, 6.75, 4.5, 2.25, 0 cm
     rev[:5, 1] = [0.94, 0.98, 0.86, 0.7, 0.2]            # top at row 4: depths 9, 6.75, 4.5, 2.25, 0 cm
     gm = xr.Dataset({"reversibility": (("y", "x"), rev)}, coords={"y": y, "x": [0.0, 0.1]})
-    lines = numbers.reversibility_by_depth(gm)
+    lines = numbers._depth_lines(gm)
     # 0-3 cm: 0.5, 0.1, 0.7, 0.2; 3-6 cm: 0.8, 0.86; 6-10 cm: 0.96, 0.90, 0.94, 0.98; over 10 cm: 1.0, 0.98
     assert lines == ["0–3 cm median 0.35 (10 %: 0.13, 4 RVEs)", "3–6 cm median 0.83 (10 %: 0.81, 2 RVEs)",
                      "6–10 cm median 0.95 (10 %: 0.91, 4 RVEs)", "over 10 cm median 0.99 (10 %: 0.98, 2 RVEs)"]

@@ -56,7 +56,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from analysis.history import mean_sem
+from analysis.ensemble_statistics import mean_sem
 from analysis.params import parse_params
 from analysis.pile_quantities import MODULI, SHAPE, pile_quantities
 from analysis.pile_quantities import quantities as pile_quantity_names
