@@ -142,7 +142,7 @@ if config["committed"]:
             records=DECISION_RECORDS,
             calibration=lambda wc: sorted(str(p) for p in (study.analysis.committed / "calibration").glob("*.json")),
             plan=str(DECISION_PLAN),
-            tool="workflow/tools/decision.py",
+            tool="workflow/tools/decision_pages.py",
         output:
             str(study.analysis.committed / "decision.md"),
         params:
