@@ -352,8 +352,8 @@ def per_pile_probes(paths):
                     parts.append(f"opposite tilts, {label} {med:.2f} ({lo:.2f} – {hi:.2f})")
             out.append(f"seed {pr.attrs.get('seed', '?')}: " + ("; ".join(parts) if parts else "no reduction and restoration, no pair of opposite tilts"))
     if medians:
-        sem = np.std(medians, ddof=1) / np.sqrt(len(medians)) if len(medians) > 1 else np.nan
-        out.append(f"median reversibility, mean over the {_piles(len(medians))}: {_pm(np.mean(medians), sem, '.2f')}")
+        m, sem, _, n = mean_sem(medians)
+        out.append(f"median reversibility, mean over the {_piles(n)}: {_pm(m, sem, '.2f')}")
     return out
 
 
@@ -574,9 +574,8 @@ def report_checks(fields_items, bases_items, convergence_paths, invariants, para
     sd_col = [mean_sem([c["stress_column"] for c in contrasts[p]])[2] for p in (a, b)]
     sd_bp = [mean_sem([v.get("base_pressure_column", np.nan) for v in values[p]])[2] for p in (a, b)]
     t["stress_column.sd_ratio"] = f"{math.hypot(*sd_col) / math.hypot(*sd_bp):.2f}"
-    w = welch([c["stress_column"] for c in contrasts[a]], [c["stress_column"] for c in contrasts[b]])
     col = {p: [c["stress_column"] for c in contrasts[p]] for p in (a, b)}
-    diff = mean_sem(col[a])[0] - mean_sem(col[b])[0]
+    w, diff = welch(col[a], col[b]), compare(col[a], col[b])["diff"]
     t["stress_column.diff"] = f"{100 * diff:+.1f} %, t = {w['t']:+.2f} ({w['df']:.1f} df)"
     t["stress_column.piles"] = f"{piles_for_power(*sd_col, 0.05, POWER, 5, LEVEL):.0f}"
     t["base_pressure_column.piles"] = f"{piles_for_power(*sd_bp, 0.05, POWER, 5, LEVEL):.0f}"

@@ -42,8 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.ensemble_statistics import (against_reference, detection_factor, mean_sem, paired_difference,
-                                          rank_test, t_threshold)
+from analysis.ensemble_statistics import (against_reference, compare, detection_factor, paired_difference, rank_test,
+                                          t_threshold)
 from analysis.pile_quantities import MODULI, SHAPE, pile_quantities, quantities
 from sim.settings_file import read_settings_file
 
@@ -142,8 +142,8 @@ def history_versus(study: dict, variant: dict, names: dict, a: str = "wedge", b:
     for q in history:
         cells = []
         for piles in (study, variant):
-            (ma, sa, *_), (mb, sb, *_) = (mean_sem([v[q] for v in piles[x].values()]) for x in (a, b))
-            cells.append(_difference(ma - mb, math.hypot(sa, sb)))
+            c = compare(*([v[q] for v in piles[x].values()] for x in (a, b)))
+            cells.append(_difference(c["diff"], c["se"]))
         rows.append(f"| {names[q]} | " + " | ".join(cells) + " |")
     return "\n".join(rows) + "\n"
 
