@@ -227,6 +227,49 @@ def tilt_asymmetry(pr: xr.Dataset, name: str) -> np.ndarray | None:
         return np.linalg.norm(a + b, axis=(-2, -1)) / (norm_a + norm_b)
 
 
+def general_fit_summary(gm: xr.Dataset) -> dict[str, Any]:
+    """What an ensemble's general fits show (its ``general_moduli.nc``, :func:`general_fit_dataset`).
+
+    Returns
+    -------
+    dict
+        ``slips``: the pile-probe-RVEs left out as slipped; per m of 1 and 5 in
+        ``fits``: ``identified`` (RVEs whose fit is identified and positive
+        definite), ``tried`` (RVEs with enough samples for a fit) and
+        ``condition`` (the median condition number over those); at m = 5 over
+        the identified RVEs (None without one) in ``m5``: ``explained`` (per
+        law, the median fraction of the stress increments it explains),
+        ``anisotropy`` (median ``E_max / E_min``) and ``axes`` (per field axis
+        present, the unsigned angle between it and the stiffest axis, mean
+        and count, :func:`analysis.orientation.axis_angle_difference`);
+        ``reversibility`` (10 %, 50 % and 90 % quantiles and the count over
+        RVEs, None without one) and ``by_depth`` (:func:`reversibility_by_depth`).
+    """
+    flags = gm["general_flag"].attrs
+    few = int(dict(zip(flags["flag_meanings"].split(), flags["flag_masks"]))["insufficient_samples"])
+    out: dict[str, Any] = {"slips": int(gm["slip_left_out"].sum()), "fits": {}, "m5": None}
+    for m in (1, 5):
+        fit = gm.sel(points=m)
+        tried = (fit["general_flag"].values & few) == 0           # enough samples for a fit
+        out["fits"][m] = {"identified": int((fit["general_flag"].values == 0).sum()), "tried": int(tried.sum()),
+                          "condition": float(np.median(fit["condition"].values[tried]))}
+    fit = gm.sel(points=5)
+    ok = fit["general_flag"].values == 0
+    if ok.any():
+        axis = np.where(ok, fit["axis_deg"].values, np.nan)
+        gaps = {name: np.abs(axis_angle_difference(axis, gm[name].values)) for name in AXES_FROM_FIELDS if name in gm}
+        out["m5"] = {"explained": {law: float(np.median(fit[f"explained_{law}"].values[ok]))
+                                   for law in ("general", "cubic", "isotropic")},
+                     "anisotropy": float(np.median(fit["anisotropy"].values[ok])),
+                     "axes": {name: (float(np.nanmean(g)) if np.isfinite(g).any() else np.nan, int(np.isfinite(g).sum()))
+                              for name, g in gaps.items()}}
+    rev = gm["reversibility"].values
+    out["reversibility"] = (*(float(v) for v in np.nanpercentile(rev, [10, 50, 90])), int(np.isfinite(rev).sum())) \
+        if np.isfinite(rev).any() else None
+    out["by_depth"] = reversibility_by_depth(rev, gm["y"].values) if np.isfinite(rev).any() else []
+    return out
+
+
 #: The gravity reductions of the probe-level scenes, by probe stage.
 LEVELS = {"reduced05": 0.05, "reduced": 0.10, "reduced15": 0.15}
 

@@ -7,15 +7,17 @@ import numpy as np
 import xarray as xr
 
 from analysis.general_elastic import GENERAL_FLAGS
-from analysis.probes import tilt_asymmetry
+from analysis.orientation import axis_angle_difference
+from analysis.probes import reversibility_by_depth, tilt_asymmetry
 
 from workflow.tools import reproduction_numbers as numbers
 
 
-def test_axis_gap_folds_axes_half_a_turn_apart():
+def test_the_unsigned_axis_gap_folds_axes_half_a_turn_apart():
+    """The angle between two axes that general_fit_summary averages: |axis_angle_difference|."""
     a = np.array([80.0, -80.0, 10.0, 0.0, 45.0])
     b = np.array([-80.0, 80.0, 10.0, 90.0, -45.0])
-    np.testing.assert_allclose(numbers._axis_gap(a, b), [20.0, 20.0, 0.0, 90.0, 90.0])
+    np.testing.assert_allclose(np.abs(axis_angle_difference(a, b)), [20.0, 20.0, 0.0, 90.0, 90.0])
 
 
 def general_file():
@@ -74,7 +76,7 @@ def test_reversibility_by_depth_counts_from_the_top_filled_rve_of_each_column():
     rev[:, 0] = [1.0, 0.98, 0.96, 0.90, 0.8, 0.5, 0.1]   # top at row 6: depths 13.5, 11.25, 9, 6.75, 4.5, 2.25, 0 cm
     rev[:5, 1] = [0.94, 0.98, 0.86, 0.7, 0.2]            # top at row 4: depths 9, 6.75, 4.5, 2.25, 0 cm
     gm = xr.Dataset({"reversibility": (("y", "x"), rev)}, coords={"y": y, "x": [0.0, 0.1]})
-    lines = numbers._depth_lines(gm)
+    lines = numbers._depth_lines(reversibility_by_depth(gm["reversibility"].values, gm["y"].values))
     # 0-3 cm: 0.5, 0.1, 0.7, 0.2; 3-6 cm: 0.8, 0.86; 6-10 cm: 0.96, 0.90, 0.94, 0.98; over 10 cm: 1.0, 0.98
     assert lines == ["0–3 cm median 0.35 (10 %: 0.13, 4 RVEs)", "3–6 cm median 0.83 (10 %: 0.81, 2 RVEs)",
                      "6–10 cm median 0.95 (10 %: 0.91, 4 RVEs)", "over 10 cm median 0.99 (10 %: 0.98, 2 RVEs)"]

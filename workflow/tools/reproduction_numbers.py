@@ -87,7 +87,7 @@ from analysis.ensemble_statistics import LEVEL, POWER, compare, mean_sem, piles_
 from analysis.fields import read_fields
 from analysis.history import UNITS, flank_fabric, pile_history, pile_stress_contrasts, primary_names, windows
 from analysis.invariants import pile_secants, secant_deciles, trace_line_r2
-from analysis.probes import reversibility, reversibility_by_depth, tilt_asymmetry
+from analysis.probes import general_fit_summary, reversibility, tilt_asymmetry
 from sim.settings_file import read_settings_file
 
 from ._cli import ToolParser, analysis_params, existing_file, existing_folder, positive_float, refuse
@@ -282,42 +282,25 @@ def balance(paths):
             f"{worst['relaxed']:.2g}, reduced {worst['reduced']:.2g}; increment {inc}")
 
 
-def _axis_gap(a, b):
-    """Angles between axes a and b (degrees), folded into [0, 90]."""
-    return np.abs((a - b + 90.0) % 180.0 - 90.0)
-
-
 def general_fit(gm):
-    """Lines of the extra probes' measures for one protocol's general_moduli.nc."""
+    """Lines of the extra probes' measures for one protocol's general_moduli.nc (:func:`analysis.probes.general_fit_summary`)."""
+    g = general_fit_summary(gm)
     out = [f"{_piles(int(gm.attrs.get('n_seeds', 0)))}, loading probes {gm.attrs.get('loading_probes', '?')}, "
-           f"slips left out {int(gm['slip_left_out'].sum())} pile-probe-RVEs"]
-    flags = gm["general_flag"].attrs
-    few = int(dict(zip(flags["flag_meanings"].split(), flags["flag_masks"]))["insufficient_samples"])
-    for m in (1, 5):
-        fit = gm.sel(points=m)
-        tried = (fit["general_flag"].values & few) == 0           # enough samples for a fit
-        ok = fit["general_flag"].values == 0
-        out.append(f"m = {m}: identified and positive definite at {int(ok.sum())} of {int(tried.sum())} "
-                   f"RVEs, median condition number {np.median(fit['condition'].values[tried]):.3g}")
-    fit = gm.sel(points=5)
-    ok = fit["general_flag"].values == 0
-    if ok.any():
-        expl = ", ".join(f"{law} {np.median(fit[f'explained_{law}'].values[ok]):.2f}"
-                         for law in ("general", "cubic", "isotropic"))
+           f"slips left out {g['slips']} pile-probe-RVEs"]
+    for m, fit in g["fits"].items():
+        out.append(f"m = {m}: identified and positive definite at {fit['identified']} of {fit['tried']} "
+                   f"RVEs, median condition number {fit['condition']:.3g}")
+    if g["m5"]:
+        expl = ", ".join(f"{law} {v:.2f}" for law, v in g["m5"]["explained"].items())
         out.append(f"m = 5, over those RVEs: median fraction of the stress increments explained: {expl}; "
-                   f"median anisotropy E_max/E_min {np.median(fit['anisotropy'].values[ok]):.3g}")
-        axis = np.where(ok, fit["axis_deg"].values, np.nan)
-        for name in ("fabric_orientation", "stress_orientation"):
-            if name in gm:
-                gap = _axis_gap(axis, gm[name].values)
-                out.append(f"mean angle between the stiffness axis and the {name.split('_')[0]} axis "
-                           f"{_mean_deg(gap)} over {int(np.isfinite(gap).sum())} RVEs")
-    rev = gm["reversibility"].values
-    if np.isfinite(rev).any():
-        lo, med, hi = np.nanpercentile(rev, [10, 50, 90])
+                   f"median anisotropy E_max/E_min {g['m5']['anisotropy']:.3g}")
+        for name, (mean, n) in g["m5"]["axes"].items():
+            out.append(f"mean angle between the stiffness axis and the {name.split('_')[0]} axis "
+                       f"{f'{mean:.1f}°' if n else 'no valid RVE'} over {n} RVEs")
+    if g["reversibility"]:
+        lo, med, hi, n = g["reversibility"]
         out.append(f"reversibility 1 − |u(restored)|/|u(reduced)|: median {med:.2f} (10–90 %: {lo:.2f} – {hi:.2f}) "
-                   f"over {int(np.isfinite(rev).sum())} RVEs; by depth below the surface: "
-                   + "; ".join(_depth_lines(gm)))
+                   f"over {n} RVEs; by depth below the surface: " + "; ".join(_depth_lines(g["by_depth"])))
     return out
 
 
@@ -325,11 +308,10 @@ def general_fit(gm):
 ENSEMBLE_FILES = ("fields.nc", "base_pressure.nc", "moduli.nc", "invariants.nc")
 
 
-def _depth_lines(gm):
+def _depth_lines(bands):
     """Median reversibility (and its 10 % quantile) per depth band (:func:`analysis.probes.reversibility_by_depth`)."""
     return [f"{f'over {100 * lo:g} cm' if np.isinf(hi) else f'{100 * lo:g}–{100 * hi:g} cm'} median {med:.2f} "
-            f"(10 %: {p10:.2f}, {n} RVEs)"
-            for lo, hi, med, p10, n in reversibility_by_depth(gm["reversibility"].values, gm["y"].values)]
+            f"(10 %: {p10:.2f}, {n} RVEs)" for lo, hi, med, p10, n in bands]
 
 
 def per_pile_probes(paths):
