@@ -59,3 +59,45 @@ def convergence_dataset(relaxed: State, reduced: State, params: dict[str, Any]) 
                      "seed": str(relaxed.attrs.get("seed", "")), "relaxed_file": relaxed.path,
                      "reduced_file": reduced.path})
     return ds
+
+
+def reference_size(sizes: np.ndarray, point_y: np.ndarray) -> int:
+    """Index of the largest RVE side ``s`` with ``s / 2 <= y`` at every fixed point (an RVE wholly
+    above the support: 12 cm for points at 6 and 9 cm); the largest size when none is."""
+    inside = np.flatnonzero(sizes / 2 <= point_y.min() + 1e-9)
+    return int(inside[-1]) if inside.size else sizes.size - 1
+
+
+def deviations(sets: list[xr.Dataset], ref: int | None = None) -> dict[str, Any]:
+    """Fig. 1 over several piles' convergence files (the same RVE sizes in each): how far ``σ_yy``
+    and ``Δσ_yy`` in each RVE size lie from their values in a reference RVE.
+
+    Parameters
+    ----------
+    sets : list of xarray.Dataset
+        The piles' :func:`convergence_dataset` files.
+    ref : int, optional
+        Index of the reference size; by default :func:`reference_size`.
+
+    Returns
+    -------
+    dict
+        ``sizes``, ``ref``, ``n`` (particles in each RVE, size × pile-point);
+        per quantity (``stress``, ``stress_increment``) the median and the
+        largest over the piles' points of ``100 |v / v_ref − 1|`` (%) per size,
+        and ``{quantity}_largest_cut``: the median of ``v`` in the largest RVE
+        over ``v_ref`` at the points whose largest RVE reaches below the
+        support (NaN: none); ``cut_points``: the heights of those points.
+    """
+    sizes = sets[0]["rve_size"].values
+    py = np.concatenate([ds["point_y"].values for ds in sets])
+    ref = reference_size(sizes, py) if ref is None else ref % sizes.size
+    out = {"sizes": sizes, "ref": ref, "n": np.concatenate([ds["n_particles"].values for ds in sets], axis=1)}
+    cut = sizes[-1] / 2 > py + 1e-9
+    for name in ("stress", "stress_increment"):
+        v = np.concatenate([ds[name].sel(i="y", j="y").values for ds in sets], axis=1)
+        dev = 100 * np.abs(v / v[ref] - 1.0)
+        out[name] = (np.median(dev, axis=1), dev.max(axis=1))
+        out[f"{name}_largest_cut"] = float(np.median(v[-1, cut] / v[ref, cut])) if cut.any() else np.nan
+    out["cut_points"] = sorted({float(v) for v in py[cut]})
+    return out

@@ -1,8 +1,13 @@
-"""The pre-registered decision on the pressure minimum (docs/reproduction/preregistration.md).
+"""The decisions on the pressure minimum: the registered rules, and the study's primary tests.
 
-Pure functions on the per-pile records of ``workflow/tools/calibration.py``
-(one JSON object per pile: ``arm``, ``protocol``, ``seed``, ``growth``,
-``quantities``, ``cpu_s``):
+The study's own decision (:func:`primary_tests`: its five primary statistics,
+wedge against layered, Welch and Holm; windows fixed after its piles were
+read) and the pre-registered ones (docs/reproduction/preregistration.md,
+preregistration_equal_slope.md), all on the tests of
+:mod:`analysis.ensemble_statistics`.  The registered rules are pure functions
+on the per-pile records (one JSON object per pile: ``arm``, ``protocol``,
+``seed``, ``growth``, ``quantities``, ``inputs``, ``cpu_s``;
+:func:`analysis.pile_quantities.pile_record` computes its numbers):
 
 * :func:`select_arms`: which point source and which layered control the
   decision uses, by the registered rule on the calibration records;
@@ -25,9 +30,10 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy.stats import t as student_t
 
-from .history import holm, mean_sem, piles_for_power, row_contrast, t_power, tost, welch
+from .ensemble_statistics import (LEVEL, POWER, mean_sem, piles_for_power, t_power, tost, welch,
+                                  welch_family)
+from .history import UNITS, primary_names, row_contrast
 
 #: The decision family: the pressure minimum read from the RVE stress (low
 #: variance) and from the support's force density.
@@ -41,7 +47,6 @@ EQUAL_SLOPE_SECONDARY = ("base_pressure_column", "scaled_stress_column", "interi
                          "centre_column") + SECONDARY
 #: The effect the ensemble is powered for, in D1 (a fraction of the uniform pile's pressure).
 EFFECT = 0.05
-LEVEL, POWER = 0.05, 0.8
 #: The fewest piles per protocol the decision pours.
 MIN_PILES = 10
 #: Arms whose mean angles of repose differ by more than this (deg) compare sources as built, not histories.
@@ -57,6 +62,57 @@ SCALED_WINDOWS = {"centre": 0.085, "shoulder_inner": 0.17, "shoulder_outer": 0.4
 REPOSE_MARGIN = 2.0
 WEDGE_ARMS = ("wedge drip", "wedge funnel")
 LAYERED_ARMS = ("layered top", "layered rain")
+
+
+#: The differences whose power the study's tables give: relative contrasts 5 and 10 %, the angle 2 and 5 degrees
+#: (by the unit of :data:`analysis.history.UNITS`).
+DELTAS = {"": (0.05, 0.10), "deg": (2.0, 5.0)}
+
+
+def primary_tests(values: dict[str, list[dict]], history: dict[str, Any], a: str = "wedge",
+                  b: str = "layered") -> list[dict[str, Any]]:
+    """The study's decision on its primary statistics (:func:`analysis.history.primary_names`), ``a − b``.
+
+    Not pre-registered (the windows were fixed after the study's piles were
+    read): Welch's test per statistic with Holm's correction over the family
+    at :data:`analysis.ensemble_statistics.LEVEL`
+    (:func:`analysis.ensemble_statistics.welch_family`), and the piles per
+    protocol that find a difference with :data:`analysis.ensemble_statistics.POWER`
+    (:func:`analysis.ensemble_statistics.piles_for_power`, the scatter taken
+    as measured).
+
+    Parameters
+    ----------
+    values : dict
+        ``{protocol: [per-pile statistics]}`` (:func:`analysis.history.pile_history` of each pile).
+    history : dict
+        The windows' settings (``analysis.history``).
+    a, b : str
+        The protocols compared.
+
+    Returns
+    -------
+    list of dict
+        Per primary statistic, in order: ``name``, ``t``, ``df``, ``p``, ``diff``, ``se``, ``n`` and ``sd``
+        (per protocol), ``holm_p``, ``rejected``, ``t_bonferroni`` (the |t| the family asks at ``df``),
+        ``delta`` (5 %, or 2° for the angle, :data:`DELTAS`) and the piles per protocol that find it at the
+        family-wise level (``n_delta``) and in one test alone (``n_delta_single``), and that find a
+        difference of the measured size at the family-wise level (``n_measured``).
+    """
+    names = primary_names(history)
+    tests = welch_family({name: ([v.get(name, np.nan) for v in values.get(a, [])],
+                                 [v.get(name, np.nan) for v in values.get(b, [])]) for name in names}, LEVEL)
+    out = []
+    for name, r in tests.items():
+        sd_a, sd_b = r["a"][2], r["b"][2]
+        delta = DELTAS[UNITS.get(name, "")][0]
+        out.append({"name": name, "t": r["t"], "df": r["df"], "p": r["p"], "diff": r["diff"], "se": r["se"],
+                    "n": (r["a"][3], r["b"][3]), "sd": (sd_a, sd_b), "holm_p": r["p_holm"],
+                    "rejected": r["rejected"], "t_bonferroni": r["t_family"], "delta": delta,
+                    "n_delta": piles_for_power(sd_a, sd_b, delta, POWER, len(tests), LEVEL),
+                    "n_delta_single": piles_for_power(sd_a, sd_b, delta, POWER, 1, LEVEL),
+                    "n_measured": piles_for_power(sd_a, sd_b, r["diff"], POWER, len(tests), LEVEL)})
+    return out
 
 
 def _arm_mean(records: list[dict], arm: str, part: str, key: str) -> float:
@@ -164,7 +220,7 @@ def verdict(records: list[dict], point: str, layered: str, n: int, family: tuple
         (docs/reproduction/preregistration_equal_slope.md): ``history`` (the
         first primary statistic rejects, point − layered below 0), ``opposite``
         (above 0), ``shape`` (it does not reject and the equivalence test
-        :func:`analysis.history.tost` puts the difference within ``±margin``)
+        :func:`analysis.ensemble_statistics.tost` puts the difference within ``±margin``)
         or ``none`` ("no effect larger than Z", Z the farther bound of its
         95 % interval); the equivalence test is in ``out["equivalence"]``.
         Without one, the first decision's outcomes (``minimum``,
@@ -192,20 +248,8 @@ def verdict(records: list[dict], point: str, layered: str, n: int, family: tuple
     out: dict[str, Any] = {}
     secondary = SECONDARY if margin is None else EQUAL_SLOPE_SECONDARY
     for part, keys in (("decision", family), ("secondary", secondary)):
-        rows = {}
-        for key in keys:
-            a, b = values(records, point, key), values(records, layered, key)
-            (ma, sa, da, na), (mb, sb, db, nb) = mean_sem(a), mean_sem(b)
-            w = welch(a, b)
-            half = student_t.isf(0.025, w["df"]) * math.hypot(sa, sb) if np.isfinite(w["df"]) else math.nan
-            rows[key] = {"point": (ma, sa, na), "layered": (mb, sb, nb), "diff": ma - mb,
-                         "se": math.hypot(sa, sb), "sd": (da, db), "ci95": (ma - mb - half, ma - mb + half), **w,
-                         "power": t_power(da, db, EFFECT, min(na, nb), len(keys), LEVEL)
-                         if min(na, nb) >= 2 else math.nan}
-        adjusted, rejected = holm([r["p"] for r in rows.values()], LEVEL)
-        for r, p, rej in zip(rows.values(), adjusted, rejected):
-            r["p_holm"], r["rejected"] = p, rej
-        out[part] = rows
+        tests = welch_family({k: (values(records, point, k), values(records, layered, k)) for k in keys}, LEVEL)
+        out[part] = {k: _arms_row(r, len(keys)) for k, r in tests.items()}
     d = out["decision"]
     lower = [k for k in family if d[k]["rejected"] and d[k]["diff"] < 0]
     higher = [k for k in family if d[k]["rejected"] and d[k]["diff"] > 0]
@@ -230,6 +274,16 @@ def verdict(records: list[dict], point: str, layered: str, n: int, family: tuple
         out["sentence"] = (f"no minimum larger than {pct(max(z, 0.0))} (95 %) in {DECISION[0]}; "
                            f"{DECISION[1]}: 95 % interval of wedge − layered [{pct(lo2[0])}, {pct(lo2[1])}]")
     return out
+
+
+def _arms_row(test: dict[str, Any], comparisons: int) -> dict[str, Any]:
+    """A statistic's row of :func:`verdict` from its :func:`analysis.ensemble_statistics.welch_family`
+    row: each arm's (mean, standard error, count), the per-pile scatters ``sd``, the test, and the
+    achieved power at :data:`EFFECT` (NaN below two piles an arm)."""
+    (ma, sa, da, na), (mb, sb, db, nb) = test["a"], test["b"]
+    return {"point": (ma, sa, na), "layered": (mb, sb, nb), "sd": (da, db),
+            **{k: test[k] for k in ("diff", "se", "ci95", "t", "df", "p", "p_holm", "rejected")},
+            "power": t_power(da, db, EFFECT, min(na, nb), comparisons, LEVEL) if min(na, nb) >= 2 else math.nan}
 
 
 def shape_check(records: list[dict], point: str, layered: str, key: str = DECISION[0]) -> dict[str, Any]:

@@ -4,7 +4,8 @@ The film's frames (``results/README.md``: time, particles released, centre
 and speed of every released particle) say, frame by frame, how steep the
 flanks stood and how many particles of the pile were moving.  Used by the
 table of the sources (``workflow/tools/source_growth.py``) and by the
-calibration records (``workflow/tools/calibration.py``).
+calibration records (``workflow/tools/calibration.py``), whose numbers of the
+growth are :func:`growth_statistics`.
 """
 
 from __future__ import annotations
@@ -16,6 +17,12 @@ import xarray as xr
 
 #: Seconds after its release from which a moving particle counts as the pile's.
 OLD = 0.5
+#: Particles of the pile (released more than :data:`OLD` s before) moving in one frame, from which its
+#: flanks flow (:func:`growth_statistics`).
+FLOW_MIN = 5
+#: The growth: frames from this fraction of the particles released to the last release (:func:`growth`'s
+#: ``start`` in the calibration records).
+START = 0.3
 
 
 def flank_angle(x, top_y, d):
@@ -92,6 +99,39 @@ def growth(frames, radius, d, start, settled_speed):
         rows.append((t[f], released[f], flank_angle(x[f][settled], tops[settled], d),
                      int(moving.sum()), int((moving & (released_at < t[f] - OLD)).sum())))
     return np.array(rows)
+
+
+def growth_statistics(g: np.ndarray, flow_min: int = FLOW_MIN) -> dict:
+    """How a pile grew, in the numbers of a calibration record, from its growth's frames.
+
+    :data:`OLD`, :data:`FLOW_MIN` and :data:`START` were fixed, and committed,
+    before the first calibration pile was poured.
+
+    Parameters
+    ----------
+    g : ndarray, shape (frames, 5)
+        :func:`growth` of the pile's frames.
+    flow_min : int
+        Old particles moving from which the flanks flow.
+
+    Returns
+    -------
+    dict
+        ``frames``; ``flow_fraction``: the fraction of the frames in which the
+        flanks flow (at least `flow_min` old particles moving: an avalanche,
+        not a particle landing); ``old_moving_median`` and ``old_moving_max``;
+        ``moving_median`` (all moving particles); the flank angle's median,
+        90th percentile and largest (deg, frames with an angle); and
+        ``flux_per_s``, the particles released per second over the growth.
+    """
+    angle = g[np.isfinite(g[:, 2]), 2]
+    old = g[:, 4]
+    return {"frames": int(len(g)), "flow_fraction": float(np.mean(old >= flow_min)),
+            "old_moving_median": float(np.median(old)), "old_moving_max": int(old.max()),
+            "moving_median": float(np.median(g[:, 3])),
+            "flank_median_deg": float(np.median(angle)), "flank_p90_deg": float(np.percentile(angle, 90)),
+            "flank_max_deg": float(angle.max()),
+            "flux_per_s": float((g[-1, 1] - g[0, 1]) / (g[-1, 0] - g[0, 0]))}
 
 
 #: Quantiles of the landing-to-rest distance a record keeps (:func:`landing_displacement`).

@@ -5,9 +5,11 @@ history: a pressure minimum, a density maximum and a dip of the vertical
 strain increment near the centre, none of which a line-source (layered) pile
 shows.  This module turns that into numbers that can decide it: each
 statistic is one number per pile, computed in windows fixed once
-(``analysis.history``; after the study's piles, see below), and the protocols are compared by the mean over
-their piles with its standard error (:func:`compare`), with the smallest
-difference the comparison could have seen (its power).
+(``analysis.history``; after the study's piles, see below).  The protocols
+are compared over their piles by :mod:`analysis.ensemble_statistics` (the
+mean with its standard error, Welch's test, Holm's correction, the power):
+this module computes what one pile gives, that one what an ensemble of
+piles does.
 
 Windows, by the centre ``x`` of a grid column or base bin (``x = 0`` on the
 pouring axis): the *centre* ``|x| <= centre``; the *shoulders*
@@ -46,23 +48,16 @@ question, are listed in :data:`PRIMARY`; the others are secondary.
 
 The windows were set after the study's 19 piles had been recorded and read
 (git: the piles 2026-12-01/02, the windows 8fb4149 on 2026-12-03), so they
-are fixed for the piles poured since, not for those 19.  The tests that
-decide (:func:`welch`, :func:`holm`, :func:`piles_for_power`) use Student's
-t at Welch's degrees of freedom, not the normal quantiles of
-:func:`bonferroni_z` and :func:`detection_factor`: with 8-10 piles per
-protocol the degrees of freedom are 12-15.
+are fixed for the piles poured since, not for those 19.
 """
 
 from __future__ import annotations
 
 import math
-import warnings
 from typing import Any
 
 import numpy as np
 import xarray as xr
-from scipy.stats import nct, norm
-from scipy.stats import t as student_t
 
 from .ensemble import leave_out_slips
 
@@ -167,17 +162,33 @@ def gravity_scaling(fields: xr.Dataset, history: dict[str, Any]) -> dict[str, fl
     return out
 
 
+def flanks(x: np.ndarray, y: np.ndarray, history: dict[str, Any]) -> np.ndarray:
+    """Mask ``(y, x)`` of the flank window: ``flank_inner <= |x| <= flank_outer``, ``y <= flank_height``."""
+    ax = np.abs(x)
+    return ((ax >= history["flank_inner"] - 1e-9) & (ax <= history["flank_outer"] + 1e-9))[None, :] \
+        & (y[:, None] <= history["flank_height"] + 1e-9)
+
+
 def stress_fabric_angle(fields: xr.Dataset, history: dict[str, Any]) -> float:
     """Mean of ``sign(x)`` times the stress-fabric angle over the flank RVEs of one pile (degrees);
     NaN for fields made without the fabric (``outputs`` without ``fabric``)."""
     if "stress_fabric_angle" not in fields:
         return math.nan
     x, y = fields["x"].values, fields["y"].values
-    ax = np.abs(x)
-    flank = ((ax >= history["flank_inner"] - 1e-9) & (ax <= history["flank_outer"] + 1e-9))[None, :] \
-        & (y[:, None] <= history["flank_height"] + 1e-9)
     a = fields["stress_fabric_angle"].transpose("y", "x").values * np.sign(x)[None, :]
-    return _nanmean(np.where(flank, a, np.nan))
+    return _nanmean(np.where(flanks(x, y, history), a, np.nan))
+
+
+def flank_fabric(fields: xr.Dataset, history: dict[str, Any]) -> dict[str, float]:
+    """The fabric of one pile's flanks: over the valid RVEs of :func:`flanks`, the mean deviatoric
+    fraction (``fabric_deviator``) and the mean of ``sign(x)`` times the major axis's angle
+    (``fabric_axis_deg``, mirrored so that a tilt symmetric about the axis adds up)."""
+    x, y = fields["x"].values, fields["y"].values
+    flank = flanks(x, y, history) & (fields["mask_reason"].transpose("y", "x").values == 0)
+    dev = fields["fabric_deviatoric_fraction"].transpose("y", "x").values
+    axis = fields["fabric_orientation"].transpose("y", "x").values * np.sign(x)[None, :]
+    return {"fabric_deviator": float(np.nanmean(np.where(flank, dev, np.nan))),
+            "fabric_axis_deg": float(np.nanmean(np.where(flank, axis, np.nan)))}
 
 
 def pile_history(fields: xr.Dataset, params: dict[str, Any], heights: list[float],
@@ -284,180 +295,3 @@ def stress_column_inputs(fields, params):
     (:func:`pile_stress_contrasts`)."""
     (fields,), _ = leave_out_slips([fields], params["ensemble"]["slip_strain_ratio"])
     return _stress_column_row(fields, params)
-
-
-def mean_sem(values) -> tuple[float, float, float, int]:
-    """Mean, standard error, standard deviation and count of the finite ``values``."""
-    a = np.asarray(values, float)
-    a = a[np.isfinite(a)]
-    if a.size == 0:
-        return math.nan, math.nan, math.nan, 0
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        sd = float(a.std(ddof=1)) if a.size > 1 else math.nan
-    return float(a.mean()), sd / math.sqrt(a.size), sd, int(a.size)
-
-
-def piles_needed(sd_a: float, sd_b: float, delta: float, z: float) -> float:
-    """Piles per protocol for a difference ``delta`` to stand ``z`` standard errors
-    from zero, ``z^2 (sd_a^2 + sd_b^2) / delta^2`` (equal numbers in both)."""
-    if not (np.isfinite(sd_a) and np.isfinite(sd_b)):
-        return math.nan
-    return float(math.ceil(z * z * (sd_a ** 2 + sd_b ** 2) / delta ** 2))
-
-
-def detection_factor(level: float = 0.05, power: float = 0.8) -> float:
-    """``z_{1-level/2} + z_power``: a difference of this many standard errors is seen
-    at the two-sided ``level`` with probability ``power`` (2.80 for 5 % and 80 %)."""
-    return float(norm.ppf(1 - level / 2) + norm.ppf(power))
-
-
-def bonferroni_z(comparisons: int, level: float = 0.05) -> float:
-    """The |z| each of ``comparisons`` tests must pass for a family-wise two-sided ``level``."""
-    return float(norm.ppf(1 - level / (2 * comparisons)))
-
-
-def compare(a, b, deltas=(0.05, 0.10), level: float = 0.05, power: float = 0.8) -> dict[str, Any]:
-    """Protocol ``a`` against protocol ``b`` in one per-pile statistic.
-
-    Returns the mean, standard error, SD and count of each; the difference
-    ``a - b``, its standard error ``sqrt(se_a^2 + se_b^2)`` and ``z`` (the
-    difference in standard errors); each mean against zero in standard
-    errors; the *minimum detectable difference*: ``2 se`` (a difference of
-    that size stands at 2 SE) and ``(z_{1-level/2} + z_power) se`` (seen at the
-    two-sided ``level`` with probability ``power``); and, for each of
-    ``deltas``, the piles per protocol that put it at 2 SE
-    (``n_2se``) and that see it with that power (``n_power``).
-    """
-    ma, sa, da, na = mean_sem(a)
-    mb, sb, db, nb = mean_sem(b)
-    se = math.hypot(sa, sb)
-    k = detection_factor(level, power)
-    return {"a": (ma, sa, da, na), "b": (mb, sb, db, nb), "diff": ma - mb, "se": se,
-            "z": (ma - mb) / se if se > 0 else math.nan,
-            "z_a": ma / sa if sa > 0 else math.nan, "z_b": mb / sb if sb > 0 else math.nan,
-            "mdd_2se": 2 * se, "mdd_power": k * se, "k_power": k,
-            "n_2se": {d: piles_needed(da, db, d, 2.0) for d in deltas},
-            "n_power": {d: piles_needed(da, db, d, k) for d in deltas}}
-
-
-def welch(a, b) -> dict[str, float]:
-    """Welch's two-sided test of ``mean(a) == mean(b)`` over the finite values.
-
-    Returns ``t`` (the difference over its standard error
-    ``sqrt(s_a^2/n_a + s_b^2/n_b)``), ``df`` (Welch-Satterthwaite) and the
-    two-sided ``p`` from Student's t at ``df``; NaN with fewer than two values
-    on a side.
-    """
-    a = np.asarray(a, float)
-    b = np.asarray(b, float)
-    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
-    if a.size < 2 or b.size < 2:
-        return {"t": math.nan, "df": math.nan, "p": math.nan}
-    va, vb = a.var(ddof=1) / a.size, b.var(ddof=1) / b.size
-    if not va + vb > 0:
-        return {"t": math.nan, "df": math.nan, "p": math.nan}
-    t = float((a.mean() - b.mean()) / math.sqrt(va + vb))
-    df = float((va + vb) ** 2 / (va ** 2 / (a.size - 1) + vb ** 2 / (b.size - 1)))
-    return {"t": t, "df": df, "p": float(2 * student_t.sf(abs(t), df))}
-
-
-def tost(a, b, margin: float, level: float = 0.05) -> dict[str, float]:
-    """Two one-sided Welch tests that ``mean(a) - mean(b)`` lies within ``±margin``.
-
-    Schuirmann's equivalence test: the difference ``d`` (finite values) with
-    Welch's standard error ``se`` and degrees of freedom ``df`` (as
-    :func:`welch`); ``p_low`` from ``t = (d + margin) / se`` against
-    ``d <= -margin`` and ``p_high`` from ``t = (d - margin) / se`` against
-    ``d >= margin``, each one-sided from Student's t at ``df``.  The two sides
-    are equivalent at ``level`` when ``p = max(p_low, p_high) < level``, which
-    is when the ``1 - 2·level`` interval of ``d`` lies inside ``±margin``.
-
-    Returns
-    -------
-    dict
-        ``diff``, ``se``, ``df``, ``p_low``, ``p_high``, ``p`` and
-        ``equivalent`` (bool); NaN and False with fewer than two values on a side.
-    """
-    a = np.asarray(a, float)
-    b = np.asarray(b, float)
-    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
-    w = welch(a, b)
-    if not np.isfinite(w["df"]):
-        return {"diff": math.nan, "se": math.nan, "df": math.nan, "p_low": math.nan, "p_high": math.nan,
-                "p": math.nan, "equivalent": False}
-    d = float(a.mean() - b.mean())
-    se = math.sqrt(a.var(ddof=1) / a.size + b.var(ddof=1) / b.size)
-    p_low = float(student_t.sf((d + margin) / se, w["df"]))
-    p_high = float(student_t.cdf((d - margin) / se, w["df"]))
-    p = max(p_low, p_high)
-    return {"diff": d, "se": se, "df": w["df"], "p_low": p_low, "p_high": p_high, "p": p,
-            "equivalent": bool(p < level)}
-
-
-def holm(p_values, level: float = 0.05) -> tuple[list[float], list[bool]]:
-    """Holm's step-down correction of a family of two-sided ``p_values``.
-
-    Returns the adjusted p values (``max`` over the steps up to each of
-    ``(m - rank) p``, capped at 1, in the order given) and whether each test
-    is rejected at the family-wise ``level`` (adjusted p below it).  A NaN p
-    stays NaN and is not rejected; it counts in the family size ``m``.
-    """
-    p = np.asarray(p_values, float)
-    m = p.size
-    order = np.argsort(np.where(np.isfinite(p), p, np.inf), kind="stable")
-    adjusted = np.full(m, math.nan)
-    running = 0.0
-    for rank, k in enumerate(order):
-        if not np.isfinite(p[k]):
-            break
-        running = max(running, min(1.0, (m - rank) * p[k]))
-        adjusted[k] = running
-    return [float(v) for v in adjusted], [bool(np.isfinite(v) and v < level) for v in adjusted]
-
-
-def t_threshold(df: float, comparisons: int = 1, level: float = 0.05) -> float:
-    """The |t| a test at ``df`` degrees of freedom must pass for a two-sided
-    ``level`` shared by ``comparisons`` tests (Bonferroni: ``level /
-    comparisons`` each; Holm's first, strictest step)."""
-    return float(student_t.isf(level / (2 * comparisons), df))
-
-
-def welch_df_equal(sd_a: float, sd_b: float, n: int) -> float:
-    """Welch's degrees of freedom for ``n`` piles per protocol at the scatters ``sd_a``, ``sd_b``."""
-    va, vb = sd_a ** 2, sd_b ** 2
-    return (va + vb) ** 2 * (n - 1) / (va ** 2 + vb ** 2)
-
-
-def t_power(sd_a: float, sd_b: float, delta: float, n: int, comparisons: int = 1,
-            level: float = 0.05) -> float:
-    """Probability that Welch's test with ``n`` piles per protocol finds a true
-    difference ``delta`` at the two-sided ``level / comparisons`` (noncentral t
-    at the Welch degrees of freedom, the per-pile scatters taken as known)."""
-    df = welch_df_equal(sd_a, sd_b, n)
-    crit = t_threshold(df, comparisons, level)
-    shift = abs(delta) / math.sqrt((sd_a ** 2 + sd_b ** 2) / n)
-    return float(nct.sf(crit, df, shift) + nct.cdf(-crit, df, shift))
-
-
-def piles_for_power(sd_a: float, sd_b: float, delta: float, power: float = 0.8, comparisons: int = 1,
-                    level: float = 0.05, most: int = 100000) -> float:
-    """The fewest piles per protocol (equal numbers, at least 2) with which
-    Welch's test finds a difference ``delta`` with probability ``power`` at
-    the family-wise two-sided ``level`` over ``comparisons`` tests (Bonferroni,
-    which Holm's first step equals: a bound for Holm).  NaN where a scatter is
-    unknown, inf beyond ``most``."""
-    if not (np.isfinite(sd_a) and np.isfinite(sd_b)) or not delta or sd_a ** 2 + sd_b ** 2 == 0:
-        return math.nan
-    lo, hi = 2, 2
-    while t_power(sd_a, sd_b, delta, hi, comparisons, level) < power:
-        lo, hi = hi, 2 * hi
-        if hi > most:
-            return math.inf
-    while lo < hi:  # power rises with n: the smallest n reaching it
-        mid = (lo + hi) // 2
-        if t_power(sd_a, sd_b, delta, mid, comparisons, level) >= power:
-            hi = mid
-        else:
-            lo = mid + 1
-    return float(hi)

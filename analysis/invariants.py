@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from .ensemble import leave_out_slips
 from .netcdf import var
 
 
@@ -91,3 +92,50 @@ def invariants_dataset(ensemble: xr.Dataset, params: dict[str, Any]) -> xr.Datas
         if a in ensemble.attrs:
             ds.attrs[a] = ensemble.attrs[a]
     return ds
+
+
+def secant_deciles(ts: np.ndarray, te: np.ndarray, parts: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """The secant of ``tr Δσ`` over ``tr ε`` (2K in two dimensions, Eq. 22) in each of `parts`
+    quantile bins of ``tr ε``: the bin's mean ``tr Δσ`` over its mean ``tr ε``.
+
+    Parameters
+    ----------
+    ts, te : ndarray
+        ``tr Δσ`` and ``tr ε`` of the same RVEs (NaN pairs left out).
+    parts : int
+        The bins, of equal counts.
+
+    Returns
+    -------
+    secants, strains : ndarray
+        The secants and the bins' mean strains (the latter bounds the
+        conditioning: a bin whose mean strain neared 0 would blow up); NaN
+        with fewer RVEs than bins.
+    """
+    ok = np.isfinite(ts) & np.isfinite(te)
+    ts, te = ts[ok], te[ok]
+    if te.size < parts:
+        return np.full(parts, np.nan), np.full(parts, np.nan)
+    bins = np.array_split(np.argsort(te, kind="stable"), parts)
+    return np.array([ts[b].mean() / te[b].mean() for b in bins]), np.array([te[b].mean() for b in bins])
+
+
+def pile_secants(fields: xr.Dataset, params: dict[str, Any]) -> tuple[float, float, float]:
+    """One pile's secant 2K (:func:`secant_deciles`) in its lowest and highest strain decile (valid
+    RVEs, slips left out), and the lowest decile's mean tr ε (its conditioning)."""
+    (fields,), _ = leave_out_slips([fields], params["ensemble"]["slip_strain_ratio"])
+    ok = fields["mask_reason"].transpose("y", "x").values == 0
+    tr = lambda v: (v.sel(i="x", j="x") + v.sel(i="y", j="y")).transpose("y", "x").values  # noqa: E731
+    sec, strain = secant_deciles(np.where(ok, tr(fields["stress_increment"]), np.nan),
+                                 np.where(ok, tr(fields["strain_increment"]), np.nan))
+    return sec[0], sec[-1], strain[0]
+
+
+def trace_line_r2(ts: np.ndarray, te: np.ndarray) -> tuple[float, int]:
+    """``R²`` of a straight line through ``tr Δσ`` against ``tr ε`` (Fig. 5) over the RVEs where
+    both are finite, and their number; NaN below 3 RVEs."""
+    ok = np.isfinite(ts) & np.isfinite(te)
+    if ok.sum() < 3:
+        return np.nan, int(ok.sum())
+    r = np.corrcoef(te[ok], ts[ok])[0, 1]
+    return r * r, int(ok.sum())

@@ -6,7 +6,9 @@ construction-history statistics (:mod:`analysis.history`) and the core moduli
 of its own isotropic fit.  Used by the parameter sweeps
 (``workflow/tools/setting_sweep.py``) and by the side-by-side table of a
 full-size variant against the study (``workflow/tools/variant_table.py``),
-so that both compare the same numbers.
+so that both compare the same numbers; with D1, the flank fabric and the
+numbers D1 and D2 are computed from, they make the record of a calibration
+or decision pile (:func:`pile_record`, ``workflow/tools/calibration.py``).
 """
 
 import json
@@ -17,7 +19,9 @@ import numpy as np
 import xarray as xr
 
 from analysis.elastic import moduli_dataset
-from analysis.history import pile_history, primary_names
+from analysis.fields import read_fields
+from analysis.history import (base_pressure_inputs, flank_fabric, pile_history, pile_stress_contrasts, primary_names,
+                              stress_column_inputs)
 
 #: The pile's shape: key and heading.
 SHAPE = {
@@ -106,3 +110,36 @@ def pile_quantities(summary: Path, fields: Path, base_pressure: Path, params: di
     for k in MODULI:
         out[k] = float(mod[k].sel(fit="average", points=5).where(core).mean())
     return out
+
+
+def pile_record(summary: Path, fields: Path, base_pressure: Path, params: dict[str, Any]) -> tuple[dict, dict]:
+    """The numbers of one pile's calibration or decision record: its quantities, and what D1 and D2
+    are computed from.
+
+    Parameters
+    ----------
+    summary, fields, base_pressure : Path
+        The pile's files, as for :func:`pile_quantities`.
+    params : dict
+        Resolved analysis settings.
+
+    Returns
+    -------
+    quantities : dict
+        :func:`pile_quantities`, D1 (``stress_column``, the σ_yy column contrast of the lowest RVE row,
+        :func:`analysis.history.pile_stress_contrasts`) and the flank fabric
+        (:func:`analysis.history.flank_fabric`).
+    inputs : dict
+        D1's grid row (:func:`analysis.history.stress_column_inputs`), D2's support bins
+        (:func:`analysis.history.base_pressure_inputs`) and the windows, so that a reader recomputes
+        both from the record alone.
+    """
+    q = pile_quantities(summary, fields, base_pressure, params)
+    f = read_fields(str(fields))
+    q["stress_column"] = pile_stress_contrasts(f, params)["stress_column"]
+    q.update(flank_fabric(f, params["history"]))
+    with xr.open_dataset(base_pressure) as bp:
+        inputs = {"stress_column": stress_column_inputs(f, params),
+                  "base_pressure_column": base_pressure_inputs(bp.load(), f),
+                  "windows": {k: params["history"][k] for k in ("centre", "shoulder_inner", "shoulder_outer")}}
+    return q, inputs

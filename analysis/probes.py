@@ -189,6 +189,128 @@ def reversibility(strain: np.ndarray, probes: list[str]) -> np.ndarray:
     return np.where(np.isfinite(out), out, np.nan)
 
 
+
+#: Depth bands (m below the top filled RVE of each grid column) of :func:`reversibility_by_depth`.
+DEPTHS = (0.0, 0.03, 0.06, 0.10, np.inf)
+
+
+def reversibility_by_depth(rev: np.ndarray, y: np.ndarray) -> list[tuple[float, float, float, float, int]]:
+    """The reversibility (:func:`reversibility`, ``(y, x)``) by depth below the surface.
+
+    A column's surface is its top filled RVE (finite reversibility); per band
+    of :data:`DEPTHS` below it that holds an RVE: the band's edges (m), the
+    median reversibility, its 10 % quantile and the RVEs in the band.
+    """
+    filled = np.isfinite(rev)
+    top = np.array([y[filled[:, j]].max() if filled[:, j].any() else np.nan for j in range(rev.shape[1])])
+    depth = top[None, :] - y[:, None]
+    out = []
+    for lo, hi in zip(DEPTHS[:-1], DEPTHS[1:]):
+        band = filled & (depth >= lo) & (depth < hi)
+        if band.any():
+            out.append((lo, hi, float(np.median(rev[band])), float(np.percentile(rev[band], 10)), int(band.sum())))
+    return out
+
+
+def tilt_asymmetry(pr: xr.Dataset, name: str) -> np.ndarray | None:
+    """``|Δ(+) + Δ(−)| / (|Δ(+)| + |Δ(−)|)`` per RVE of the increment `name` of a pile's opposite
+    tilts (the first pair of tiltpNN / tiltmNN probes of its ``probes.nc``): 0 in a linear pile;
+    None without such a pair."""
+    probes = [str(p) for p in pr["probe"].values]
+    plus = [p for p in probes if p.startswith("tiltp")]
+    minus = [p.replace("tiltp", "tiltm") for p in plus]
+    if not plus or minus[0] not in probes:
+        return None
+    a, b = pr[name].sel(probe=plus[0]).values, pr[name].sel(probe=minus[0]).values
+    norm_a, norm_b = np.linalg.norm(a, axis=(-2, -1)), np.linalg.norm(b, axis=(-2, -1))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.linalg.norm(a + b, axis=(-2, -1)) / (norm_a + norm_b)
+
+
+def general_fit_summary(gm: xr.Dataset) -> dict[str, Any]:
+    """What an ensemble's general fits show (its ``general_moduli.nc``, :func:`general_fit_dataset`).
+
+    Returns
+    -------
+    dict
+        ``slips``: the pile-probe-RVEs left out as slipped; per m of 1 and 5 in
+        ``fits``: ``identified`` (RVEs whose fit is identified and positive
+        definite), ``tried`` (RVEs with enough samples for a fit) and
+        ``condition`` (the median condition number over those); at m = 5 over
+        the identified RVEs (None without one) in ``m5``: ``explained`` (per
+        law, the median fraction of the stress increments it explains),
+        ``anisotropy`` (median ``E_max / E_min``) and ``axes`` (per field axis
+        present, the unsigned angle between it and the stiffest axis, mean
+        and count, :func:`analysis.orientation.axis_angle_difference`);
+        ``reversibility`` (10 %, 50 % and 90 % quantiles and the count over
+        RVEs, None without one) and ``by_depth`` (:func:`reversibility_by_depth`).
+    """
+    flags = gm["general_flag"].attrs
+    few = int(dict(zip(flags["flag_meanings"].split(), flags["flag_masks"]))["insufficient_samples"])
+    out: dict[str, Any] = {"slips": int(gm["slip_left_out"].sum()), "fits": {}, "m5": None}
+    for m in (1, 5):
+        fit = gm.sel(points=m)
+        tried = (fit["general_flag"].values & few) == 0           # enough samples for a fit
+        out["fits"][m] = {"identified": int((fit["general_flag"].values == 0).sum()), "tried": int(tried.sum()),
+                          "condition": float(np.median(fit["condition"].values[tried]))}
+    fit = gm.sel(points=5)
+    ok = fit["general_flag"].values == 0
+    if ok.any():
+        axis = np.where(ok, fit["axis_deg"].values, np.nan)
+        gaps = {name: np.abs(axis_angle_difference(axis, gm[name].values)) for name in AXES_FROM_FIELDS if name in gm}
+        out["m5"] = {"explained": {law: float(np.median(fit[f"explained_{law}"].values[ok]))
+                                   for law in ("general", "cubic", "isotropic")},
+                     "anisotropy": float(np.median(fit["anisotropy"].values[ok])),
+                     "axes": {name: (float(np.nanmean(g)) if np.isfinite(g).any() else np.nan, int(np.isfinite(g).sum()))
+                              for name, g in gaps.items()}}
+    rev = gm["reversibility"].values
+    out["reversibility"] = (*(float(v) for v in np.nanpercentile(rev, [10, 50, 90])), int(np.isfinite(rev).sum())) \
+        if np.isfinite(rev).any() else None
+    out["by_depth"] = reversibility_by_depth(rev, gm["y"].values) if np.isfinite(rev).any() else []
+    return out
+
+
+#: The gravity reductions of the probe-level scenes, by probe stage.
+LEVELS = {"reduced05": 0.05, "reduced": 0.10, "reduced15": 0.15}
+
+
+def level_of(stage: str) -> float:
+    """The reduction of a probe stage (``reduced`` is 10 %, ``reducedNN`` NN %)."""
+    return LEVELS[stage]
+
+
+def pile_levels(pr: xr.Dataset, params: dict) -> dict:
+    """Is one pile's probe response linear in the gravity reduction (``config/scenes/probe_levels.yaml``)?
+
+    From the pile's ``probes.nc``: ``compliance``, per reduction of
+    :data:`LEVELS`, the median over the core RVEs (``analysis.history``:
+    ``|x| <= shoulder_outer``, ``y <= core_height``) of ``u_yy / Delta``;
+    ``linearity``, ``c(Delta) / c(10 %) - 1`` at the other levels (0 for a pile
+    that answers in proportion); ``slips``, per probe the RVEs of
+    :func:`analysis.ensemble.slipped`; ``reversibility``, the median over RVEs
+    of :func:`reversibility`.
+    """
+    h = params["history"]
+    probes = [str(p) for p in pr["probe"].values]
+    x, y = pr["x"].values, pr["y"].values
+    core = (np.abs(x)[None, :] <= h["shoulder_outer"] + 1e-9) & (y[:, None] <= h["core_height"] + 1e-9)
+    strain = pr["strain_increment"].transpose("probe", "y", "x", "i", "j").values
+    ratio = params["ensemble"]["slip_strain_ratio"]
+    out = {"compliance": {}, "slips": {}}
+    for k, stage in enumerate(probes):
+        u = strain[k]
+        out["slips"][stage] = int(slipped(u, ratio).sum())
+        if stage in LEVELS:
+            uyy = np.where(core, u[..., 1, 1], np.nan) / level_of(stage)
+            finite = uyy[np.isfinite(uyy)]
+            out["compliance"][stage] = float(np.median(finite)) if finite.size else float("nan")
+    base = out["compliance"].get("reduced", float("nan"))
+    out["linearity"] = {s: c / base - 1.0 for s, c in out["compliance"].items() if s != "reduced"}
+    rev = reversibility(strain, probes)
+    out["reversibility"] = float(np.nanmedian(rev)) if np.isfinite(rev).any() else float("nan")
+    return out
+
+
 SCALARS = ("condition", "axis_deg", "E_max", "E_min", "anisotropy", "explained_general",
            "explained_isotropic", "explained_cubic")
 #: Scalars of each pile's own fit kept per pile (dimension ``pile``).

@@ -15,7 +15,8 @@ from scipy import stats
 
 from analysis import decision
 from analysis.decision import DECISION, EFFECT, EQUAL_SLOPE_SECONDARY, SECONDARY
-from analysis.history import row_contrast, tost
+from analysis.ensemble_statistics import tost
+from analysis.history import row_contrast
 
 
 def record(arm, seed, flow=0.5, p90=20.0, angle=27.0, **q):

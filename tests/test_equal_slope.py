@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from workflow.tools import decision
+from workflow.tools import decision_pages as decision
 from workflow.tools._records import check_registered, read_records
 
 REPO = Path(__file__).resolve().parents[1]

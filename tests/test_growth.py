@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from analysis.growth import OLD, flank_angle, growth, landing_displacement
+from analysis.growth import FLOW_MIN, OLD, flank_angle, growth, growth_statistics, landing_displacement
 
 D = 0.007          # bin width (a mean diameter), m
 SETTLED = 0.01     # settling speed of these films, m/s
@@ -131,3 +131,20 @@ def test_a_table_pile_is_read_against_the_particles_it_kept(tmp_path):
     assert out["landed"] == 4 and out["interior_share"] == pytest.approx(0.75)
     with pytest.raises(ValueError, match="not the same pile"):
         landing_displacement(path, kept[:3], np.zeros(3), D)
+
+
+def test_the_growth_statistics_count_the_frames_in_which_the_flanks_flow():
+    """Four frames (time, released, flank angle, moving, old moving): the flanks flow in
+    those with at least FLOW_MIN old particles moving; the flux is released over time."""
+    g = np.array([[1.0, 100, 20.0, 3, 0],
+                  [2.0, 150, np.nan, 9, FLOW_MIN],
+                  [3.0, 200, 24.0, 12, FLOW_MIN + 3],
+                  [4.0, 250, 22.0, 1, FLOW_MIN - 1]])
+    out = growth_statistics(g)
+    assert out["frames"] == 4 and out["flow_fraction"] == 0.5
+    assert out["old_moving_max"] == FLOW_MIN + 3 and out["old_moving_median"] == pytest.approx(FLOW_MIN - 0.5)
+    assert out["moving_median"] == 6.0
+    assert (out["flank_median_deg"], out["flank_max_deg"]) == (22.0, 24.0)      # the frame without an angle left out
+    assert out["flank_p90_deg"] == pytest.approx(np.percentile([20.0, 24.0, 22.0], 90))
+    assert out["flux_per_s"] == pytest.approx(50.0)
+    assert growth_statistics(g, flow_min=1)["flow_fraction"] == 0.75

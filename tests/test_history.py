@@ -2,7 +2,7 @@
 answer is known by construction: a step dip of known depth, a heap of uniform
 density (whose column-normalised contrast is zero however peaked its
 pressure), stresses scaling with gravity or not, mirrored stress-fabric
-tilts; and the power figures against a Monte Carlo of the test they size."""
+tilts and fabric axes.  (The comparison over piles: test_ensemble_statistics.py.)"""
 
 import numpy as np
 import pytest
@@ -10,8 +10,7 @@ import xarray as xr
 from scipy import integrate
 
 from analysis.errors import ParamError
-from analysis.history import (bonferroni_z, compare, detection_factor, pile_history, primary_names,
-                              uniform_pile_pressure)
+from analysis.history import flank_fabric, pile_history, primary_names, uniform_pile_pressure
 from analysis.params import resolve_params
 
 PARAMS = resolve_params({})
@@ -126,31 +125,25 @@ def test_stress_fabric_angle_adds_mirrored_tilts_and_cancels_a_shared_one():
     assert shared["stress_fabric"] == pytest.approx(0.0, abs=1e-12)
 
 
-def test_compare_gives_the_difference_its_standard_error_and_z_worked_by_hand():
-    c = compare([1.0, 2.0, 3.0], [5.0, 6.0, 7.0, np.nan])
-    se = np.hypot(1 / np.sqrt(3), 1 / np.sqrt(3))
-    assert c["diff"] == -4.0 and c["se"] == pytest.approx(se) and c["z"] == pytest.approx(-4 / se)
-    assert c["a"][3] == 3 and c["b"][3] == 3
-    assert c["mdd_2se"] == pytest.approx(2 * se)
-    # sd 1 in both: 4 (1 + 1) / 0.05^2 = 3200 piles put 5 % at 2 SE
-    assert c["n_2se"][0.05] == 3200
-
-
-def test_detection_factor_and_bonferroni_are_the_normal_quantiles():
-    assert detection_factor() == pytest.approx(1.959964 + 0.841621, abs=1e-5)
-    assert bonferroni_z(5) == pytest.approx(2.575829, abs=1e-5)   # 0.05 / 5 two-sided
-
-
-def test_the_piles_the_power_figure_asks_for_do_see_the_effect_four_times_in_five():
-    rng = np.random.default_rng(0)
-    sd, delta = 0.12, 0.05
-    n = int(compare(rng.normal(0, sd, 2000), rng.normal(0, sd, 2000))["n_power"][delta])
-    assert 80 < n < 120       # (2.80 0.12 / 0.05)^2 x 2 = 90, from the estimated SDs
-    hits = 0
-    for _ in range(2000):
-        a, b = rng.normal(delta, sd, n), rng.normal(0.0, sd, n)
-        hits += abs(compare(a, b)["z"]) > 1.96
-    assert hits / 2000 == pytest.approx(0.80, abs=0.04)
+def test_the_flank_fabric_mirrors_the_axis_and_leaves_out_invalid_rves():
+    """Axes tilted ±10° by the sign of x add up to 10°; the deviatoric fraction is the
+    flanks' mean; an invalid RVE (mask_reason) and the columns off the flanks do not count."""
+    ds = _fields()
+    x = ds["x"].values
+    shape = (ds.sizes["y"], ds.sizes["x"])
+    dev = np.where((np.abs(x) > 0.12) & (np.abs(x) < 0.2), 0.3, 0.1) * np.ones(shape)
+    dev[0, np.argmin(np.abs(x - 0.15))] = 50.0                     # an invalid RVE on the flank
+    mask = np.zeros(shape, np.int32)
+    mask[0, np.argmin(np.abs(x - 0.15))] = 1
+    ds = ds.assign(fabric_orientation=(("y", "x"), 10.0 * np.sign(x) * np.ones(shape)),
+                   fabric_deviatoric_fraction=(("y", "x"), np.where(np.abs(x) > 0.35, 9.0, dev)),
+                   mask_reason=(("y", "x"), mask))
+    out = flank_fabric(ds, H)
+    assert out["fabric_axis_deg"] == pytest.approx(10.0)
+    flanks = (np.abs(x) >= H["flank_inner"] - 1e-9) & (np.abs(x) <= H["flank_outer"] + 1e-9)
+    rows = ds["y"].values <= H["flank_height"] + 1e-9
+    expect = dev[rows][:, flanks][mask[rows][:, flanks] == 0].mean()
+    assert out["fabric_deviator"] == pytest.approx(expect)
 
 
 def test_primary_names_follow_the_primary_height():

@@ -9,7 +9,7 @@ import pytest
 import xarray as xr
 
 from analysis.params import resolve_params
-
+from analysis.probes import pile_levels
 from workflow.tools import probe_levels as levels
 
 PARAMS = resolve_params({})
@@ -32,7 +32,7 @@ def _probes(u_of_level, restored_fraction=0.1, slip_at=None):
 
 
 def test_a_pile_answering_in_proportion_is_linear_and_nine_tenths_reversible():
-    out = levels.pile_levels(_probes(lambda d: d / 0.10), PARAMS)
+    out = pile_levels(_probes(lambda d: d / 0.10), PARAMS)
     assert out["linearity"]["reduced05"] == pytest.approx(0.0, abs=1e-12)
     assert out["linearity"]["reduced15"] == pytest.approx(0.0, abs=1e-12)
     assert out["reversibility"] == pytest.approx(0.9)
@@ -40,20 +40,20 @@ def test_a_pile_answering_in_proportion_is_linear_and_nine_tenths_reversible():
 
 
 def test_a_strain_growing_as_the_square_of_the_reduction():
-    out = levels.pile_levels(_probes(lambda d: (d / 0.10) ** 2), PARAMS)
+    out = pile_levels(_probes(lambda d: (d / 0.10) ** 2), PARAMS)
     # u/Delta grows as Delta: 0.05/0.10 - 1 and 0.15/0.10 - 1
     assert out["linearity"]["reduced05"] == pytest.approx(-0.5)
     assert out["linearity"]["reduced15"] == pytest.approx(0.5)
 
 
 def test_a_slip_is_counted_under_its_probe_only():
-    out = levels.pile_levels(_probes(lambda d: d / 0.10, slip_at="reduced15"), PARAMS)
+    out = pile_levels(_probes(lambda d: d / 0.10, slip_at="reduced15"), PARAMS)
     assert out["slips"]["reduced15"] == 1 and out["slips"]["reduced"] == 0
 
 
 def test_the_report_sets_ramp_against_step_pile_by_pile():
-    step = levels.pile_levels(_probes(lambda d: d / 0.10), PARAMS)
-    ramp = levels.pile_levels(_probes(lambda d: 0.8 * d / 0.10), PARAMS)   # 20 % stiffer
+    step = pile_levels(_probes(lambda d: d / 0.10), PARAMS)
+    ramp = pile_levels(_probes(lambda d: 0.8 * d / 0.10), PARAMS)   # 20 % stiffer
     text = levels.report({"step": {"wedge": [step, step]}, "ramp": {"wedge": [ramp, ramp]}}, 0.1)
     assert "wedge -20.0 ± 0.0 %" in text
 

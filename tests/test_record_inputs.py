@@ -71,3 +71,26 @@ def test_d1_and_d2_recomputed_from_the_record(path):
     q, inputs = record["quantities"], record["inputs"]
     assert d1(inputs) == pytest.approx(q["stress_column"], rel=1e-9, nan_ok=True)
     assert d2(inputs) == pytest.approx(q["base_pressure_column"], rel=1e-9, nan_ok=True)
+
+
+def test_a_pile_record_gives_the_inputs_of_its_own_d1_and_d2():
+    """analysis.pile_quantities.pile_record, which writes a record's numbers, on a committed
+    study pile: its inputs give back its D1 and D2 by the registered rule, and its D1 is the
+    study's own (analysis.history.pile_stress_contrasts) of the same fields."""
+    import yaml
+
+    from analysis.fields import read_fields
+    from analysis.history import pile_stress_contrasts
+    from analysis.params import resolve_params
+    from analysis.pile_quantities import pile_record
+
+    params = resolve_params(yaml.safe_load((REPO / "config" / "config.yaml").read_text())["analysis"])
+    stem = REPO / "docs" / "reproduction" / "wedge" / "seed2"
+    q, inputs = pile_record(Path(f"{stem}.summary.json"), Path(f"{stem}.fields.nc"),
+                            Path(f"{stem}.base_pressure.nc"), params)
+    assert math.isfinite(q["stress_column"]) and math.isfinite(q["base_pressure_column"])
+    assert d1(inputs) == pytest.approx(q["stress_column"], rel=1e-9)
+    assert d2(inputs) == pytest.approx(q["base_pressure_column"], rel=1e-9)
+    with read_fields(f"{stem}.fields.nc") as f:
+        assert q["stress_column"] == pile_stress_contrasts(f, params)["stress_column"]
+    assert {"fabric_deviator", "fabric_axis_deg", "angle_deg"} <= set(q)

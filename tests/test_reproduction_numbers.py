@@ -1,5 +1,5 @@
 """The extra probes' numbers of the reproduction report
-(workflow/tools/reproduction_numbers.py) on a small general_moduli file
+(workflow/tools/reproduction_numbers.py, analysis.probes) on a small general_moduli file
 whose medians, counts and axis angles are known by hand."""
 
 
@@ -7,14 +7,17 @@ import numpy as np
 import xarray as xr
 
 from analysis.general_elastic import GENERAL_FLAGS
+from analysis.orientation import axis_angle_difference
+from analysis.probes import reversibility_by_depth, tilt_asymmetry
 
 from workflow.tools import reproduction_numbers as numbers
 
 
-def test_axis_gap_folds_axes_half_a_turn_apart():
+def test_the_unsigned_axis_gap_folds_axes_half_a_turn_apart():
+    """The angle between two axes that general_fit_summary averages: |axis_angle_difference|."""
     a = np.array([80.0, -80.0, 10.0, 0.0, 45.0])
     b = np.array([-80.0, 80.0, 10.0, 90.0, -45.0])
-    np.testing.assert_allclose(numbers._axis_gap(a, b), [20.0, 20.0, 0.0, 90.0, 90.0])
+    np.testing.assert_allclose(np.abs(axis_angle_difference(a, b)), [20.0, 20.0, 0.0, 90.0, 90.0])
 
 
 def general_file():
@@ -60,8 +63,8 @@ def test_opposite_tilts_of_a_linear_pile_cancel_and_equal_ones_do_not():
     data = np.stack([plus, minus])                                          # (probe, y, x, 2, 2)
     pr = xr.Dataset({"strain_increment": (("probe", "y", "x", "i", "j"), data)},
                     coords={"probe": ["tiltp05", "tiltm05"]})
-    np.testing.assert_allclose(numbers.tilt_asymmetry(pr, "strain_increment"), [[0.0, 1.0, 1.0 / 3.0]])
-    assert numbers.tilt_asymmetry(pr.sel(probe=["tiltp05"]), "strain_increment") is None
+    np.testing.assert_allclose(tilt_asymmetry(pr, "strain_increment"), [[0.0, 1.0, 1.0 / 3.0]])
+    assert tilt_asymmetry(pr.sel(probe=["tiltp05"]), "strain_increment") is None
 
 
 def test_reversibility_by_depth_counts_from_the_top_filled_rve_of_each_column():
@@ -73,7 +76,7 @@ def test_reversibility_by_depth_counts_from_the_top_filled_rve_of_each_column():
     rev[:, 0] = [1.0, 0.98, 0.96, 0.90, 0.8, 0.5, 0.1]   # top at row 6: depths 13.5, 11.25, 9, 6.75, 4.5, 2.25, 0 cm
     rev[:5, 1] = [0.94, 0.98, 0.86, 0.7, 0.2]            # top at row 4: depths 9, 6.75, 4.5, 2.25, 0 cm
     gm = xr.Dataset({"reversibility": (("y", "x"), rev)}, coords={"y": y, "x": [0.0, 0.1]})
-    lines = numbers.reversibility_by_depth(gm)
+    lines = numbers._depth_lines(reversibility_by_depth(gm["reversibility"].values, gm["y"].values))
     # 0-3 cm: 0.5, 0.1, 0.7, 0.2; 3-6 cm: 0.8, 0.86; 6-10 cm: 0.96, 0.90, 0.94, 0.98; over 10 cm: 1.0, 0.98
     assert lines == ["0–3 cm median 0.35 (10 %: 0.13, 4 RVEs)", "3–6 cm median 0.83 (10 %: 0.81, 2 RVEs)",
                      "6–10 cm median 0.95 (10 %: 0.91, 4 RVEs)", "over 10 cm median 0.99 (10 %: 0.98, 2 RVEs)"]

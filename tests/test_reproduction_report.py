@@ -1,6 +1,6 @@
 """The report's statistics and verdict numbers.
 
-First the tests of analysis.history that decide the report (Welch's t at its
+First the tests of analysis.ensemble_statistics that decide the report (Welch's t at its
 degrees of freedom, Holm's correction, the piles for a given power) against
 scipy and values worked by hand; then every number of the verdicts of
 docs/reproduction.md that workflow/tools/reproduction_numbers.py makes,
@@ -17,7 +17,9 @@ import xarray as xr
 import yaml
 from scipy import stats
 
-from analysis.history import holm, piles_for_power, t_power, t_threshold, welch
+from analysis.decision import primary_tests
+from analysis.ensemble_statistics import compare, holm, piles_for_power, t_power, t_threshold, welch
+from analysis.invariants import secant_deciles
 from workflow.tools import reproduction_numbers as numbers
 
 REPO = Path(__file__).resolve().parents[1]
@@ -70,10 +72,10 @@ def test_piles_for_power_is_the_smallest_n_reaching_it():
 
 def test_secant_deciles_are_flat_for_a_linear_law_and_rise_for_a_stiffening_one():
     e = np.linspace(1e-4, 3e-4, 100)
-    flat, strain = numbers.secant_deciles(2e6 * e, e)
+    flat, strain = secant_deciles(2e6 * e, e)
     np.testing.assert_allclose(flat, 2e6)
     assert strain[0] == pytest.approx(e[:10].mean())
-    rising, _ = numbers.secant_deciles(1e10 * e ** 2, e)
+    rising, _ = secant_deciles(1e10 * e ** 2, e)
     assert np.all(np.diff(rising) > 0)
 
 
@@ -116,7 +118,7 @@ def checks(params):
 @pytest.fixture(scope="module")
 def tests(params):
     values = numbers.history_values(_items("fields"), _items("base_pressure"), params, [0.045, 0.09, 0.135])
-    return {t["name"]: t for t in numbers.primary_tests(values, params)}
+    return {t["name"]: t for t in primary_tests(values, params["history"])}
 
 
 def test_primary_tests_as_the_report_quotes_them(tests, report):
@@ -218,7 +220,7 @@ def test_history_means_the_report_quotes_are_the_committed_piles(params, report)
                  "base_pressure", "centre_column"):
         a = [v.get(name, np.nan) for v in values["wedge"]]
         b = [v.get(name, np.nan) for v in values["layered"]]
-        c = numbers.compare(a, b)
+        c = compare(a, b)
         for m, se in (c["a"][:2], c["b"][:2], (c["diff"], c["se"])):
             cell = numbers._history_cell(name, m, se)
             if m == c["diff"] and name not in ("strain@4.5", "base_pressure_column", "solid_fraction@4.5"):

@@ -8,7 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from workflow.tools import TOOLS
+from workflow.tools import COMMANDS, TOOLS, module
 
 REPO = Path(__file__).resolve().parents[1]
 TOOL = [sys.executable, "-m", "workflow.tools"]
@@ -17,8 +17,9 @@ TOOL = [sys.executable, "-m", "workflow.tools"]
 def test_help_lists_every_tool_with_what_it_makes():
     out = subprocess.run([*TOOL, "--help"], capture_output=True, text=True, check=True).stdout
     modules = sorted(p.stem for p in (REPO / "workflow" / "tools").glob("*.py") if not p.stem.startswith("_"))
-    assert list(TOOLS) == modules
-    for name in modules:
+    assert sorted(module(name) for name in TOOLS) == modules
+    assert module("decision") == "decision_pages" and "decision" in TOOLS and "decision_pages" not in TOOLS
+    for name in TOOLS:
         assert re.search(rf"^  {name} +\S", out, re.M), name
 
 
@@ -34,5 +35,5 @@ def test_rules_and_makefile_call_the_tools_by_the_command_line():
     assert not list((REPO / "workflow" / "scripts").glob("*.py"))
     rules = (REPO / "workflow" / "rules" / "reproduction.smk").read_text()
     for tool in re.findall(r'tool="workflow/tools/(\w+)\.py"', rules):
-        assert f"-m workflow.tools {tool} " in rules, tool
+        assert f"-m workflow.tools {COMMANDS.get(tool, tool)} " in rules, tool
     assert "$(PY) -m workflow.tools study_progress" in (REPO / "Makefile").read_text()

@@ -256,6 +256,26 @@ def test_no_job_lists_the_sources_as_inputs(workdir):
     assert inputs and not [path for path in inputs if path.endswith(".py")]
 
 
+def test_an_edit_of_the_analysis_remakes_the_pages_of_make_reproduction(tmp_path):
+    """The tools' rules of make reproduction carry the analysis' digest (param
+    `code`, as the analysis rules do): an edit of analysis/history.py remakes
+    the variant's page, whose numbers it computes, which once stayed as it
+    was; the page made again from the records is the committed one. (The
+    decision's pages need the git history of their registrations, which a copy
+    lacks.)"""
+    root = copy_workflow(tmp_path)
+    shutil.copytree(REPO / "docs" / "reproduction", root / "docs" / "reproduction")
+    page = root / "docs" / "reproduction" / "variants" / "support_friction_0.9.md"  # the rules' paths are absolute
+    proc = snakemake(root, str(page), "--cores", "1", *REPRODUCTION, "--forcerun", "reproduction_variant")
+    assert proc.returncode == 0, proc.output
+    assert page.read_text() == (REPO / page.relative_to(root)).read_text()
+    assert job_counts(snakemake(root, str(page), "-n", "--cores", "1", *REPRODUCTION).output) == {}
+    with edited(root / "analysis" / "history.py"):
+        proc = snakemake(root, str(page), "-n", "--cores", "1", *REPRODUCTION)
+    assert job_counts(proc.output) == {"reproduction_variant": 1}, proc.output
+    assert "Params have changed since last execution" in proc.output
+
+
 def test_the_simulation_digest_is_the_code_version_of_the_states(tmp_path):
     """The param `code` of the simulation rules is the code version every state
     file records (sim.io.code_version), and the analysis' --version prints the

@@ -4,7 +4,10 @@
 # `committed`, rule reproduction), without a state file or a simulation.
 # The rules read `study` (workflow/study.py). The tables and numbers are made by
 # the tools of workflow/tools/ (python -m workflow.tools NAME); each such rule's
-# input `tool` is the tool's module, so that changing it remakes its output.
+# input `tool` is the tool's module, so that changing it remakes its output, and
+# its param `code` the digest of the analysis it runs (study.code, as every rule
+# of analysis.smk carries it), so that changing analysis/ remakes it too;
+# pile_summary carries the simulator's (it runs python -m sim summary).
 
 import os
 
@@ -24,6 +27,8 @@ rule pile_summary:
         states=lambda wc: [study.paths.pile(wc.protocol, wc.seed, s) for s in ["poured", "relaxed"] + study.stages.probe_stages()],
     output:
         study.paths.results_path("fields/{protocol}/seed{seed}.summary.json"),
+    params:
+        code=study.code.sim,
     log:
         study.paths.results_path("logs/pile_summary/{protocol}/seed{seed}.log"),
     localrule: True
@@ -111,6 +116,7 @@ if config["committed"]:
         output:
             str(study.analysis.committed / "calibration.md"),
         params:
+            code=study.code.analysis,
             records=str(study.analysis.committed / "calibration"),
         log:
             study.paths.results_path("logs/reproduction/calibration.log"),
@@ -130,6 +136,7 @@ if config["committed"]:
         output:
             str(study.analysis.committed / "levers.md"),
         params:
+            code=study.code.analysis,
             records=str(study.analysis.committed / "levers"),
             baseline=str(study.analysis.committed / "calibration"),
         log:
@@ -146,12 +153,13 @@ if config["committed"]:
             records=lambda wc: DECISION_RECORDS[wc.name],
             calibration=lambda wc: sorted(str(p) for p in (study.analysis.committed / "calibration").glob("*.json")),
             plan=lambda wc: str(study.repo / "config" / f"{wc.name}.yaml"),
-            tool="workflow/tools/decision.py",
+            tool="workflow/tools/decision_pages.py",
         output:
             str(study.analysis.committed / "{name}.md"),
         wildcard_constraints:
             name="|".join(DECISION_RECORDS) or "(?!)",
         params:
+            code=study.code.analysis,
             records=lambda wc: str(study.analysis.committed / wc.name),
         log:
             study.paths.results_path("logs/reproduction/{name}.log"),
@@ -207,6 +215,7 @@ if config["committed"]:
         output:
             str(study.analysis.committed / "numbers.md"),
         params:
+            code=study.code.analysis,
             # the folder of the ensembles: {results}/ensemble
             ensemble=lambda wc, input: os.path.dirname(os.path.dirname(input.ensembles[0])),
             protocols=study.piles.protocols,
@@ -242,6 +251,7 @@ if config["committed"]:
         output:
             str(study.analysis.committed / "variants" / "{variant}.md"),
         params:
+            code=study.code.analysis,
             # relative to the repository, as the table names them
             study=config["committed"],
             variant=lambda wc: f"{config['committed']}/variants/{wc.variant}",
@@ -273,6 +283,7 @@ if config["committed"]:
             table=str(study.analysis.committed / "variants" / "{variant}" / "six_constants.md"),
             figure=str(study.analysis.committed / "variants" / "{variant}" / "six_constants.png"),
         params:
+            code=study.code.analysis,
             # relative to the repository, as the table names them
             study=config["committed"],
             variant=lambda wc: f"{config['committed']}/variants/{wc.variant}",

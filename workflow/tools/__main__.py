@@ -5,7 +5,7 @@ import sys
 
 from sim.settings_file import SettingsFileError
 
-from . import TOOLS, summary
+from . import TOOLS, module, summary
 from ._cli import Refusal
 
 USAGE = "usage: python -m workflow.tools NAME [options]  (python -m workflow.tools NAME --help)"
@@ -28,7 +28,7 @@ def main(argv=None):
         print(f"{USAGE}\nunknown tool {name!r}; tools: {', '.join(TOOLS)}", file=sys.stderr)
         return 2
     # imported here, the one asked for: the tools load what the others never need
-    tool = importlib.import_module(f"{__package__}.{name}")
+    tool = importlib.import_module(f"{__package__}.{module(name)}")
     sys.argv = [f"python -m workflow.tools {name}", *options]  # argparse's usage line names it so
     try:
         status = tool.main(options)

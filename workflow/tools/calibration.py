@@ -10,35 +10,29 @@ per core, without sharing a Snakemake lock), with a film's frames every
 written to ``docs/reproduction/calibration/ARM-seedS.json``:
 
 * ``growth``: how the pile grew, read from the frames of the growth (from
-  :data:`START` of the particles released to the last release) by
-  :func:`growth_record`: the fraction of those frames in which *the flanks
-  flow* (at least :data:`FLOW_MIN` particles of the pile, released more than
-  ``OLD`` s before and with their centre below the tip, faster than the
-  settling speed: an avalanche, not a particle landing), the median and
-  largest number of such particles, the flank angle (median, 90th
+  ``START`` of the particles released to the last release) by
+  :func:`analysis.growth.growth_statistics`: the fraction of those frames in
+  which *the flanks flow* (at least ``FLOW_MIN`` particles of the pile,
+  released more than ``OLD`` s before and with their centre below the tip,
+  faster than the settling speed: an avalanche, not a particle landing), the
+  median and largest number of such particles, the flank angle (median, 90th
   percentile, largest) and the measured flux; and how the pile was laid
-  down (:func:`landing_record`): the share of its particles resting within
-  one mean diameter of where they landed (``interior_share``), within two,
-  and quantiles of that distance;
-* ``quantities``: the sweeps' per-pile numbers
-  (:func:`analysis.pile_quantities.pile_quantities`: shape, core solid
-  fraction, the five primary history statistics, core moduli), the σ_yy
-  column contrast of the lowest RVE row (``stress_column``, the low-variance
-  statistic of docs/reproduction.md) and the flank fabric (mean deviatoric
-  fraction and mirrored axis over the flank RVEs);
-* ``inputs``: the numbers D1 (``stress_column``) and D2
+  down (:func:`analysis.growth.landing_displacement`): the share of its
+  particles resting within one mean diameter of where they landed
+  (``interior_share``), within two, and quantiles of that distance;
+* ``quantities`` and ``inputs``: :func:`analysis.pile_quantities.pile_record`:
+  the sweeps' per-pile numbers (shape, core solid fraction, the five primary
+  history statistics, core moduli), the σ_yy column contrast of the lowest
+  RVE row (``stress_column``, D1, the low-variance statistic of
+  docs/reproduction.md) and the flank fabric; and the numbers D1 and D2
   (``base_pressure_column``) are computed from, so that a reader recomputes
-  both from the record alone: D1's grid row (its height, the columns, σ_yy
-  and the uniform column's pressure there,
-  :func:`analysis.history.stress_column_inputs`), D2's support bins (force
-  density and the uniform column's pressure,
-  :func:`analysis.history.base_pressure_inputs`) and the windows;
+  both from the record alone;
 * ``cpu_s``: CPU seconds of the pour, the relaxation and the probes, each,
   from Snakemake's benchmark files;
 * ``commit``: the checkout the pile was made in.
 
-:data:`FLOW_MIN`, ``OLD`` and :data:`START` were fixed, and committed, before
-the first calibration pile was poured.  ``--table`` prints the table of the
+``FLOW_MIN``, ``OLD`` and ``START`` (:mod:`analysis.growth`) were fixed, and
+committed, before the first calibration pile was poured.  ``--table`` prints the table of the
 records (mean ± standard error over seeds, per arm), each checked against the
 configuration that registered its pile (:mod:`workflow.tools._records`: a copy
 of another record, another arm or seed is refused, not tabled);
@@ -61,16 +55,13 @@ import threading
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-import numpy as np
 import xarray as xr
 import yaml
 
-from analysis.fields import read_fields
-from analysis.growth import OLD, growth, landing_displacement
-from analysis.history import (base_pressure_inputs, mean_sem, pile_stress_contrasts, stress_column_inputs,
-                              welch)
+from analysis.ensemble_statistics import compare, mean_sem, paired_difference, welch
+from analysis.growth import FLOW_MIN, OLD, START, growth, growth_statistics, landing_displacement
 from analysis.params import parse_params
-from analysis.pile_quantities import pile_quantities, quantities
+from analysis.pile_quantities import pile_record, quantities
 from sim.config import SimConfig
 from sim.pour import pile_shapes
 from sim.release import SETTLED_SPEED, mean_diameter
@@ -84,10 +75,6 @@ REPO = Path(__file__).resolve().parents[2]
 
 CONFIG = REPO / "config" / "calibration.yaml"
 RECORDS = REPO / "docs" / "reproduction" / "calibration"
-#: Particles of the pile, released more than OLD s before, moving in one frame, from which its flanks flow.
-FLOW_MIN = 5
-#: The growth: frames from this fraction of the particles released to the last release.
-START = 0.3
 #: Jobs whose benchmark files make the CPU time of a pile.
 JOBS = ("pour", "relax", "probe")
 
@@ -135,19 +122,12 @@ def cpu_seconds(benchmarks: Path, protocol: str, seed: int) -> dict:
 
 
 def growth_record(frames: Path, cfg: dict, protocol: str, seed: int) -> dict:
-    """The growth statistics of one pile from its frames (the fixed definitions of the module's docstring)."""
+    """The growth statistics of one pile from its frames (:func:`analysis.growth.growth_statistics`),
+    its particles drawn again from its settings and seed."""
     sim_cfg = SimConfig.from_dict({k: cfg[k] for k in ("model", "particles", "pour") if k in cfg})
     shapes = pile_shapes(sim_cfg, seed)
     n = cfg["pour"]["n_particles"]
-    g = growth(frames, shapes.radius[:n], mean_diameter(shapes), START, SETTLED_SPEED)
-    angle = g[np.isfinite(g[:, 2]), 2]
-    old = g[:, 4]
-    return {"frames": int(len(g)), "flow_fraction": float(np.mean(old >= FLOW_MIN)),
-            "old_moving_median": float(np.median(old)), "old_moving_max": int(old.max()),
-            "moving_median": float(np.median(g[:, 3])),
-            "flank_median_deg": float(np.median(angle)), "flank_p90_deg": float(np.percentile(angle, 90)),
-            "flank_max_deg": float(angle.max()),
-            "flux_per_s": float((g[-1, 1] - g[0, 1]) / (g[-1, 0] - g[0, 0]))}
+    return growth_statistics(growth(frames, shapes.radius[:n], mean_diameter(shapes), START, SETTLED_SPEED), FLOW_MIN)
 
 
 def landing_record(frames: Path, relaxed: Path, cfg: dict, seed: int) -> dict:
@@ -157,17 +137,6 @@ def landing_record(frames: Path, relaxed: Path, cfg: dict, seed: int) -> dict:
     with xr.open_dataset(relaxed) as ds:
         x, y = ds["x"].values, ds["y"].values
     return landing_displacement(frames, x, y, mean_diameter(pile_shapes(sim_cfg, seed)))
-
-
-def flank_fabric(fields: xr.Dataset, history: dict) -> dict:
-    """Mean deviatoric fraction and mirrored major-axis angle (deg) of the fabric over the flank RVEs."""
-    x, y = fields["x"].values, fields["y"].values
-    flank = ((np.abs(x) >= history["flank_inner"] - 1e-9) & (np.abs(x) <= history["flank_outer"] + 1e-9))[None, :] \
-        & (y[:, None] <= history["flank_height"] + 1e-9) & (fields["mask_reason"].transpose("y", "x").values == 0)
-    dev = fields["fabric_deviatoric_fraction"].transpose("y", "x").values
-    axis = fields["fabric_orientation"].transpose("y", "x").values * np.sign(x)[None, :]
-    return {"fabric_deviator": float(np.nanmean(np.where(flank, dev, np.nan))),
-            "fabric_axis_deg": float(np.nanmean(np.where(flank, axis, np.nan)))}
 
 
 def commit_of(folder: Path) -> str:
@@ -215,14 +184,7 @@ def pile_record(cal: dict, arm: str, seed: int, cfg: dict, protocol: str, work: 
     """The record of one poured, relaxed, probed and analysed pile, read from its working directory."""
     params = parse_params(json.dumps(cfg["analysis"]))
     path = {k: work / v for k, v in files.items()}
-    q = pile_quantities(path["summary"], path["fields"], path["base_pressure"], params)
-    f = read_fields(str(path["fields"]))
-    q["stress_column"] = pile_stress_contrasts(f, params)["stress_column"]
-    q.update(flank_fabric(f, params["history"]))
-    with xr.open_dataset(path["base_pressure"]) as bp:
-        inputs = {"stress_column": stress_column_inputs(f, params),
-                  "base_pressure_column": base_pressure_inputs(bp.load(), f),
-                  "windows": {k: params["history"][k] for k in ("centre", "shoulder_inner", "shoulder_outer")}}
+    q, inputs = pile_record(path["summary"], path["fields"], path["base_pressure"], params)
     record = {"arm": arm, "protocol": protocol, "seed": seed, "n_particles": cfg["pour"]["n_particles"],
               "settings": cal["arms"][arm]["settings"], "commit": commit_of(REPO),
               "growth": {**growth_record(path["frames"], cfg, protocol, seed),
@@ -301,7 +263,7 @@ def lever_contrasts(records: list, baseline: list, arms: list) -> str:
         for key in CONTRASTS:
             a, b = list(values(point[0], key).values()), list(values(layered[0], key).values())
             w = welch(a, b)
-            cells.append(f"{100 * (np.nanmean(a) - np.nanmean(b)):+.1f} % (t {w['t']:.2f}, {w['df']:.0f} df)")
+            cells.append(f"{100 * compare(a, b)['diff']:+.1f} % (t {w['t']:.2f}, {w['df']:.0f} df)")
         out.append(f"| {name} | {point[0]} − {layered[0]} | " + " | ".join(cells) + " |")
     out += ["", "Each arm's change with its lever, paired by seed (lever − default, mean ± SE over the seeds "
             "of both):", "", "| arm | " + " | ".join(CONTRASTS) + " |", "|---|" + "---|" * len(CONTRASTS)]
@@ -311,8 +273,7 @@ def lever_contrasts(records: list, baseline: list, arms: list) -> str:
                 continue
             cells = []
             for key in CONTRASTS:
-                new, old = values(arm, key), values(base, key)
-                m, se, _, n = mean_sem([new[k] - old[k] for k in sorted(set(new) & set(old))])
+                m, se, _, n = paired_difference(values(arm, key), values(base, key))
                 cells.append(f"{100 * m:+.1f} ± {100 * se:.1f} % ({n})")
             out.append(f"| {arm} | " + " | ".join(cells) + " |")
     return "\n".join(out) + "\n"

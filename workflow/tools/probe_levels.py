@@ -4,7 +4,7 @@ Reads the ``probes.nc`` of piles probed by ``config/scenes/probe_levels.yaml``
 (reductions of 5, 10 and 15 % and the restoration after the 10 % one, gravity
 changed at once) and by ``config/scenes/probe_levels_ramp.yaml`` (the same
 over ``probe.ramp_time``), each in its own Snakemake working directory, and
-per pile computes:
+per pile computes (:func:`analysis.probes.pile_levels`):
 
 * the compliance at each level: the median over the core RVEs
   (``analysis.history``: ``|x| <= shoulder_outer``, ``y <= core_height``) of
@@ -31,45 +31,13 @@ import numpy as np
 import xarray as xr
 
 
-from analysis.ensemble import slipped
-from analysis.history import mean_sem
+from analysis.ensemble_statistics import mean_sem
 from analysis.params import parse_params
-from analysis.probes import reversibility
+from analysis.probes import pile_levels
 from sim.settings_file import read_settings_file
 from workflow.layout import folders
 
 from ._cli import ToolParser, existing_file, existing_folder, output_file, refuse
-
-LEVELS = {"reduced05": 0.05, "reduced": 0.10, "reduced15": 0.15}
-
-
-def level_of(stage: str) -> float:
-    """The reduction of a probe stage (``reduced`` is 10 %, ``reducedNN`` NN %)."""
-    return LEVELS[stage]
-
-
-def pile_levels(pr: xr.Dataset, params: dict) -> dict:
-    """The per-pile numbers of one ``probes.nc`` (see the module's docstring)."""
-    h = params["history"]
-    probes = [str(p) for p in pr["probe"].values]
-    x, y = pr["x"].values, pr["y"].values
-    core = (np.abs(x)[None, :] <= h["shoulder_outer"] + 1e-9) & (y[:, None] <= h["core_height"] + 1e-9)
-    strain = pr["strain_increment"].transpose("probe", "y", "x", "i", "j").values
-    ratio = params["ensemble"]["slip_strain_ratio"]
-    out = {"compliance": {}, "slips": {}}
-    for k, stage in enumerate(probes):
-        u = strain[k]
-        out["slips"][stage] = int(slipped(u, ratio).sum())
-        if stage in LEVELS:
-            uyy = np.where(core, u[..., 1, 1], np.nan) / level_of(stage)
-            finite = uyy[np.isfinite(uyy)]
-            out["compliance"][stage] = float(np.median(finite)) if finite.size else float("nan")
-    base = out["compliance"].get("reduced", float("nan"))
-    out["linearity"] = {s: c / base - 1.0 for s, c in out["compliance"].items() if s != "reduced"}
-    rev = reversibility(strain, probes)
-    out["reversibility"] = float(np.nanmedian(rev)) if np.isfinite(rev).any() else float("nan")
-    return out
-
 
 def _pm(values, scale=1.0, spec=".1f") -> str:
     m, se, _, n = mean_sem(values)

@@ -22,7 +22,7 @@ measures:
   against layered with the standard error of the difference, Welch's t and
   its degrees of freedom, and the piles needed for a 5 and a 10 % difference
   at 80 % power; how many comparisons were made; the decision on the five
-  primary statistics (:func:`primary_tests`: p from Student's t, Holm over
+  primary statistics (:func:`analysis.decision.primary_tests`: p from Student's t, Holm over
   the five, the piles for 80 % power at the family-wise level).
 * **Checks of the report's verdicts** (:func:`report_checks`): the numbers
   of docs/reproduction.md's verdict table that are printed nowhere else
@@ -80,12 +80,14 @@ import numpy as np
 import xarray as xr
 
 
+from analysis.convergence import deviations
+from analysis.decision import DELTAS, primary_tests
 from analysis.elastic import mask_counts
+from analysis.ensemble_statistics import LEVEL, POWER, compare, mean_sem, piles_for_power, welch
 from analysis.fields import read_fields
-from analysis.ensemble import leave_out_slips
-from analysis.history import (UNITS, compare, holm, pile_history, pile_stress_contrasts,
-                              piles_for_power, mean_sem, primary_names, t_threshold, welch, windows)
-from analysis.probes import reversibility
+from analysis.history import UNITS, flank_fabric, pile_history, pile_stress_contrasts, primary_names, windows
+from analysis.invariants import pile_secants, secant_deciles, trace_line_r2
+from analysis.probes import general_fit_summary, reversibility, tilt_asymmetry
 from sim.settings_file import read_settings_file
 
 from ._cli import ToolParser, analysis_params, existing_file, existing_folder, positive_float, refuse
@@ -238,37 +240,29 @@ def moduli(md, heights):
 
 
 def invariants(inv):
+    """Lines of Fig. 5: the straight line's R² (:func:`analysis.invariants.trace_line_r2`) near the axis and over all RVEs."""
     ts, te = inv["trace_stress_increment"].values, inv["trace_strain_increment"].values
     x = np.broadcast_to(inv["x"].values, ts.shape)
     out = []
     for label, sel in (("|x| <= 10 cm", np.abs(x) <= 0.10), ("all RVEs", np.ones_like(x, bool))):
-        ok = sel & np.isfinite(ts) & np.isfinite(te)
-        if ok.sum() < 3:
-            out.append(f"{label}: fewer than 3 RVEs")
-            continue
-        r = np.corrcoef(te[ok], ts[ok])[0, 1]
-        out.append(f"{label}: R² = {r * r:.3f} over {int(ok.sum())} RVEs")
+        r2, n = trace_line_r2(ts[sel], te[sel])
+        out.append(f"{label}: R² = {r2:.3f} over {n} RVEs" if n >= 3 else f"{label}: fewer than 3 RVEs")
     return out
 
 
 def convergence(paths):
-    """Table rows of Fig. 1 over the convergence files ``paths`` (same sizes in each), and the number of points."""
+    """Table rows of Fig. 1 over the convergence files ``paths`` (same sizes in each), and the number of points:
+    the deviation from the largest RVE (:func:`analysis.convergence.deviations`)."""
     sets = [xr.open_dataset(path).load() for path in paths]
     sizes = sets[0]["rve_size"].values
     if any(not np.array_equal(ds["rve_size"].values, sizes) for ds in sets):
         refuse(f"--convergence {' '.join(map(str, paths))}: the files do not share their RVE sizes")
-
-    def deviation(name):
-        v = np.concatenate([ds[name].sel(i="y", j="y").values for ds in sets], axis=1)  # (size, pile x point)
-        return np.abs(v / v[-1] - 1.0)
-
-    dev, dev_inc = deviation("stress"), deviation("stress_increment")
-    n = np.concatenate([ds["n_particles"].values for ds in sets], axis=1)
+    dev = deviations(sets, ref=-1)
+    (stress, stress_max), (inc, inc_max), n = dev["stress"], dev["stress_increment"], dev["n"]
     rows = []
     for k, size in enumerate(sizes[:-1]):
         rows.append(f"| {100 * size:.1f} | {int(n[k].min())}–{int(n[k].max())} | "
-                    f"{100 * np.median(dev[k]):.1f} / {100 * dev[k].max():.1f} | "
-                    f"{100 * np.median(dev_inc[k]):.1f} / {100 * dev_inc[k].max():.1f} |")
+                    f"{stress[k]:.1f} / {stress_max[k]:.1f} | {inc[k]:.1f} / {inc_max[k]:.1f} |")
     return rows, n.shape[1]
 
 
@@ -288,79 +282,36 @@ def balance(paths):
             f"{worst['relaxed']:.2g}, reduced {worst['reduced']:.2g}; increment {inc}")
 
 
-def _axis_gap(a, b):
-    """Angles between axes a and b (degrees), folded into [0, 90]."""
-    return np.abs((a - b + 90.0) % 180.0 - 90.0)
-
-
 def general_fit(gm):
-    """Lines of the extra probes' measures for one protocol's general_moduli.nc."""
+    """Lines of the extra probes' measures for one protocol's general_moduli.nc (:func:`analysis.probes.general_fit_summary`)."""
+    g = general_fit_summary(gm)
     out = [f"{_piles(int(gm.attrs.get('n_seeds', 0)))}, loading probes {gm.attrs.get('loading_probes', '?')}, "
-           f"slips left out {int(gm['slip_left_out'].sum())} pile-probe-RVEs"]
-    flags = gm["general_flag"].attrs
-    few = int(dict(zip(flags["flag_meanings"].split(), flags["flag_masks"]))["insufficient_samples"])
-    for m in (1, 5):
-        fit = gm.sel(points=m)
-        tried = (fit["general_flag"].values & few) == 0           # enough samples for a fit
-        ok = fit["general_flag"].values == 0
-        out.append(f"m = {m}: identified and positive definite at {int(ok.sum())} of {int(tried.sum())} "
-                   f"RVEs, median condition number {np.median(fit['condition'].values[tried]):.3g}")
-    fit = gm.sel(points=5)
-    ok = fit["general_flag"].values == 0
-    if ok.any():
-        expl = ", ".join(f"{law} {np.median(fit[f'explained_{law}'].values[ok]):.2f}"
-                         for law in ("general", "cubic", "isotropic"))
+           f"slips left out {g['slips']} pile-probe-RVEs"]
+    for m, fit in g["fits"].items():
+        out.append(f"m = {m}: identified and positive definite at {fit['identified']} of {fit['tried']} "
+                   f"RVEs, median condition number {fit['condition']:.3g}")
+    if g["m5"]:
+        expl = ", ".join(f"{law} {v:.2f}" for law, v in g["m5"]["explained"].items())
         out.append(f"m = 5, over those RVEs: median fraction of the stress increments explained: {expl}; "
-                   f"median anisotropy E_max/E_min {np.median(fit['anisotropy'].values[ok]):.3g}")
-        axis = np.where(ok, fit["axis_deg"].values, np.nan)
-        for name in ("fabric_orientation", "stress_orientation"):
-            if name in gm:
-                gap = _axis_gap(axis, gm[name].values)
-                out.append(f"mean angle between the stiffness axis and the {name.split('_')[0]} axis "
-                           f"{_mean_deg(gap)} over {int(np.isfinite(gap).sum())} RVEs")
-    rev = gm["reversibility"].values
-    if np.isfinite(rev).any():
-        lo, med, hi = np.nanpercentile(rev, [10, 50, 90])
+                   f"median anisotropy E_max/E_min {g['m5']['anisotropy']:.3g}")
+        for name, (mean, n) in g["m5"]["axes"].items():
+            out.append(f"mean angle between the stiffness axis and the {name.split('_')[0]} axis "
+                       f"{f'{mean:.1f}°' if n else 'no valid RVE'} over {n} RVEs")
+    if g["reversibility"]:
+        lo, med, hi, n = g["reversibility"]
         out.append(f"reversibility 1 − |u(restored)|/|u(reduced)|: median {med:.2f} (10–90 %: {lo:.2f} – {hi:.2f}) "
-                   f"over {int(np.isfinite(rev).sum())} RVEs; by depth below the surface: "
-                   + "; ".join(reversibility_by_depth(gm)))
+                   f"over {n} RVEs; by depth below the surface: " + "; ".join(_depth_lines(g["by_depth"])))
     return out
 
 
-#: Depth bands (m below the top filled RVE of each grid column) of the reversibility.
 #: The files of each protocol's ensemble that the numbers are read from.
 ENSEMBLE_FILES = ("fields.nc", "base_pressure.nc", "moduli.nc", "invariants.nc")
-DEPTHS = (0.0, 0.03, 0.06, 0.10, np.inf)
 
 
-def reversibility_by_depth(gm):
-    """Median reversibility (and its 10 % quantile) per band of :data:`DEPTHS`."""
-    rev, y = gm["reversibility"].values, gm["y"].values
-    filled = np.isfinite(rev)
-    top = np.array([y[filled[:, j]].max() if filled[:, j].any() else np.nan for j in range(rev.shape[1])])
-    depth = top[None, :] - y[:, None]
-    out = []
-    for lo, hi in zip(DEPTHS[:-1], DEPTHS[1:]):
-        band = filled & (depth >= lo) & (depth < hi)
-        name = f"over {100 * lo:g} cm" if np.isinf(hi) else f"{100 * lo:g}–{100 * hi:g} cm"
-        if band.any():
-            out.append(f"{name} median {np.median(rev[band]):.2f} (10 %: {np.percentile(rev[band], 10):.2f}, "
-                       f"{int(band.sum())} RVEs)")
-    return out
-
-
-def tilt_asymmetry(pr, name):
-    """``|Δ(+) + Δ(−)| / (|Δ(+)| + |Δ(−)|)`` per RVE of the increment ``name`` of a pile's
-    opposite tilts (the first pair of tiltpNN / tiltmNN stages); None without one."""
-    probes = [str(p) for p in pr["probe"].values]
-    plus = [p for p in probes if p.startswith("tiltp")]
-    minus = [p.replace("tiltp", "tiltm") for p in plus]
-    if not plus or minus[0] not in probes:
-        return None
-    a, b = pr[name].sel(probe=plus[0]).values, pr[name].sel(probe=minus[0]).values
-    norm_a, norm_b = np.linalg.norm(a, axis=(-2, -1)), np.linalg.norm(b, axis=(-2, -1))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.linalg.norm(a + b, axis=(-2, -1)) / (norm_a + norm_b)
+def _depth_lines(bands):
+    """Median reversibility (and its 10 % quantile) per depth band (:func:`analysis.probes.reversibility_by_depth`)."""
+    return [f"{f'over {100 * lo:g} cm' if np.isinf(hi) else f'{100 * lo:g}–{100 * hi:g} cm'} median {med:.2f} "
+            f"(10 %: {p10:.2f}, {n} RVEs)" for lo, hi, med, p10, n in bands]
 
 
 def per_pile_probes(paths):
@@ -383,13 +334,9 @@ def per_pile_probes(paths):
                     parts.append(f"opposite tilts, {label} {med:.2f} ({lo:.2f} – {hi:.2f})")
             out.append(f"seed {pr.attrs.get('seed', '?')}: " + ("; ".join(parts) if parts else "no reduction and restoration, no pair of opposite tilts"))
     if medians:
-        sem = np.std(medians, ddof=1) / np.sqrt(len(medians)) if len(medians) > 1 else np.nan
-        out.append(f"median reversibility, mean over the {_piles(len(medians))}: {_pm(np.mean(medians), sem, '.2f')}")
+        m, sem, _, n = mean_sem(medians)
+        out.append(f"median reversibility, mean over the {_piles(n)}: {_pm(m, sem, '.2f')}")
     return out
-
-
-#: Differences whose power is given: relative contrasts 5 and 10 %, the angle 2 and 5 degrees.
-DELTAS = {"": (0.05, 0.10), "deg": (2.0, 5.0)}
 
 
 def _history_cell(name, m, se):
@@ -423,44 +370,10 @@ def history_values(fields, bases, params, heights):
     return out
 
 
-#: The family-wise level of the primary tests and the power asked of a study.
-LEVEL, POWER = 0.05, 0.8
-
-
 def _piles_cell(n):
     if np.isinf(n):
         return "> 100000"
     return "n/a" if not np.isfinite(n) else f"{n:.0f}"
-
-
-def primary_tests(values, params, a="wedge", b="layered"):
-    """The decision on the primary statistics: per statistic Welch's t of
-    ``a - b``, its degrees of freedom and two-sided p (Student's t,
-    :func:`analysis.history.welch`), the |t| that Bonferroni over the family
-    asks at those degrees of freedom, the Holm-adjusted p and the verdict at a
-    family-wise :data:`LEVEL`; then the per-pile scatter of each protocol and
-    the piles per protocol that find a difference of 5 % (2° for the angle),
-    and one of the measured size, with :data:`POWER` at the family-wise level
-    (:func:`analysis.history.piles_for_power`).  Returns a list of dicts."""
-    names = primary_names(params["history"])
-    tests = []
-    for name in names:
-        va = [v.get(name, np.nan) for v in values.get(a, [])]
-        vb = [v.get(name, np.nan) for v in values.get(b, [])]
-        w = welch(va, vb)
-        c = compare(va, vb)
-        tests.append({"name": name, **w, "diff": c["diff"], "se": c["se"], "n": (c["a"][3], c["b"][3]),
-                      "sd": (c["a"][2], c["b"][2])})
-    adjusted, rejected = holm([t["p"] for t in tests], LEVEL)
-    for t, adj, rej in zip(tests, adjusted, rejected):
-        sd_a, sd_b = t["sd"]
-        delta = DELTAS[UNITS.get(t["name"], "")][0]
-        t.update(holm_p=adj, rejected=rej, t_bonferroni=t_threshold(t["df"], len(tests), LEVEL),
-                 delta=delta,
-                 n_delta=piles_for_power(sd_a, sd_b, delta, POWER, len(tests), LEVEL),
-                 n_delta_single=piles_for_power(sd_a, sd_b, delta, POWER, 1, LEVEL),
-                 n_measured=piles_for_power(sd_a, sd_b, t["diff"], POWER, len(tests), LEVEL))
-    return tests
 
 
 def _scaled(name, v, spec=".1f"):
@@ -468,7 +381,7 @@ def _scaled(name, v, spec=".1f"):
 
 
 def primary_lines(tests, a="wedge", b="layered"):
-    """Markdown of :func:`primary_tests`."""
+    """Markdown of :func:`analysis.decision.primary_tests`."""
     k = len(tests)
     out = [f"Decision on the {k} primary statistics, {a} − {b}: Welch's t (difference over its standard error), "
            "its degrees of freedom (Welch–Satterthwaite) and two-sided p from Student's t; the |t| that a "
@@ -537,7 +450,7 @@ def history(values, params, heights, a="wedge", b="layered"):
         f"{len(rows)} statistics, each compared three ways ({a} and {b} against 0, {a} − {b}): {3 * len(rows)} "
         f"comparisons. The {len(primary)} in bold are the primary ones, one per question.",
         "",
-        *primary_lines(primary_tests(values, params, a, b), a, b),
+        *primary_lines(primary_tests(values, params["history"], a, b), a, b),
     ]
 
 
@@ -554,60 +467,10 @@ def _pile_items(items):
     return out
 
 
-def convergence_reference(paths):
-    """Fig. 1 against a reference RVE that lies wholly above the support at every point.
-
-    The reference side is the largest ``s`` with ``s / 2 <= y`` at every fixed
-    point (12 cm for points at 6 and 9 cm).  Returns the sizes, the reference,
-    the particle counts (size × pile-point), the median and largest deviations
-    of ``σ_yy`` and ``Δσ_yy`` from the reference (%), and the median of
-    ``σ_yy`` in the largest RVE over that in the reference at the points whose
-    largest RVE reaches below the support."""
-    sets = [xr.open_dataset(path).load() for path in paths]
-    sizes = sets[0]["rve_size"].values
-    py = np.concatenate([ds["point_y"].values for ds in sets])
-    inside = np.flatnonzero(sizes / 2 <= py.min() + 1e-9)
-    ref = int(inside[-1]) if inside.size else sizes.size - 1
-    out = {"sizes": sizes, "ref": ref, "n": np.concatenate([ds["n_particles"].values for ds in sets], axis=1)}
-    for name in ("stress", "stress_increment"):
-        v = np.concatenate([ds[name].sel(i="y", j="y").values for ds in sets], axis=1)
-        dev = 100 * np.abs(v / v[ref] - 1.0)
-        out[name] = (np.median(dev, axis=1), dev.max(axis=1))
-        cut = sizes[-1] / 2 > py + 1e-9
-        out[f"{name}_largest_cut"] = float(np.median(v[-1, cut] / v[ref, cut])) if cut.any() else math.nan
-    out["cut_points"] = sorted({float(v) for v in py[sizes[-1] / 2 > py + 1e-9]})
-    return out
-
-
-def secant_deciles(ts, te, parts=10):
-    """The secant of ``tr Δσ`` over ``tr ε`` (2K in two dimensions) in each of
-    ``parts`` quantile bins of ``tr ε``: the bin's mean ``tr Δσ`` over its mean
-    ``tr ε``.  Returns the secants and the bins' mean strains (the latter
-    bounds the conditioning: a bin whose mean strain neared 0 would blow up)."""
-    ok = np.isfinite(ts) & np.isfinite(te)
-    ts, te = ts[ok], te[ok]
-    if te.size < parts:
-        return np.full(parts, math.nan), np.full(parts, math.nan)
-    bins = np.array_split(np.argsort(te, kind="stable"), parts)
-    return np.array([ts[b].mean() / te[b].mean() for b in bins]), np.array([te[b].mean() for b in bins])
-
-
-def pile_secants(fields, params):
-    """One pile's secant 2K in its lowest and highest strain decile (valid RVEs, slips left out),
-    and the lowest decile's mean tr ε (its conditioning)."""
-    (fields,), _ = leave_out_slips([fields], params["ensemble"]["slip_strain_ratio"])
-    ok = fields["mask_reason"].transpose("y", "x").values == 0
-    tr = lambda v: (v.sel(i="x", j="x") + v.sel(i="y", j="y")).transpose("y", "x").values  # noqa: E731
-    sec, strain = secant_deciles(np.where(ok, tr(fields["stress_increment"]), np.nan),
-                                 np.where(ok, tr(fields["strain_increment"]), np.nan))
-    return sec[0], sec[-1], strain[0]
-
-
 def end_state(fields_items, history, surface_half_width=0.20):
     """How alike the two protocols' relaxed piles end: per protocol the flanks of
-    the relaxed summaries (mean ± SE over flanks), and per pile over the flank
-    RVEs of ``analysis.history`` the mean deviatoric fraction of the fabric and
-    the mirrored orientation of its major axis (mean ± SE over piles), and the
+    the relaxed summaries (mean ± SE over flanks), and per pile its flank
+    fabric (:func:`analysis.history.flank_fabric`, mean ± SE over piles), and the
     mean surface; the largest gap between the protocols' mean surfaces over
     ``|x| <= surface_half_width``."""
     out, surfaces, x = {}, {}, None
@@ -615,15 +478,10 @@ def end_state(fields_items, history, surface_half_width=0.20):
         flanks, dev, axis, surf = [], [], [], []
         for path in paths:
             with xr.open_dataset(path) as ds:
-                x, y = ds["x"].values, ds["y"].values
-                ax = np.abs(x)
-                flank = ((ax >= history["flank_inner"] - 1e-9) & (ax <= history["flank_outer"] + 1e-9))[None, :] \
-                    & (y[:, None] <= history["flank_height"] + 1e-9)
-                flank &= ds["mask_reason"].transpose("y", "x").values == 0
-                dev.append(float(np.nanmean(np.where(flank, ds["fabric_deviatoric_fraction"].transpose("y", "x").values,
-                                                     np.nan))))
-                axis.append(float(np.nanmean(np.where(flank, ds["fabric_orientation"].transpose("y", "x").values
-                                                      * np.sign(x)[None, :], np.nan))))
+                x = ds["x"].values
+                fabric = flank_fabric(ds, history)
+                dev.append(fabric["fabric_deviator"])
+                axis.append(fabric["fabric_axis_deg"])
                 surf.append(ds["surface_height"].values)
             summary = Path(path.replace(".fields.nc", ".summary.json"))
             if summary.exists():
@@ -698,9 +556,8 @@ def report_checks(fields_items, bases_items, convergence_paths, invariants, para
     sd_col = [mean_sem([c["stress_column"] for c in contrasts[p]])[2] for p in (a, b)]
     sd_bp = [mean_sem([v.get("base_pressure_column", np.nan) for v in values[p]])[2] for p in (a, b)]
     t["stress_column.sd_ratio"] = f"{math.hypot(*sd_col) / math.hypot(*sd_bp):.2f}"
-    w = welch([c["stress_column"] for c in contrasts[a]], [c["stress_column"] for c in contrasts[b]])
     col = {p: [c["stress_column"] for c in contrasts[p]] for p in (a, b)}
-    diff = mean_sem(col[a])[0] - mean_sem(col[b])[0]
+    w, diff = welch(col[a], col[b]), compare(col[a], col[b])["diff"]
     t["stress_column.diff"] = f"{100 * diff:+.1f} %, t = {w['t']:+.2f} ({w['df']:.1f} df)"
     t["stress_column.piles"] = f"{piles_for_power(*sd_col, 0.05, POWER, 5, LEVEL):.0f}"
     t["base_pressure_column.piles"] = f"{piles_for_power(*sd_bp, 0.05, POWER, 5, LEVEL):.0f}"
@@ -713,7 +570,7 @@ def report_checks(fields_items, bases_items, convergence_paths, invariants, para
         t[f"{p}.secant_factor"] = f"{sec[-1] / sec[0]:.1f}"
         t[f"{p}.secant_rises"] = f"{int(np.sum(np.diff(sec) > 0))} of {sec.size - 1}"
         t[f"{p}.trace_strain_max"] = f"{np.nanmax(inv['trace_strain_increment'].values):.1e}"
-    conv = convergence_reference(convergence_paths)
+    conv = deviations([xr.open_dataset(path).load() for path in convergence_paths])
     sizes, ref = conv["sizes"], conv["ref"]
     t["fig1.reference"] = f"{100 * sizes[ref]:g} cm"
     t["fig1.cut_points"] = ", ".join(f"{100 * v:g}" for v in conv["cut_points"]) + " cm"

@@ -56,7 +56,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from analysis.history import mean_sem
+from analysis.ensemble_statistics import compare, mean_sem
 from analysis.params import parse_params
 from analysis.pile_quantities import MODULI, SHAPE, pile_quantities
 from analysis.pile_quantities import quantities as pile_quantity_names
@@ -179,9 +179,8 @@ def history_table(results: dict, keys: list, quantities: dict, a: str = "wedge",
     for q in names:
         cells = []
         for k in keys:
-            (ma, sa, *_), (mb, sb, *_) = (mean_sem([p.get(q, np.nan) for p in results["piles"][x][k]]) for x in (a, b))
-            se = np.hypot(sa, sb)
-            cells.append(f"{ma - mb:+.3g} ± {se:.2g} ({(ma - mb) / se:+.1f})" if se > 0 else "n/a")
+            c = compare(*([p.get(q, np.nan) for p in results["piles"][x][k]] for x in (a, b)))
+            cells.append(f"{c['diff']:+.3g} ± {c['se']:.2g} ({c['z']:+.1f})" if c["se"] > 0 else "n/a")
         if any(c != "n/a" and "nan" not in c for c in cells):
             rows.append(f"| {quantities[q]} | " + " | ".join(cells) + " |")
     return "\n".join(rows) + "\n" if len(rows) > 2 else ""

@@ -47,12 +47,10 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
-from scipy.stats import t as student_t
-
 
 from analysis.anisotropy import (
     MODULI, has_stretch, pile_anisotropy, pile_summary, reduction_shear_contrast)
-from analysis.history import detection_factor, mean_sem
+from analysis.ensemble_statistics import detection_factor, mean_sem, t_threshold
 from analysis.probes import SIX_CONSTANTS_MAX_CONDITION
 
 from ._cli import ToolParser, analysis_params, existing_folder, output_file, refuse
@@ -112,7 +110,7 @@ def few_piles(piles: dict) -> str:
     if not 2 <= n < 5:
         return ""
     return (f" With {n} piles a standard error has {n - 1} degree{'s' * (n > 2)} of freedom: a mean differs from "
-            f"a value at two-sided 5 % beyond {student_t.ppf(0.975, n - 1):.3g} standard errors (Student's t), "
+            f"a value at two-sided 5 % beyond {t_threshold(n - 1):.3g} standard errors (Student's t), "
             "not 1.96.")
 
 

@@ -41,10 +41,9 @@ import math
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import mannwhitneyu, t as student_t
 
-
-from analysis.history import detection_factor, mean_sem
+from analysis.ensemble_statistics import (against_reference, compare, detection_factor, paired_difference, rank_test,
+                                          t_threshold)
 from analysis.pile_quantities import MODULI, SHAPE, pile_quantities, quantities
 from sim.settings_file import read_settings_file
 
@@ -110,44 +109,28 @@ def side_by_side(study: dict, variant: dict, names: dict) -> str:
             "| rank test p |",
             "|---|---|---|---|---|---|---|---|"]
     for p in study:
-        common = sorted(set(study[p]) & set(variant.get(p, {})))
         for q, text in names.items():
-            ms, ss, _, ns = mean_sem([v[q] for v in study[p].values()])
-            mv, sv, _, nv = mean_sem([v[q] for v in variant.get(p, {}).values()])
+            mine = {s: v[q] for s, v in variant.get(p, {}).items()}
+            theirs = {s: v[q] for s, v in study[p].items()}
+            c = against_reference(list(mine.values()), list(theirs.values()))
+            (mv, sv, _, nv), (ms, ss, _, ns), se = c["a"], c["reference"], c["se"]
             if q in COST:
                 rows.append(f"| {p} | {text} | {_cell(ms, ss, ns)} | {_cell(mv, sv, nv)} | | | | |")
                 continue
-            single = nv == 1
-            if single:  # one variant pile: its scatter taken as the study's SD over piles
-                se = math.hypot(ss, ss * math.sqrt(ns))
-            else:
-                se = math.hypot(ss, sv)
-            md, sd, _, nd = mean_sem([variant[p][s][q] - study[p][s][q] for s in common])
+            md, sd, _, nd = paired_difference(mine, theirs)
             seen = f"{k * se:.2g}" if np.isfinite(se) else "n/a"
-            diff = _difference(mv - ms, se) + (" †" if single and np.isfinite(se) else "")
+            diff = _difference(c["diff"], se) + (" †" if c["single"] and np.isfinite(se) else "")
             rows.append(f"| {p} | {text} | {_cell(ms, ss, ns)} | {_cell(mv, sv, nv)} | {diff} "
                         f"| {seen} | {_difference(md, sd) if nd > 1 else 'n/a'} "
-                        f"| {rank_p([v[q] for v in variant.get(p, {}).values()], [v[q] for v in study[p].values()])} |")
+                        f"| {rank_p(list(mine.values()), list(theirs.values()))} |")
     return "\n".join(rows) + "\n"
 
 
 def rank_p(a: list, b: list) -> str:
-    """The exact two-sided Mann–Whitney p of two sets of per-pile numbers, as text.
-
-    Parameters
-    ----------
-    a, b : list of float
-        One number per pile (NaN entries left out).
-
-    Returns
-    -------
-    str
-        ``p`` to two significant digits, or ``n/a`` when either set is empty.
-    """
-    a, b = ([x for x in v if np.isfinite(x)] for v in (a, b))
-    if not a or not b:
-        return "n/a"
-    return f"{mannwhitneyu(a, b, alternative='two-sided', method='exact').pvalue:.2g}"
+    """:func:`analysis.ensemble_statistics.rank_test` of two sets of per-pile numbers, as text:
+    ``p`` to two significant digits, or ``n/a`` when either set is empty."""
+    p = rank_test(a, b)
+    return "n/a" if np.isnan(p) else f"{p:.2g}"
 
 
 def history_versus(study: dict, variant: dict, names: dict, a: str = "wedge", b: str = "layered") -> str:
@@ -159,8 +142,8 @@ def history_versus(study: dict, variant: dict, names: dict, a: str = "wedge", b:
     for q in history:
         cells = []
         for piles in (study, variant):
-            (ma, sa, *_), (mb, sb, *_) = (mean_sem([v[q] for v in piles[x].values()]) for x in (a, b))
-            cells.append(_difference(ma - mb, math.hypot(sa, sb)))
+            c = compare(*([v[q] for v in piles[x].values()] for x in (a, b)))
+            cells.append(_difference(c["diff"], c["se"]))
         rows.append(f"| {names[q]} | " + " | ".join(cells) + " |")
     return "\n".join(rows) + "\n"
 
@@ -192,7 +175,7 @@ def small_sample_note(variant: dict) -> str:
     guide = "; read the z values as a guide until each protocol has five piles (2.78)" if n < 5 else ""
     return (f" With {n} variant piles of a protocol a standard error has {n - 1} degree"
             f"{'s' if n > 2 else ''} of freedom, so a z of these tables is significant at two-sided 5 % "
-            f"beyond {student_t.ppf(0.975, n - 1):.3g} (Student's t), not 1.96{guide}.")
+            f"beyond {t_threshold(n - 1):.3g} (Student's t), not 1.96{guide}.")
 
 
 def seeds_text(piles: dict) -> str:

@@ -1,4 +1,8 @@
-"""Apply the pre-registration (docs/reproduction/preregistration.md): choose, then decide.
+"""The decision's pages: the registered rules of analysis/decision.py applied to the records.
+
+The rules are :mod:`analysis.decision` (docs/reproduction/preregistration.md); this
+module, the command ``python -m workflow.tools decision``, reads the records, checks
+them against their plan and writes what the rules say.
 
 ``select`` reads the calibration records (``docs/reproduction/calibration/``,
 each checked against ``config/calibration.yaml``), applies the registered rules
