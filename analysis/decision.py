@@ -19,7 +19,9 @@ on the per-pile records (one JSON object per pile: ``arm``, ``protocol``,
   short of the registered size;
 * :func:`shape_check`: what the arms differ in besides the history: their
   mean angles of repose, and the first decision statistic fitted on arm
-  plus angle, so that a difference of slope is not read as one of history.
+  plus angle, so that a difference of slope is not read as one of history;
+  :func:`covariate_fit` does the same for each of :data:`COVARIATES`
+  (height, width, the core's packing), with the fit's conditioning.
 
 Every rule here is the page's; the page is the registration.
 """
@@ -286,14 +288,63 @@ def _arms_row(test: dict[str, Any], comparisons: int) -> dict[str, Any]:
             "power": t_power(da, db, EFFECT, min(na, nb), comparisons, LEVEL) if min(na, nb) >= 2 else math.nan}
 
 
+#: What a pile's record says about its shape and packing (``quantities``), reported per arm
+#: beside a verdict (the equal-slope registration's "reported covariates"): the angle of
+#: repose (deg), height and base width (m), and the core's solid fraction.
+COVARIATES = ("angle_deg", "height", "width", "solid_fraction")
+
+
+def covariate_fit(records: list[dict], point: str, layered: str, key: str, covariate: str) -> dict[str, Any]:
+    """A statistic on arm plus one covariate: ``key = a + b·[point arm] + c·covariate``.
+
+    Least squares over both arms' piles with a finite ``key`` and
+    ``covariate`` (both from each record's ``quantities``).  Where arm and
+    covariate go together, b is poorly determined: its standard error grows
+    by the square root of the variance inflation factor ``1 / (1 − r²)``
+    (r: their correlation over the piles), reported with it.
+
+    Returns
+    -------
+    dict
+        ``arms``: per arm (mean, standard error, count) of the covariate;
+        ``diff``: point − layered mean; ``arm_effect``, ``arm_se``: b and its
+        standard error; ``effect``, ``se``: c and its standard error (per
+        unit of the covariate); ``correlation``: r; ``inflation``: the
+        variance inflation factor (inf when r = ±1); NaN for the fit when
+        fewer than four piles or a rank-deficient design.
+    """
+    rows = [(r["arm"] == point, r["quantities"].get(covariate, math.nan), r["quantities"].get(key, math.nan))
+            for r in records if r["arm"] in (point, layered)]
+    arm, cov, y = (np.array(c, float) for c in zip(*rows)) if rows else (np.empty(0),) * 3
+    ok = np.isfinite(cov) & np.isfinite(y)
+    arm, cov, y = arm[ok], cov[ok], y[ok]
+    out: dict[str, Any] = {"arms": {}}
+    for name, mask in ((point, arm == 1), (layered, arm == 0)):
+        m, se, _, count = mean_sem(cov[mask])
+        out["arms"][name] = (m, se, count)
+    out["diff"] = out["arms"][point][0] - out["arms"][layered][0]
+    x = np.column_stack([np.ones_like(y), arm, cov])
+    if y.size <= 3 or np.linalg.matrix_rank(x) < 3:
+        out.update(arm_effect=math.nan, arm_se=math.nan, effect=math.nan, se=math.nan,
+                   correlation=math.nan, inflation=math.nan)
+        return out
+    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
+    resid = y - x @ coef
+    var = float(resid @ resid) / (y.size - 3) * np.linalg.inv(x.T @ x)
+    r = float(np.corrcoef(arm, cov)[0, 1])
+    out.update(arm_effect=float(coef[1]), arm_se=float(np.sqrt(var[1, 1])), effect=float(coef[2]),
+               se=float(np.sqrt(var[2, 2])), correlation=r,
+               inflation=1.0 / (1.0 - r * r) if abs(r) < 1 else math.inf)
+    return out
+
+
 def shape_check(records: list[dict], point: str, layered: str, key: str = DECISION[0]) -> dict[str, Any]:
     """What the arms differ in besides their history: slope, and the statistic on arm plus angle.
 
     A pile's shape alone moves the column contrast (elastoplastic heap
     theory spreads the load sideways by the shape, without any history), so
-    two arms at different slopes cannot tell history from shape.  Fits
-    ``key = a + b·[point arm] + c·angle`` by least squares over both arms'
-    piles with a finite ``key`` and ``angle_deg``.
+    two arms at different slopes cannot tell history from shape: the fit of
+    :func:`covariate_fit` on ``angle_deg``.
 
     Returns
     -------
@@ -301,32 +352,14 @@ def shape_check(records: list[dict], point: str, layered: str, key: str = DECISI
         ``angle``: per arm (mean, standard error, count) of ``angle_deg``;
         ``angle_diff``: point − layered mean angle (deg); ``as_built``: whether
         that difference exceeds :data:`SLOPE_TOLERANCE`; ``arm_effect`` and
-        ``arm_se``: b and its standard error; ``slope_effect``, ``slope_se``:
-        c (per degree) and its standard error; ``correlation``: of arm and
-        angle over the piles (near ±1 the fit cannot part them).
+        ``arm_se``: the arm's coefficient and its standard error; ``slope_effect``,
+        ``slope_se``: the angle's (per degree); ``correlation``: of arm and angle.
     """
-    rows = [(r["arm"] == point, r["quantities"].get("angle_deg", math.nan), r["quantities"].get(key, math.nan))
-            for r in records if r["arm"] in (point, layered)]
-    arm, angle, y = (np.array(c, float) for c in zip(*rows)) if rows else (np.empty(0),) * 3
-    ok = np.isfinite(angle) & np.isfinite(y)
-    arm, angle, y = arm[ok], angle[ok], y[ok]
-    out: dict[str, Any] = {"angle": {}}
-    for name, mask in ((point, arm == 1), (layered, arm == 0)):
-        m, se, _, count = mean_sem(angle[mask])
-        out["angle"][name] = (m, se, count)
-    out["angle_diff"] = out["angle"][point][0] - out["angle"][layered][0]
-    out["as_built"] = bool(abs(out["angle_diff"]) > SLOPE_TOLERANCE)
-    x = np.column_stack([np.ones_like(y), arm, angle])
-    if y.size <= 3 or np.linalg.matrix_rank(x) < 3:
-        out.update(arm_effect=math.nan, arm_se=math.nan, slope_effect=math.nan, slope_se=math.nan,
-                   correlation=math.nan)
-        return out
-    coef, *_ = np.linalg.lstsq(x, y, rcond=None)
-    resid = y - x @ coef
-    cov = float(resid @ resid) / (y.size - 3) * np.linalg.inv(x.T @ x)
-    out.update(arm_effect=float(coef[1]), arm_se=float(np.sqrt(cov[1, 1])), slope_effect=float(coef[2]),
-               slope_se=float(np.sqrt(cov[2, 2])), correlation=float(np.corrcoef(arm, angle)[0, 1]))
-    return out
+    fit = covariate_fit(records, point, layered, key, "angle_deg")
+    return {"angle": fit["arms"], "angle_diff": fit["diff"],
+            "as_built": bool(abs(fit["diff"]) > SLOPE_TOLERANCE),
+            "arm_effect": fit["arm_effect"], "arm_se": fit["arm_se"], "slope_effect": fit["effect"],
+            "slope_se": fit["se"], "correlation": fit["correlation"]}
 
 
 def _equal_slope_outcome(out, records, point, layered, key, margin, lower, higher):

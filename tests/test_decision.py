@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 import pytest
-from scipy import stats
+from scipy import linalg, stats
 
 from analysis import decision
 from analysis.decision import DECISION, EFFECT, EQUAL_SLOPE_SECONDARY, SECONDARY
@@ -247,3 +247,51 @@ def test_a_tie_of_slopes_goes_to_the_arm_that_flows_less():
     assert decision.pick_control(recs, "wedge funnel", [28.0])["control"] == "rain b"
     flat = _pilot("wedge funnel", 28.0, 0.005, 1.0) + _pilot("rain", 25.0, 0.7)
     assert decision.pick_control(flat, "wedge funnel", [28.0])["control"] is None
+
+
+def _packed(arm_effect, coefficient, rng, n=30, gap=1.0, spread=0.4):
+    """Records whose D1 is ``coefficient * packing`` plus ``arm_effect`` on the point arm,
+    the packing `gap` higher on the layered arm (so it goes with the arm), with scatter."""
+    out = []
+    for arm, base in (("wedge funnel", 0.0), ("layered rain", gap)):
+        for seed in range(n):
+            packing = base + rng.normal(0.0, spread)
+            d1 = coefficient * packing + (arm_effect if arm == "wedge funnel" else 0.0) + rng.normal(0.0, 0.05)
+            out.append(record(arm, seed, solid_fraction=packing, **{DECISION[0]: d1}))
+    return out
+
+
+def test_a_covariate_that_goes_with_the_arm_inflates_the_arm_error_as_the_textbook_says():
+    """OLS with an intercept: var(b_arm) = s² / (SST_arm (1 − r²)), s² the residual variance
+    on n − 3 degrees of freedom; the fit's error and inflation factor obey it to rounding,
+    computed here from the residuals of scipy's least squares."""
+    recs = _packed(0.05, 0.02, np.random.default_rng(3))
+    fit = decision.covariate_fit(recs, "wedge funnel", "layered rain", DECISION[0], "solid_fraction")
+    arm = np.array([r["arm"] == "wedge funnel" for r in recs], float)
+    cov = np.array([r["quantities"]["solid_fraction"] for r in recs])
+    y = np.array([r["quantities"][DECISION[0]] for r in recs])
+    x = np.column_stack([np.ones_like(y), arm, cov])
+    coef, *_ = linalg.lstsq(x, y)
+    s2 = np.sum((y - x @ coef) ** 2) / (y.size - 3)
+    r = stats.pearsonr(arm, cov)[0]
+    assert fit["correlation"] == pytest.approx(r, rel=1e-12)
+    assert fit["inflation"] == pytest.approx(1 / (1 - r * r), rel=1e-12)
+    sst = np.sum((arm - arm.mean()) ** 2)
+    assert fit["arm_se"] ** 2 == pytest.approx(s2 / (sst * (1 - r * r)), rel=1e-9)
+    assert fit["arm_effect"] == pytest.approx(coef[1], rel=1e-9)
+    assert fit["effect"] == pytest.approx(coef[2], rel=1e-9)
+    assert fit["arms"]["layered rain"][0] - fit["arms"]["wedge funnel"][0] == pytest.approx(1.0, abs=0.3)
+
+
+def test_the_arm_error_of_a_covariate_fit_is_the_spread_of_its_estimate():
+    """Over 400 drawn ensembles with a covariate that goes with the arm (r about −0.8), the
+    arm effect is unbiased and its reported standard error is the spread of the estimates:
+    the spread of 400 draws is known to about 4 %, so 15 % is more than three of its errors."""
+    rng = np.random.default_rng(19)
+    fits = [decision.covariate_fit(_packed(0.05, 0.02, rng), "wedge funnel", "layered rain",
+                                   DECISION[0], "solid_fraction") for _ in range(400)]
+    est = np.array([f["arm_effect"] for f in fits])
+    se = np.array([f["arm_se"] for f in fits])
+    assert np.mean([f["correlation"] for f in fits]) == pytest.approx(-0.78, abs=0.1)
+    assert abs(est.mean() - 0.05) < 4 * est.std() / np.sqrt(est.size)
+    assert est.std(ddof=1) == pytest.approx(se.mean(), rel=0.15)

@@ -262,7 +262,37 @@ def verdict(records: Path, plan: Path) -> str:
               "| statistic | point | layered | difference | Welch t | p | Holm p |",
               "|---|---|---|---|---|---|---|"]
     lines += [_row(k, r, power=False) for k, r in result["secondary"].items()]
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + _covariate_lines(recs, point, layered, family[0])) + "\n"
+
+
+#: How :func:`_covariate_lines` shows a covariate: its name on the page, the
+#: factor from the record's unit to the page's, the page's unit, decimals.
+_COVARIATE_UNITS = {"angle_deg": ("angle of repose", 1.0, "°", 1), "height": ("height", 100.0, " cm", 2),
+                    "width": ("base width", 100.0, " cm", 1), "solid_fraction": ("core solid fraction", 1.0, "", 3)}
+
+
+def _covariate_lines(recs, point, layered, key):
+    """The page's table of what else differs between the arms (each of
+    :data:`analysis.decision.COVARIATES` per arm) and `key` fitted on arm plus
+    each one (:func:`analysis.decision.covariate_fit`), with the fit's conditioning."""
+    lines = ["", f"What else differs between the arms (reported covariates, not tests), and {key} fitted on "
+             "arm plus each one alone. Where a covariate goes with the arm (correlation r near ±1) the arm's "
+             "coefficient is poorly determined: its variance grows by the inflation factor 1/(1 − r²); "
+             "a covariate measured on the same piles may itself be an effect of the history.", "",
+             f"| covariate | {point} | {layered} | difference | arm effect on {key} with it | the covariate's "
+             "coefficient | r (inflation) |", "|---|---|---|---|---|---|---|"]
+    for name in decision.COVARIATES:
+        label, scale, unit, nd = _COVARIATE_UNITS[name]
+        fit = decision.covariate_fit(recs, point, layered, key, name)
+        (pm, pse, _), (lm, lse, _) = fit["arms"][point], fit["arms"][layered]
+        step = 1.0 / scale if name != "solid_fraction" else 0.01
+        per = f"per {step * scale:g}{unit}" if name != "solid_fraction" else "per 0.01"
+        lines.append(f"| {label} (`{name}`) | {scale * pm:.{nd}f}{unit} ± {scale * pse:.{nd}f} | "
+                     f"{scale * lm:.{nd}f}{unit} ± {scale * lse:.{nd}f} | {scale * fit['diff']:+.{nd}f}{unit} | "
+                     f"{100 * fit['arm_effect']:+.1f} % ± {100 * fit['arm_se']:.1f} % | "
+                     f"{100 * fit['effect'] * step:+.2f} % ± {100 * fit['se'] * step:.2f} % {per} | "
+                     f"{fit['correlation']:.2f} ({fit['inflation']:.1f}) |")
+    return lines
 
 
 def main(argv=None) -> None:
