@@ -1,4 +1,4 @@
-"""Run times of workflow jobs: Snakemake benchmark files and the output of bash ``times``.
+"""Run times of workflow jobs: Snakemake benchmark files, the stages' own CPU lines, and bash ``times``.
 
 A Snakemake benchmark file (``benchmark:`` of a rule) is a TSV with the
 wall-clock time in column ``s`` and the CPU time in ``cpu_time``; bash
@@ -10,6 +10,7 @@ cores.
 from __future__ import annotations
 
 import csv
+import re
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +31,26 @@ def benchmark_time(path, column: str = "s") -> float:
         return float(np.mean([float(r[column]) for r in rows])) if rows else float("nan")
     except (KeyError, ValueError):
         raise ValueError(f"benchmark file {path}: no number in column {column!r}") from None
+
+
+#: The end of a stage's summary line (:func:`sim.progress.summary`): its process's own CPU.
+_STAGE_CPU = re.compile(r" done: wall .*; CPU ([0-9.]+) s in this process$")
+
+
+def stage_cpu_time(path) -> float:
+    """CPU seconds of a simulation stage (pour, relaxation, probe) from its log: the
+    count its summary line gives (``... done: wall ...; CPU X s in this process``,
+    the process's own getrusage, all threads) on the last such line; NaN when the
+    log has none (a stage that failed, or a log from before the line existed).
+
+    Unlike a Snakemake benchmark file, which samples every 30 s after a job's
+    first 15 s and misses its last seconds, the line counts the whole stage up
+    to the writing of its state file; a pour resumed from a checkpoint counts
+    only its last process.
+    """
+    found = [m.group(1) for line in Path(path).read_text().splitlines()
+             if (m := _STAGE_CPU.search(line))]
+    return float(found[-1]) if found else float("nan")
 
 
 def _minutes_seconds(text: str) -> float:

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from analysis.run_times import stage_cpu_time
 from sim import checkpoint
 from sim.atomic import temporary_path
 from sim.config import SimConfig
@@ -23,6 +24,7 @@ from sim.engine import Simulation
 from sim.io import StateFileError, read_state, save_state
 from sim.lock import PourLock, PourLockedError
 from sim.pour import LandingError, pile_shapes, pour
+from sim.progress import process_cpu
 
 TINY = {"pour": {"n_particles": 12, "rate": 400.0, "release_speed": 0.3, "checkpoint_interval": 0.02,
                  "progress_interval": 1e9, "frame_interval": 0.01},
@@ -188,6 +190,9 @@ def test_the_piles_log_gains_each_run_that_holds_the_lock_and_no_other(tmp_path,
     assert lines[1].endswith(f" INFO pour wedge seed 3: started by process {socket.gethostname()} "
                              f"{os.getpid()}"), lines[1]
     assert " INFO pour wedge seed 3 done: " in lines[-1], lines[-1]
+    # the summary line's CPU, read back as a pile's record reads it: this process's
+    # count when the line was written, so positive and at most its count now
+    assert 0 < stage_cpu_time(run_log) <= process_cpu()
 
 
 def test_a_run_killed_while_writing_its_results_leaves_no_temporary_file(tmp_path, whole):

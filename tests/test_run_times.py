@@ -4,6 +4,7 @@ cores used (CPU over wall) and peak memory, and the totals per kind of job;
 and a real job's benchmark, whose CPU time a busy loop of known length
 bounds."""
 
+import math
 import re
 import subprocess
 import sys
@@ -11,7 +12,7 @@ import sys
 import pytest
 
 from analysis.__main__ import main
-from analysis.run_times import benchmark_row, job_label, run_times_html
+from analysis.run_times import benchmark_row, job_label, run_times_html, stage_cpu_time
 
 HEADER = "s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
 
@@ -88,3 +89,17 @@ def test_a_file_that_is_no_benchmark_is_refused_by_name_and_nothing_is_written(t
     err = capsys.readouterr().err
     assert str(path) in err and "'s'" in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_a_stage_cpu_is_its_last_summary_line_or_nan(tmp_path):
+    """A log holding two runs of a stage (a pour that failed once is rerun into the same
+    log) gives the last summary line's CPU; a log without one (a failed stage) NaN."""
+    log = tmp_path / "seed3.log"
+    done = ("2026-12-08 01:44:48,701 INFO pour layered seed 3 done: wall 639.8 s, 1323016 steps, "
+            "3500 particles, t = 8.9554 s, angle of repose 27.6 deg, mean coordination 3.75; "
+            "CPU {} s in this process")
+    log.write_text("\n".join([done.format("12.5"), "a progress line", done.format("418.9"),
+                              "2026-12-08 INFO frames: 3 written"]) + "\n")
+    assert stage_cpu_time(log) == 418.9
+    log.write_text("2026-12-08 ERROR pour layered seed 3: still in flight\n")
+    assert math.isnan(stage_cpu_time(log))

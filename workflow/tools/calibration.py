@@ -28,7 +28,8 @@ written to ``docs/reproduction/calibration/ARM-seedS.json``:
   (``base_pressure_column``) are computed from, so that a reader recomputes
   both from the record alone;
 * ``cpu_s``: CPU seconds of the pour, the relaxation and the probes, each,
-  from Snakemake's benchmark files;
+  from the summary lines of their logs (``definitions.cpu_from``; records
+  made before that took them from Snakemake's benchmark files);
 * ``commit``: the checkout the pile was made in.
 
 ``FLOW_MIN``, ``OLD`` and ``START`` (:mod:`analysis.growth`) were fixed, and
@@ -62,6 +63,7 @@ from analysis.ensemble_statistics import compare, mean_sem, paired_difference, w
 from analysis.growth import FLOW_MIN, OLD, START, growth, growth_statistics, landing_displacement
 from analysis.params import parse_params
 from analysis.pile_quantities import pile_record, quantities
+from analysis.run_times import stage_cpu_time
 from sim.config import SimConfig
 from sim.pour import pile_shapes
 from sim.release import SETTLED_SPEED, mean_diameter
@@ -75,7 +77,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 CONFIG = REPO / "config" / "calibration.yaml"
 RECORDS = REPO / "docs" / "reproduction" / "calibration"
-#: Jobs whose benchmark files make the CPU time of a pile.
+#: Stages whose logs' CPU lines make the CPU time of a pile.
 JOBS = ("pour", "relax", "probe")
 
 
@@ -103,20 +105,18 @@ def targets(cfg: dict, protocol: str, seed: int) -> dict:
     stem = f"{res}/fields/{protocol}/seed{seed}"
     pile = f"{res}/piles/{protocol}/seed{seed}"
     return {"fields": f"{stem}.nc", "summary": f"{stem}.summary.json", "base_pressure": f"{stem}.base_pressure.nc",
-            "frames": f"{pile}/frames.nc", "relaxed": f"{pile}/relaxed.nc", "benchmarks": f"{res}/benchmarks"}
+            "frames": f"{pile}/frames.nc", "relaxed": f"{pile}/relaxed.nc", "logs": f"{res}/logs"}
 
 
-def cpu_seconds(benchmarks: Path, protocol: str, seed: int) -> dict:
-    """CPU seconds of each simulation job of the pile (the probes summed), from Snakemake's benchmark files."""
+def cpu_seconds(logs: Path, protocol: str, seed: int) -> dict:
+    """CPU seconds of each simulation stage of the pile (the probes summed), from the
+    summary lines of their logs (:func:`analysis.run_times.stage_cpu_time`); NaN for a
+    stage whose log has none."""
     out = {}
     for job in JOBS:
-        files = sorted((benchmarks / job / protocol).glob(f"seed{seed}.tsv")) + \
-            sorted((benchmarks / job / protocol).glob(f"seed{seed}_*.tsv"))
-        total = 0.0
-        for f in files:
-            header, row = f.read_text().splitlines()[:2]
-            total += float(dict(zip(header.split("\t"), row.split("\t")))["cpu_time"])
-        out[job] = total if files else math.nan
+        files = sorted((logs / job / protocol).glob(f"seed{seed}.log")) + \
+            sorted((logs / job / protocol).glob(f"seed{seed}_*.log"))
+        out[job] = float(sum(stage_cpu_time(f) for f in files)) if files else math.nan
     out["total"] = float(sum(out.values()))
     return out
 
@@ -189,9 +189,9 @@ def pile_record(cal: dict, arm: str, seed: int, cfg: dict, protocol: str, work: 
               "settings": cal["arms"][arm]["settings"], "commit": commit_of(REPO),
               "growth": {**growth_record(path["frames"], cfg, protocol, seed),
                          **landing_record(path["frames"], path["relaxed"], cfg, seed)},
-              "quantities": q, "inputs": inputs, "cpu_s": cpu_seconds(path["benchmarks"], protocol, seed),
+              "quantities": q, "inputs": inputs, "cpu_s": cpu_seconds(path["logs"], protocol, seed),
               "definitions": {"flow_min": FLOW_MIN, "old_s": OLD, "start": START,
-                              "frame_interval": cal["frame_interval"]}}
+                              "frame_interval": cal["frame_interval"], "cpu_from": CPU_FROM}}
     return record
 
 
@@ -204,6 +204,9 @@ GROWTH = {"flow_fraction": "fraction of the growth the flanks flow",
 EXTRA = {"stress_column": "σ_yy lowest row centre/shoulders against a uniform pile − 1",
          "fabric_deviator": "flank fabric deviatoric fraction",
          "fabric_axis_deg": "flank fabric axis, mirrored (deg)"}
+#: Where a record's ``cpu_s`` come from (``definitions.cpu_from``); records without it
+#: took them from Snakemake's benchmark files, which miss a job's last seconds.
+CPU_FROM = "stage logs"
 CPU = {"pour": "CPU s, pour", "relax": "CPU s, relaxation", "probe": "CPU s, probes", "total": "CPU s per pile"}
 
 
@@ -316,7 +319,9 @@ def main(argv=None) -> None:
                 "Made by `python -m workflow.tools calibration --table` from the per-pile records in "
                 f"{shown(args.records)}/ (settings: {shown(args.config)}; what each number is: the script's "
                 "docstring); mean ± standard error over seeds, the number of piles after each arm. CPU seconds "
-                "are each job's own (Snakemake's benchmark files), with two piles side by side on a 2-core host.\n\n"
+                "are each job's own, with two piles side by side on a 2-core host: from the stages' own CPU "
+                "lines where a record's definitions say `cpu_from: stage logs`, else from Snakemake's "
+                "benchmark files, which miss a job's last seconds.\n\n"
                 + table(records + [r for r in base_records if r["arm"] in baseline], params, baseline + arms))
         if baseline:
             page += (f"\n## The levers, exploratory\n\nThe default arms' records are those of "
