@@ -152,7 +152,7 @@ def apportion(total: float, weights: dict[str, float]) -> dict[str, float]:
 
 def pile_budget(n: int, dt: float, pour: tuple[float, int], release: tuple, relax: tuple[float, int, int],
                 probes: list[tuple[float, int, int]], cpu: dict[str, float], wall: dict[str, float],
-                settle_min: float = 0.0) -> dict[str, Any]:
+                settle_min: float = 0.0, counted: dict[str, float] | None = None) -> dict[str, Any]:
     """One pile's phases: simulated time, steps, particle-steps and CPU.
 
     Parameters
@@ -177,14 +177,20 @@ def pile_budget(n: int, dt: float, pour: tuple[float, int], release: tuple, rela
         The least simulated time (s) the pour runs after its last release (its settling time
         and one landing window, :func:`sim.pour.pour`): the last release is at most the
         pour's end less this (:func:`last_release`).
+    counted : dict or None
+        CPU seconds of the jobs as their own summary lines count them
+        (:func:`analysis.run_times.stage_cpu_time`, the process's getrusage at
+        the stage's end); where one is finite it is the job's CPU with the
+        tail, exactly, in place of :func:`tail_estimate`'s estimate.
 
     Returns
     -------
     dict
         Per phase of :data:`PHASES`: ``{phase}_s``, ``{phase}_steps``, ``{phase}_ps``
         (particle-steps); ``last_release_after``/``_by``, the bracket of the last release;
-        per job ``cpu_{job}`` (recorded), ``cpu_est_{job}`` (with the tail,
-        :func:`tail_estimate`) and ``ns_ps_{job}`` (estimated CPU ns per particle-step);
+        per job ``cpu_{job}`` (recorded), ``cpu_est_{job}`` (with the tail: counted,
+        else :func:`tail_estimate`), ``counted_{job}`` (whether it was counted) and
+        ``ns_ps_{job}`` (CPU ns per particle-step, with the tail);
         per phase ``cpu_{phase}`` and ``cpu_est_{phase}`` (the pour's CPU apportioned by
         particle-steps) and ``share_{phase}`` (of the estimated total); ``cpu_total``,
         ``cpu_est_total``.
@@ -202,7 +208,10 @@ def pile_budget(n: int, dt: float, pour: tuple[float, int], release: tuple, rela
     job_ps = {"pour": out["delivery_ps"] + out["settling_ps"], "relax": out["relax_ps"], "probe": out["probe_ps"]}
     for job in ("pour", "relax", "probe"):
         out[f"cpu_{job}"] = cpu.get(job, math.nan)
-        out[f"cpu_est_{job}"] = tail_estimate(out[f"cpu_{job}"], wall.get(job, math.nan))
+        line = (counted or {}).get(job, math.nan)
+        out[f"counted_{job}"] = math.isfinite(line)
+        out[f"cpu_est_{job}"] = line if math.isfinite(line) else tail_estimate(out[f"cpu_{job}"],
+                                                                                 wall.get(job, math.nan))
         out[f"wall_{job}"] = wall.get(job, math.nan)
         out[f"ns_ps_{job}"] = 1e9 * out[f"cpu_est_{job}"] / job_ps[job] if job_ps[job] > 0 else math.nan
     for prefix in ("cpu_", "cpu_est_"):

@@ -90,6 +90,15 @@ def test_a_pile_budget_splits_the_pour_and_sums_its_shares():
     assert b["cpu_est_total"] == b["cpu_total"] == pytest.approx(102.0)
     assert sum(b[f"share_{p}"] for p in ("delivery", "settling", "relax", "probe")) == pytest.approx(1.0)
     assert b["ns_ps_relax"] == pytest.approx(1e9 * 10.0 / (n * 100_000))
+    # a job whose log counted its own CPU takes that count as its CPU with the tail; the
+    # others keep the benchmark's (here within its short samples, so unchanged)
+    c = pile_budget(n, DT, (t_pour, s_pour), (np.r_[times, t_pour], np.r_[released, n]), (0.7, 100_000, n),
+                    [(0.3, 40_000, n), (0.2, 30_000, n - 1)], cpu, wall,
+                    counted={"pour": 95.5, "relax": math.nan, "probe": 14.0})
+    assert (c["cpu_est_pour"], c["cpu_est_relax"], c["cpu_est_probe"]) == (95.5, 10.0, 14.0)
+    assert (c["counted_pour"], c["counted_relax"], c["counted_probe"]) == (True, False, True)
+    assert c["cpu_pour"] == 80.0 and c["cpu_est_total"] == pytest.approx(119.5)
+    assert c["cpu_est_delivery"] + c["cpu_est_settling"] == pytest.approx(95.5)
 
 
 def sampled(load, wall):

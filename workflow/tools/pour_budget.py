@@ -32,7 +32,7 @@ import xarray as xr
 
 from analysis.pour_budget import (PHASES, arm_summary, cost_fit, first_long_sample_jobs, pile_budget,
                                   settling_wall_share, tail_estimate)
-from analysis.run_times import benchmark_row
+from analysis.run_times import benchmark_row, stage_cpu_time
 from sim.pour import LANDING_WINDOW, pour
 from sim.settings_file import read_settings_file
 from workflow.stages import probe_input_stage
@@ -105,6 +105,11 @@ def find_piles(folders: list[Path], records: Path) -> list[tuple[str, int, Path]
     return list(found.values())
 
 
+def _counted(log: Path) -> float:
+    """A stage's CPU as its log's summary line counts it; NaN without the log or the line."""
+    return stage_cpu_time(log) if log.is_file() else math.nan
+
+
 def gather(arm: str, seed: int, work: Path, records: Path) -> dict:
     """The numbers of one pile that :func:`analysis.pour_budget.pile_budget` takes, and its budget."""
     cfg = read_settings_file(work / "config.yaml")
@@ -115,11 +120,13 @@ def gather(arm: str, seed: int, work: Path, records: Path) -> dict:
     record = read_json(records / f"{arm}-seed{seed}.json")
     t_pour, s_pour, dt, kept = state_point(pile / "poured.nc")
     t_rel, s_rel, _, _ = state_point(pile / "relaxed.nc")
-    probes, cpu, wall = [], {}, {}
+    probes, cpu, wall, counted = [], {}, {}, {}
+    logs = res / "logs"
     for job in ("pour", "relax"):
         row = benchmark(bench / job / protocol / f"seed{seed}.tsv")
         cpu[job], wall[job] = row["cpu_s"], row["wall_s"]
-    cpu["probe"] = wall["probe"] = 0.0
+        counted[job] = _counted(logs / job / protocol / f"seed{seed}.log")
+    cpu["probe"] = wall["probe"] = counted["probe"] = 0.0
     for tsv in sorted((bench / "probe" / protocol).glob(f"seed{seed}_*.tsv")):
         stage = tsv.stem.removeprefix(f"seed{seed}_")
         t_end, s_end, _, count = state_point(pile / f"{stage}.nc")
@@ -128,8 +135,9 @@ def gather(arm: str, seed: int, work: Path, records: Path) -> dict:
         row = benchmark(tsv)
         cpu["probe"] += row["cpu_s"]
         wall["probe"] += row["wall_s"]
+        counted["probe"] += _counted(logs / "probe" / protocol / f"{tsv.stem}.log")
     if not probes:
-        cpu["probe"] = wall["probe"] = math.nan
+        cpu["probe"] = wall["probe"] = counted["probe"] = math.nan
     frames = pile / "frames.nc"
     try:
         with xr.open_dataset(frames) as ds:
@@ -137,12 +145,12 @@ def gather(arm: str, seed: int, work: Path, records: Path) -> dict:
     except (OSError, KeyError, ValueError) as exc:
         refuse(f"{frames}: not a pour's frames with time and released ({type(exc).__name__}: {exc})")
     log = pour_log(res / "logs" / "pour" / protocol / f"seed{seed}.log")
-    if log["runs"] != 1:                            # the benchmark measured only the last run
-        cpu["pour"] = wall["pour"] = math.nan
+    if log["runs"] != 1:                            # the benchmark and line measured only the last run
+        cpu["pour"] = wall["pour"] = counted["pour"] = math.nan
     release = (times + log["times"], released + log["released"])
     try:
         relax = (t_rel - t_pour, s_rel - s_pour, kept)
-        budget = pile_budget(n, dt, (t_pour, s_pour), release, relax, probes, cpu, wall, SETTLE_MIN)
+        budget = pile_budget(n, dt, (t_pour, s_pour), release, relax, probes, cpu, wall, SETTLE_MIN, counted)
     except ValueError as exc:
         refuse(f"{frames}: {exc}")
     compiled = bench / "compile_kernels.tsv"
@@ -324,6 +332,12 @@ def rerun_note(piles: list[dict]) -> str:
             f"pour CPU left out: {', '.join(rerun)}.\n\n" if rerun else "")
 
 
+def counted_text(piles: list[dict]) -> str:
+    """How many of the piles' jobs had their CPU counted by their own summary lines."""
+    jobs = [p["budget"][f"counted_{job}"] for p in piles for job in ("pour", "relax", "probe")]
+    return f"{sum(jobs)} of the {len(jobs)} jobs here"
+
+
 def page(piles: list[dict], argv: list[str], folders: list[Path]) -> str:
     """The Markdown page: how it was made, the per-arm and per-pile tables, what the statistics read."""
     command = "python -m workflow.tools pour_budget " + " ".join(shlex.quote(a) for a in argv)
@@ -351,7 +365,8 @@ def page(piles: list[dict], argv: list[str], folders: list[Path]) -> str:
         "is recorded with the CPU of its first 15 s (the records' many 15.0-15.2 s), a pour of "
         "130 s with that of its first 105 s.  *With the unsampled tail* adds it back at the load the "
         "samples saw (`analysis.pour_budget.tail_estimate`; none when the job ended within 1 s of a "
-        "sample's time).  Wall times grow with whatever else ran beside a job (the calibration tool "
+        "sample's time), except where the job's log ends with the stage's own count (its summary line, "
+        f"`CPU X s in this process`): that count is taken instead ({counted_text(piles)}).  Wall times grow with whatever else ran beside a job (the calibration tool "
         "runs two piles side by side); CPU times much less.  The pour's CPU is shared between delivery "
         "and settling by their particle-steps (*CPU s by phase*); the last row checks that against the "
         "pour log's wall clock (the wall time after the step of the last release, interpolated between "
