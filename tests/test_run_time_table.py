@@ -52,6 +52,19 @@ def test_the_rows_from_committed_records_hold_their_numbers():
         assert row["cpu_s"] == pytest.approx(sum(c["total"] for c in chosen) / len(chosen), abs=0.05)
         assert row["pour_cpu_s"] == pytest.approx(sum(c["pour"] for c in chosen) / len(chosen), abs=0.05)
 
+    # rows from a pour-budget page: the arm's column of its total CPU per pile
+    for row in rows.values():
+        spec = row.get("budget")
+        if spec is None:
+            continue
+        lines = (REPO / spec["page"]).read_text(encoding="utf-8").splitlines()
+        header = next(line for line in lines if line.startswith("| per pile |")).split(" | ")
+        column = next(i for i, cell in enumerate(header) if cell.startswith(spec["arm"] + " ("))
+        total = next(line for line in lines if line.startswith("| CPU s with the tail") and "total" in line)
+        assert float(total.split(" | ")[column].split()[0]) == row["cpu_s"], row["id"]
+        piles = int(header[column].split("(")[1].split()[0])
+        assert f"of {piles} seeds" in row["what"], row["id"]
+
     def benchmark(path):
         with open(path, newline="") as f:
             return next(csv.DictReader(f, delimiter="\t"))

@@ -174,7 +174,7 @@ ROWS = (
        for what, key, scale, spec in (("simulated s", "_s", 1, ".3f"), ("steps, thousands", "_steps", 1e-3, ".1f"),
                                       ("particle-steps, millions", "_ps", 1e-6, ".0f"))]
     + [(f"{what}, {name}", f"{key}{job}", 1, ".1f") for what, key in
-       (("wall s", "wall_"), ("CPU s recorded (benchmark)", "cpu_"), ("CPU s with the unsampled tail", "cpu_est_"))
+       (("wall s", "wall_"), ("CPU s recorded (benchmark)", "cpu_"), ("CPU s with the tail (counted, else estimated)", "cpu_est_"))
        for job, name in JOB_NAMES.items() if (key, job) != ("wall_", "total")]
     + [(f"**CPU s by phase, {name}**", f"cpu_est_{phase}", 1, ".1f")
        for phase, name in PHASE_NAMES.items()]

@@ -10,7 +10,8 @@ has a row that says "not measured". This tool writes, from that file alone,
   table's row ``cost_model``), which is what ``make progress`` prints on a
   fresh clone;
 * the README's table of times, between the lines :data:`BEGIN` and :data:`END`:
-  the rows of :data:`README_ROWS` and that estimate.
+  the rows of :data:`README_ROWS` and that estimate, then the CPU per pile of
+  the rows of :data:`README_PILES`.
 
 So the README, ``make progress`` and the cost model read the same numbers.
 
@@ -42,6 +43,9 @@ STUDY = REPO / "config" / "config.yaml"
 CORES = 2
 #: The rows the README shows, in order (then the estimate of ``make run``).
 README_ROWS = ("smoke", "test-xeon", "test-epyc", "reproduction")
+#: The piles whose CPU the README shows, by source, size and step (the rows' ids), in order.
+README_PILES = ("pile-1600-wedge-funnel-equal-slope", "pile-1600-layered-rain29-equal-slope",
+                "pile-1600-wedge-funnel-verlet099", "pile-1600-layered-rain29-verlet099")
 BEGIN = "<!-- run times: written by python -m workflow.tools run_times from workflow/run_times.json -->"
 END = "<!-- end of run times -->"
 NOT_RECORDED = "not recorded"
@@ -175,7 +179,14 @@ def readme_block(table, estimate):
     lines += [f"| `make run` | about {hms(estimate['wall_s'])}, an estimate ({hms(estimate['cpu_s'])} of CPU "
               f"for {estimate['piles']} piles, {estimate['jobs']} at a time) | the cost model priced by "
               f"`{COST_BASIS['id']}`: {COST_BASIS['host']}; {COST_BASIS['date']}; commit "
-              f"{COST_BASIS['commit']} |", END]
+              f"{COST_BASIS['commit']} |", "",
+              "What one pile costs, by source, size and step (CPU of its pour, relaxation and probes; "
+              "[docs/run_times.md](docs/run_times.md) has every measured pile):", "",
+              "| pile | CPU per pile | host; date; commit |", "|---|---|---|"]
+    for key in README_PILES:
+        row = rows[key]
+        lines.append(f"| {row['what'].split(':')[0]} | {_time(row['cpu_s'])} | {_where(row)} |")
+    lines.append(END)
     return "\n".join(lines)
 
 
