@@ -43,11 +43,11 @@ DECISION = ("stress_column", "base_pressure_column")
 #: The secondary statistics, reported with their own Holm correction.
 SECONDARY = ("strain@4.5", "solid_fraction@4.5", "gravity_gap", "stress_fabric")
 #: The equal-slope decision's secondaries (docs/reproduction/preregistration_equal_slope.md,
-#: "Secondary"), one Holm family: D2, D1 in windows scaled to each pile's half width, the
+#: "Secondary"), one Holm family: base_pressure_column, stress_column in windows scaled to each pile's half width, the
 #: interior measure, the centre's share of its own column, then the first decision's.
 EQUAL_SLOPE_SECONDARY = ("base_pressure_column", "scaled_stress_column", "interior_share",
                          "centre_column") + SECONDARY
-#: The effect the ensemble is powered for, in D1 (a fraction of the uniform pile's pressure).
+#: The effect the ensemble is powered for, in stress_column (a fraction of the uniform pile's pressure).
 EFFECT = 0.05
 #: The fewest piles per protocol the decision pours.
 MIN_PILES = 10
@@ -56,7 +56,7 @@ SLOPE_TOLERANCE = 1.5
 #: The equal-slope pick (docs/reproduction/equal_slope.md): a control's mean angle within this
 #: of the reference (deg), its interior share above the funnel's by this much, at this Welch t.
 PICK_SLOPE, PICK_INTERIOR, PICK_T = 1.0, 0.10, 2.0
-#: D1's windows as fractions of each pile's half width (``quantities.width / 2``): the fixed
+#: stress_column's windows as fractions of each pile's half width (``quantities.width / 2``): the fixed
 #: windows (centre 3 cm, shoulders 6-15 cm) over the first decision's funnel piles' mean half
 #: width, 35.4 cm (:func:`scaled_stress_column`).
 SCALED_WINDOWS = {"centre": 0.085, "shoulder_inner": 0.17, "shoulder_outer": 0.42}
@@ -178,7 +178,7 @@ def pooled_sd(a, b) -> tuple[float, int]:
 
 def statistic(record: dict, key: str) -> float:
     """One pile's statistic `key`: ``quantities[key]``, the interior measure ``growth.interior_share``,
-    or D1 in scaled windows (:func:`scaled_stress_column`, from the record's inputs)."""
+    or stress_column in scaled windows (:func:`scaled_stress_column`, from the record's inputs)."""
     if key == "scaled_stress_column":
         return scaled_stress_column(record)
     if key == "interior_share":
@@ -216,7 +216,7 @@ def verdict(records: list[dict], point: str, layered: str, n: int, family: tuple
         The registered piles per protocol.
     family : tuple of str
         The primary statistics, tested with Holm's correction over them (the
-        first decision: D1 and D2; the equal-slope decision: D1 alone).
+        first decision: stress_column and base_pressure_column; the equal-slope decision: stress_column alone).
     margin : float, optional
         With a margin, the registered outcomes of the equal-slope decision
         (docs/reproduction/preregistration_equal_slope.md): ``history`` (the
@@ -390,7 +390,7 @@ def _equal_slope_outcome(out, records, point, layered, key, margin, lower, highe
 
 
 def scaled_stress_column(record: dict) -> float:
-    """D1 of one pile in windows scaled to its own half width (:data:`SCALED_WINDOWS`).
+    """``stress_column`` of one pile in windows scaled to its own half width (:data:`SCALED_WINDOWS`).
 
     Read from the record's inputs (``inputs.stress_column``: the row's
     columns, σ_yy and the uniform column's pressure), so that two arms of

@@ -123,11 +123,11 @@ def uniform_pile_pressure(x_bins: np.ndarray, x_surface: np.ndarray, surface: np
 
 
 def base_pressure_inputs(bp: xr.Dataset, fields: xr.Dataset) -> dict[str, list]:
-    """What D2 (``base_pressure_column``) of one pile is computed from: the
+    """What ``base_pressure_column`` of one pile is computed from: the
     support's bins ``x`` (m), their normal force density ``p`` (N/m) and the
     uniform column's pressure ``p_u`` there (N/m, the pile's own surface and
     weight, :func:`uniform_pile_pressure`), as lists (NaN for an empty bin).
-    Kept in each decision record, so that a reader recomputes D2 from it
+    Kept in each decision record, so that a reader recomputes ``base_pressure_column`` from it
     (:func:`base_pressure_stats`)."""
     x = bp["x"].values
     p = bp["normal_force_density_per_seed"].values[0]
@@ -272,7 +272,7 @@ def pile_stress_contrasts(fields, params):
 
 
 def _stress_column_row(fields, params):
-    """D1's row of fields already cleared of slips (see :func:`stress_column_inputs`), or None."""
+    """``stress_column``'s row of fields already cleared of slips (see :func:`stress_column_inputs`), or None."""
     x = fields["x"].values
     low = lowest_row(fields, params)
     if low is None:
@@ -284,13 +284,13 @@ def _stress_column_row(fields, params):
 
 
 def stress_column_inputs(fields, params):
-    """What D1 (``stress_column``) of one pile is computed from: the height
+    """What ``stress_column`` of one pile is computed from: the height
     ``y`` (m) of its row (the lowest whose centre and shoulder windows both
     hold a valid RVE, :func:`lowest_row`, slipped RVEs left out), the grid
     columns ``x`` (m), ``σ_yy`` there (N/m in 2D, NaN where the RVE is not valid)
     and the uniform column's pressure ``p_u`` of a pile of unit weight (1/m,
     :func:`uniform_pile_pressure`), as lists; None when no row qualifies.
-    Kept in each decision record, so that a reader recomputes D1 as
+    Kept in each decision record, so that a reader recomputes ``stress_column`` as
     ``mean(σ_yy/p_u over the centre) / mean(σ_yy/p_u over the shoulders) − 1``
     (:func:`pile_stress_contrasts`)."""
     (fields,), _ = leave_out_slips([fields], params["ensemble"]["slip_strain_ratio"])

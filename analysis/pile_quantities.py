@@ -6,8 +6,8 @@ construction-history statistics (:mod:`analysis.history`) and the core moduli
 of its own isotropic fit.  Used by the parameter sweeps
 (``workflow/tools/setting_sweep.py``) and by the side-by-side table of a
 full-size variant against the study (``workflow/tools/variant_table.py``),
-so that both compare the same numbers; with D1, the flank fabric and the
-numbers D1 and D2 are computed from, they make the record of a calibration
+so that both compare the same numbers; with ``stress_column``, the flank fabric and the
+numbers it and ``base_pressure_column`` are computed from, they make the record of a calibration
 or decision pile (:func:`pile_record`, ``workflow/tools/calibration.py``).
 """
 
@@ -113,7 +113,7 @@ def pile_quantities(summary: Path, fields: Path, base_pressure: Path, params: di
 
 
 def pile_record(summary: Path, fields: Path, base_pressure: Path, params: dict[str, Any]) -> tuple[dict, dict]:
-    """The numbers of one pile's calibration or decision record: its quantities, and what D1 and D2
+    """The numbers of one pile's calibration or decision record: its quantities, and what ``stress_column`` and ``base_pressure_column``
     are computed from.
 
     Parameters
@@ -126,11 +126,11 @@ def pile_record(summary: Path, fields: Path, base_pressure: Path, params: dict[s
     Returns
     -------
     quantities : dict
-        :func:`pile_quantities`, D1 (``stress_column``, the σ_yy column contrast of the lowest RVE row,
+        :func:`pile_quantities`, ``stress_column`` (the σ_yy column contrast of the lowest RVE row,
         :func:`analysis.history.pile_stress_contrasts`) and the flank fabric
         (:func:`analysis.history.flank_fabric`).
     inputs : dict
-        D1's grid row (:func:`analysis.history.stress_column_inputs`), D2's support bins
+        ``stress_column``'s grid row (:func:`analysis.history.stress_column_inputs`), ``base_pressure_column``'s support bins
         (:func:`analysis.history.base_pressure_inputs`) and the windows, so that a reader recomputes
         both from the record alone.
     """

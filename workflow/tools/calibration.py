@@ -23,9 +23,9 @@ written to ``docs/reproduction/calibration/ARM-seedS.json``:
 * ``quantities`` and ``inputs``: :func:`analysis.pile_quantities.pile_record`:
   the sweeps' per-pile numbers (shape, core solid fraction, the five primary
   history statistics, core moduli), the σ_yy column contrast of the lowest
-  RVE row (``stress_column``, D1, the low-variance statistic of
-  docs/reproduction.md) and the flank fabric; and the numbers D1 and D2
-  (``base_pressure_column``) are computed from, so that a reader recomputes
+  RVE row (``stress_column``, the low-variance statistic of
+  docs/reproduction.md) and the flank fabric; and the numbers it and
+  ``base_pressure_column`` are computed from, so that a reader recomputes
   both from the record alone;
 * ``cpu_s``: CPU seconds of the pour, the relaxation and the probes, each,
   from the summary lines of their logs (``definitions.cpu_from``; records

@@ -107,7 +107,7 @@ def select(records: Path, plan: Path) -> str:
     else:
         need = decision.piles_required(recs, sel["point"], sel["layered"])
         lines += [f"- Layered control: **{sel['layered']}**.",
-                  f"- D1 ({decision.DECISION[0]}) pooled scatter over the chosen arms' piles: {need['sd']:.4f} "
+                  f"- `{decision.DECISION[0]}` pooled scatter over the chosen arms' piles: {need['sd']:.4f} "
                   f"({need['df']} df); piles per protocol for {decision.POWER:.0%} power to find "
                   f"{decision.EFFECT:.0%} at {decision.LEVEL:.0%}/{len(decision.DECISION)}: {need['n_power']:.0f}; "
                   f"registered N = **{need['n']}** per protocol, seeds {FIRST_SEED}-{FIRST_SEED + need['n'] - 1}."]
@@ -244,7 +244,7 @@ def verdict(records: Path, plan: Path) -> str:
               f"{100 * d1['layered'][1]:.1f} % (t {d1['layered'][0] / d1['layered'][1]:.1f} against 0); the "
               "paper finds no dip under its layered piles."]
     low_power = [k for k, r in result["decision"].items() if r["rejected"] and r["power"] < decision.POWER]
-    lines += [f"- N was set from D1's scatter {plan_sd:.4f} "
+    lines += [f"- N was set from {family[0]}'s scatter {plan_sd:.4f} "
               f"({reg.get('scatter_source', 'pooled over the calibration piles of the two arms')}); "
               "the power column is at the "
               "ensemble's own scatter" + (

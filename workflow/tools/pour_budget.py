@@ -234,16 +234,16 @@ STATISTICS = """## Which phases the equal-slope decision's statistics see
 
 Checked in the code (line numbers at commit 8e10770):
 
-- **D1, `stress_column`** (`workflow/tools/calibration.py` l. 199): `analysis/history.py`
+- **`stress_column`** (D1 of the registrations; `workflow/tools/calibration.py` l. 199): `analysis/history.py`
   `pile_stress_contrasts` (l. 232-260) and `_stress_column_row` (l. 263-272) read the fields'
   `stress`, `mask_reason` and `surface_height`.  `analysis/fields.py` computes all three from
   the relaxed state alone (`rve_quantities`: `mask_reason` l. 174-177, `stress` l. 179-181;
   `compute_fields`: `surface_height` l. 316-317); the reduced state enters only
-  `stress_reduced`, `stress_increment` and the strain (l. 189-203).  The slip filter that D1
+  `stress_reduced`, `stress_increment` and the strain (l. 189-203).  The slip filter that `stress_column`
   applies first (`analysis/ensemble.py` `leave_out_slips`, l. 98-126) blanks only the
   probe-response variables (`PROBE_RESPONSE`, `analysis/fields.py` l. 43-44), not `stress`:
-  D1 does not change with the probe.
-- **D2, `base_pressure_column`, and `centre_column`**: `analysis/history.py`
+  `stress_column` does not change with the probe.
+- **`base_pressure_column` (D2), and `centre_column`**: `analysis/history.py`
   `base_pressure_inputs` and `base_pressure_stats` (l. 130-153) read `base_pressure.nc`, made
   from the stage `analysis.base_pressure.stage`, `relaxed` (rule `analysis_base_pressure_pile`,
   `workflow/rules/analysis.smk` l. 94-96), and the fields' `surface_height` (relaxed).
@@ -251,8 +251,8 @@ Checked in the code (line numbers at commit 8e10770):
   pour's `frames.nc` and `relaxed.nc`.
 - **angle, height, width**: the `relaxed` line of `summary.json`
   (`analysis/pile_quantities.py` `relaxed_line`, l. 67-73, read l. 96-98).
-- **D1 in scaled windows, D1 on arm plus angle** (`analysis/decision.py`
-  `scaled_stress_column`, `shape_check`): D1's record inputs and the angle, as above.
+- **`stress_column` in scaled windows and on arm plus angle** (`analysis/decision.py`
+  `scaled_stress_column`, `shape_check`): its record inputs and the angle, as above.
 - **`solid_fraction@4.5`, `stress_fabric`**: relaxed (`solid_fraction`; the angle between the
   relaxed `stress` and `fabric`, `analysis/fields.py` l. 228).
 - **`strain@4.5` and `gravity_gap`**, the first decision's secondaries that
@@ -265,11 +265,11 @@ Checked in the code (line numbers at commit 8e10770):
   (`analysis/balance.py` `increment_report`, l. 134) and, with `analysis.checks.enforce: true`
   (the decision's piles), a failed check fails the pile, which the preregistration counts missing.
 
-So D1, D2 and the equal-slope decision's own secondaries (D1 in scaled windows, D1 on arm plus
-angle, `interior_share`, `centre_column`, the angle) read no output of the probes: for them the
+So `stress_column`, `base_pressure_column` and the equal-slope decision's own secondaries
+(`stress_column` in scaled windows and on arm plus angle, `interior_share`, `centre_column`, the angle) read no output of the probes: for them the
 probes carry no physics.  Two registered secondaries inherited from the first decision,
 `strain@4.5` and `gravity_gap`, are made from the probe: probing only where a statistic needs it
-would drop those two (and the increment's balance check) from a decision ensemble, not D1 or D2.
+would drop those two (and the increment's balance check) from a decision ensemble, not `stress_column` or `base_pressure_column`.
 """
 
 
