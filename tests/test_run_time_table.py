@@ -101,3 +101,19 @@ def test_the_readme_estimate_is_what_make_progress_says_on_a_fresh_clone(tmp_pat
 def test_a_readme_without_the_markers_is_refused():
     with pytest.raises(ValueError, match="no table of run times"):
         rt.with_block("# a README\n", "table")
+
+
+def test_the_study_from_measured_piles_prices_each_protocols_piles_by_its_pile():
+    """The study's configuration has 9 wedge and 10 layered seeds; each pile costs its
+    protocol's measured pile, two piles at a time on 2 cores."""
+    import yaml
+
+    config = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    counts = {p: len(v["seeds"]) for p, v in config["protocols"].items()}
+    table = {"rows": [{**row, "cpu_s": 100.0 if row["id"] == rt.MEASURED_STUDY["wedge"] else row["cpu_s"]}
+                      for row in TABLE["rows"]]}
+    table["rows"] = [{**row, "cpu_s": 7.0} if row["id"] == rt.MEASURED_STUDY["layered"] else row
+                     for row in table["rows"]]
+    out = rt.measured_study(table)
+    assert out["counts"] == counts == {"wedge": 9, "layered": 10}
+    assert out["cpu_s"] == 9 * 100.0 + 10 * 7.0 and out["wall_s"] == out["cpu_s"] / 2

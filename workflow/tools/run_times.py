@@ -45,7 +45,11 @@ CORES = 2
 README_ROWS = ("smoke", "test-xeon", "test-epyc", "reproduction")
 #: The piles whose CPU the README shows, by source, size and step (the rows' ids), in order.
 README_PILES = ("pile-1600-wedge-funnel-equal-slope", "pile-1600-layered-rain29-equal-slope",
-                "pile-1600-wedge-funnel-verlet099", "pile-1600-layered-rain29-verlet099")
+                "pile-1600-wedge-funnel-verlet099", "pile-1600-layered-rain29-verlet099",
+                "pile-3500-wedge-funnel-equal-slope", "pile-3500-layered-rain29-equal-slope")
+#: The measured piles that price the study's piles by protocol in :func:`measured_study` (row ids):
+#: the equal-slope decision's sources at the study's size, the funnel and the rain at 29°.
+MEASURED_STUDY = {"wedge": "pile-3500-wedge-funnel-equal-slope", "layered": "pile-3500-layered-rain29-equal-slope"}
 BEGIN = "<!-- run times: written by python -m workflow.tools run_times from workflow/run_times.json -->"
 END = "<!-- end of run times -->"
 NOT_RECORDED = "not recorded"
@@ -77,6 +81,27 @@ def run_estimate(configfile=STUDY, cores=CORES):
     per_pile = sum(means.values())
     return {"piles": len(piles), "cpu_per_pile_s": per_pile, "cpu_s": per_pile * len(piles),
             "wall_s": wall, "jobs": jobs, "threads": threads}
+
+
+def measured_study(table, configfile=STUDY, cores=CORES):
+    """The study's piles priced by whole piles measured at its size (:data:`MEASURED_STUDY`).
+
+    Each protocol's piles cost the CPU of its measured pile (pour, relaxation
+    and probes); one thread a pile, ``cores`` piles at a time, so the wall
+    time is about the CPU over the cores (the last pile alone excepted).
+
+    Returns
+    -------
+    dict
+        ``counts`` (piles per protocol), ``cpu_s``, ``wall_s``, and ``rows``,
+        the measured rows by protocol.
+    """
+    study = Piles(load_config([configfile]))
+    rows = {row["id"]: row for row in table["rows"]}
+    counts = {p: len(study.seeds(p)) for p in study.protocols}
+    used = {p: rows[MEASURED_STUDY[p]] for p in counts}
+    cpu = sum(counts[p] * used[p]["cpu_s"] for p in counts)
+    return {"counts": counts, "cpu_s": cpu, "wall_s": cpu / cores, "rows": used}
 
 
 def _time(seconds):
@@ -154,8 +179,25 @@ def page(table, estimate):
         "finished piles' own benchmarks instead. SLURM jobs ask for the same estimate times a margin "
         "([cluster.md](cluster.md#what-each-job-asks-for)).",
         "",
+        "## The study from measured piles of the decision's sources",
+        "",
+        _measured_text(measured_study(table)),
+        "",
     ]
     return "\n".join(lines)
+
+
+def _measured_text(measured):
+    """The page's paragraph on :func:`measured_study`."""
+    rows, counts = measured["rows"], measured["counts"]
+    priced = "; ".join(f"{counts[p]} {p} piles at `{rows[p]['id']}`, {hms(rows[p]['cpu_s'])} each"
+                       for p in counts)
+    return (f"Priced by whole piles measured at the study's size ({priced}; "
+            f"{_where(next(iter(rows.values())))}), the study's {sum(counts.values())} piles would take "
+            f"{hms(measured['cpu_s'])} of CPU, about {hms(measured['wall_s'])} on {CORES} cores, one thread "
+            "a pile. Those are the equal-slope decision's sources (the funnel and the rain at 29°), not "
+            "`make run`'s (the drip and the top band, whose 3500-particle pours alone cost 36 and 33 min of CPU: "
+            "rows `pour-3500-wedge`, `pour-3500-layered`); `make run` pours the study's own.")
 
 
 def readme_block(table, estimate):
@@ -179,7 +221,12 @@ def readme_block(table, estimate):
     lines += [f"| `make run` | about {hms(estimate['wall_s'])}, an estimate ({hms(estimate['cpu_s'])} of CPU "
               f"for {estimate['piles']} piles, {estimate['jobs']} at a time) | the cost model priced by "
               f"`{COST_BASIS['id']}`: {COST_BASIS['host']}; {COST_BASIS['date']}; commit "
-              f"{COST_BASIS['commit']} |", "",
+              f"{COST_BASIS['commit']} |"]
+    measured = measured_study(table)
+    lines += [f"| the same {sum(measured['counts'].values())} piles from the equal-slope decision's sources "
+              f"(funnel, rain at 29°) | about {hms(measured['wall_s'])}, from measured piles "
+              f"({hms(measured['cpu_s'])} of CPU; [run_times.md](docs/run_times.md)) | "
+              f"{_where(next(iter(measured['rows'].values())))} |", "",
               "What one pile costs, by source, size and step (CPU of its pour, relaxation and probes; "
               "[docs/run_times.md](docs/run_times.md) has every measured pile):", "",
               "| pile | CPU per pile | host; date; commit |", "|---|---|---|"]
