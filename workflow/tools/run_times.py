@@ -44,8 +44,7 @@ CORES = 2
 #: The rows the README shows, in order (then the estimate of ``make run``).
 README_ROWS = ("smoke", "test-xeon", "test-epyc", "reproduction")
 #: The piles whose CPU the README shows, by source, size and step (the rows' ids), in order.
-README_PILES = ("pile-1600-wedge-funnel-equal-slope", "pile-1600-layered-rain29-equal-slope",
-                "pile-1600-wedge-funnel-verlet099", "pile-1600-layered-rain29-verlet099",
+README_PILES = ("pile-1600-wedge-funnel-verlet099", "pile-1600-layered-rain29-verlet099",
                 "pile-3500-wedge-funnel-equal-slope", "pile-3500-layered-rain29-equal-slope")
 #: The measured piles that price the study's piles by protocol in :func:`measured_study` (row ids):
 #: the equal-slope decision's sources at the study's size, the funnel and the rain at 29°.
