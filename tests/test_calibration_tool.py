@@ -32,7 +32,7 @@ def test_two_piles_side_by_side_are_read_one_at_a_time(tmp_path, monkeypatch):
     monkeypatch.setattr(calibration, "targets", lambda cfg, protocol, seed: dict.fromkeys(
         ("fields", "summary", "base_pressure", "frames", "relaxed"), "x"))
     monkeypatch.setattr(calibration.subprocess, "run", lambda *a, **k: None)
-    monkeypatch.setattr(calibration, "pile_record", reading)
+    monkeypatch.setattr(calibration, "calibration_record", reading)
     cal = {"arms": {"wedge funnel": {"protocol": "wedge"}}}
     with ThreadPoolExecutor(2) as pool:
         paths = list(pool.map(lambda s: calibration.run_pile(cal, "wedge funnel", s, tmp_path / "records"),

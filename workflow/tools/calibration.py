@@ -169,7 +169,7 @@ def run_pile(cal: dict, arm: str, seed: int, records: Path) -> Path:
     with open(log, "a") as out:
         subprocess.run(cmd, check=True, stdout=out, stderr=subprocess.STDOUT, env={**os.environ, "NUMBA_NUM_THREADS": "1"})
     with READING:                                     # HDF5 is not thread-safe: one pile's files at a time
-        record = pile_record(cal, arm, seed, cfg, protocol, work, files)
+        record = calibration_record(cal, arm, seed, cfg, protocol, work, files)
     records.mkdir(parents=True, exist_ok=True)
     dest = records / f"{slug(arm)}-seed{seed}.json"
     tmp = dest.with_suffix(".part")
@@ -180,7 +180,7 @@ def run_pile(cal: dict, arm: str, seed: int, records: Path) -> Path:
     return dest
 
 
-def pile_record(cal: dict, arm: str, seed: int, cfg: dict, protocol: str, work: Path, files: dict) -> dict:
+def calibration_record(cal: dict, arm: str, seed: int, cfg: dict, protocol: str, work: Path, files: dict) -> dict:
     """The record of one poured, relaxed, probed and analysed pile, read from its working directory."""
     params = parse_params(json.dumps(cfg["analysis"]))
     path = {k: work / v for k, v in files.items()}
