@@ -43,7 +43,9 @@ column is picked by its value); the *core* ``|x| <= shoulder_outer``,
   0 when the axes are collinear on average.
 
 Probe responses of RVEs that slipped (``analysis.ensemble.slip_strain_ratio``)
-are left out, as in the ensembles.  The five *primary* statistics, one per
+are left out, as in the ensembles; a pile without a gravity probe
+(``probe.levels: []``) has none, and ``strain@h``, ``gravity_xx``,
+``gravity_yy`` and ``gravity_gap`` are NaN for it (:func:`probe_response`).  The five *primary* statistics, one per
 question, are listed in :data:`PRIMARY`; the others are secondary.
 
 The windows were set after the study's 19 piles had been recorded and read
@@ -78,6 +80,31 @@ def _nanmedian(a: np.ndarray) -> float:
     a = np.asarray(a, float)
     a = a[np.isfinite(a)]
     return float(np.median(a)) if a.size else math.nan
+
+
+def probe_response(fields: xr.Dataset, name: str, k: str) -> np.ndarray:
+    """The ``kk`` component of the probe response ``name`` (``stress_increment`` or
+    ``strain_increment``) on the ``(y, x)`` grid.
+
+    Parameters
+    ----------
+    fields : xarray.Dataset
+        One pile's RVE fields.
+    name : str
+        The response's variable.
+    k : {"x", "y"}
+        The component's axis.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape ``(ny, nx)``; all NaN where the fields hold no ``name``: a pile without a
+        gravity probe (``probe.levels: []``) has no response to one, so every statistic
+        read from it is NaN and every other is as with the probe.
+    """
+    if name not in fields:
+        return np.full((fields.sizes["y"], fields.sizes["x"]), math.nan)
+    return fields[name].sel(i=k, j=k).transpose("y", "x").values
 
 
 def height_key(h: float) -> str:
@@ -149,13 +176,14 @@ def base_pressure_stats(bp: xr.Dataset, fields: xr.Dataset, history: dict[str, A
 
 
 def gravity_scaling(fields: xr.Dataset, history: dict[str, Any]) -> dict[str, float]:
-    """``gravity_xx``, ``gravity_yy`` and ``gravity_gap`` over the core RVEs of one pile."""
+    """``gravity_xx``, ``gravity_yy`` and ``gravity_gap`` over the core RVEs of one pile
+    (NaN for a pile without a gravity probe, :func:`probe_response`)."""
     x, y = fields["x"].values, fields["y"].values
     core = (np.abs(x)[None, :] <= history["shoulder_outer"] + 1e-9) & (y[:, None] <= history["core_height"] + 1e-9)
     out = {}
     for k in ("x", "y"):
         s = fields["stress"].sel(i=k, j=k).transpose("y", "x").values
-        d = fields["stress_increment"].sel(i=k, j=k).transpose("y", "x").values
+        d = probe_response(fields, "stress_increment", k)
         with np.errstate(divide="ignore", invalid="ignore"):
             out[f"gravity_{k}{k}"] = _nanmedian(np.where(core & (s < 0), d / s, np.nan))
     out["gravity_gap"] = out["gravity_xx"] / out["gravity_yy"] - 1.0
@@ -212,12 +240,13 @@ def pile_history(fields: xr.Dataset, params: dict[str, Any], heights: list[float
     Returns
     -------
     dict
-        ``{name: value}``, relative contrasts as fractions, the angle in degrees.
+        ``{name: value}``, relative contrasts as fractions, the angle in degrees;
+        those read from the probe NaN for a pile without one (:func:`probe_response`).
     """
     h = params["history"]
     (fields,), _ = leave_out_slips([fields], params["ensemble"]["slip_strain_ratio"])
     x, y = fields["x"].values, fields["y"].values
-    u = fields["strain_increment"].sel(i="y", j="y").transpose("y", "x").values
+    u = probe_response(fields, "strain_increment", "y")
     phi = fields["solid_fraction"].transpose("y", "x").values
     phi = np.where(fields["mask_reason"].transpose("y", "x").values == 0, phi, np.nan)
     out = {}
@@ -253,13 +282,15 @@ def pile_stress_contrasts(fields, params):
       surface (:func:`analysis.history.uniform_pile_pressure`): the column
       contrast of the base pressure, read from the RVE stress instead of 2 cm
       bins of contact forces.
+
+    The first three read the probe: NaN for a pile without one (:func:`probe_response`).
     """
     h = params["history"]
     (fields,), _ = leave_out_slips([fields], params["ensemble"]["slip_strain_ratio"])
     x, y = fields["x"].values, fields["y"].values
     k = int(np.argmin(np.abs(y - h["primary_height"])))
-    d = fields["stress_increment"].sel(i="y", j="y").transpose("y", "x").values
-    u = fields["strain_increment"].sel(i="y", j="y").transpose("y", "x").values
+    d = probe_response(fields, "stress_increment", "y")
+    u = probe_response(fields, "strain_increment", "y")
     col = _stress_column_row(fields, params)
     centre, shoulders = windows(x, h)
     window = u[k][centre | shoulders]

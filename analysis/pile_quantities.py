@@ -12,6 +12,7 @@ or decision pile (:func:`pile_record`, ``workflow/tools/calibration.py``).
 """
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -95,7 +96,11 @@ def pile_quantities(summary: Path, fields: Path, base_pressure: Path, params: di
     -------
     dict
         ``{key: value}``; the angle is the mean of both flanks, the core solid
-        fraction and moduli the means over the core RVEs.
+        fraction and moduli the means over the core RVEs.  For a pile without a
+        gravity probe (``probe.levels: []``, fields without the strain) the
+        quantities read from the probe, ``strain@h``, ``gravity_xx``,
+        ``gravity_yy``, ``gravity_gap`` and the moduli, are NaN; the others are
+        those the pile gives with the probe, which runs after the relaxation.
     """
     rel = relaxed_line(summary)
     out = {"angle_deg": 0.5 * (rel["flank_left_deg"] + rel["flank_right_deg"]),
@@ -105,6 +110,8 @@ def pile_quantities(summary: Path, fields: Path, base_pressure: Path, params: di
         core = (np.abs(f["x"]) <= CORE_X) & (f["y"] <= CORE_Y)
         out["solid_fraction"] = float(f["solid_fraction"].where(core).mean())
         out.update(pile_history(f, params, params["figures"]["heights"], bp.load()))
+        if "strain_increment" not in f:               # no gravity probe: no fit
+            return {**out, **dict.fromkeys(MODULI, math.nan)}
         mod = moduli_dataset(f, [], params)
     core = (np.abs(mod["x"]) <= CORE_X) & (mod["y"] <= CORE_Y)
     for k in MODULI:
@@ -126,7 +133,8 @@ def pile_record(summary: Path, fields: Path, base_pressure: Path, params: dict[s
     Returns
     -------
     quantities : dict
-        :func:`pile_quantities`, ``stress_column`` (the σ_yy column contrast of the lowest RVE row,
+        :func:`pile_quantities` (the probe's quantities NaN for a pile without one),
+        ``stress_column`` (the σ_yy column contrast of the lowest RVE row,
         :func:`analysis.history.pile_stress_contrasts`) and the flank fabric
         (:func:`analysis.history.flank_fabric`).
     inputs : dict

@@ -159,3 +159,20 @@ def test_windows_out_of_order_are_refused_by_name(history, words):
     with pytest.raises(ParamError) as err:
         resolve_params({"history": history})
     assert all(w in str(err.value) for w in words)
+
+
+def test_without_a_gravity_probe_only_the_probe_statistics_are_nan():
+    """Fields made without a probe hold no stress or strain increment: the statistics read from
+    them are NaN, every other is the one the same pile gives with the probe."""
+    phi = lambda x: np.where(np.abs(x) <= 0.031, 0.85, 0.83)  # noqa: E731
+    probed = _fields(u_row=lambda x: np.where(np.abs(x) <= 0.031, 0.93e-4, 1e-4), phi_row=phi, gap=-0.2)
+    bp = _base_pressure(lambda x: 1000.0 * (1 - np.abs(x)), 500.0)
+    with_probe = pile_history(probed, PARAMS, [0.045, 0.09], bp)
+    without = pile_history(probed.drop_vars(["strain_increment", "stress_increment"]), PARAMS, [0.045, 0.09], bp)
+    from_probe = {"strain@4.5", "strain@9", "gravity_xx", "gravity_yy", "gravity_gap"}
+    assert with_probe.keys() == without.keys() and from_probe < with_probe.keys()
+    for key, value in with_probe.items():
+        if key in from_probe:
+            assert np.isfinite(value) and np.isnan(without[key]), key
+        else:
+            assert without[key] == value or np.isnan(value) and np.isnan(without[key]), key
