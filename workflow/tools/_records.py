@@ -162,7 +162,8 @@ def check_registered(records: dict[Path, dict], plan: Path, replaces: str | None
     workflow.tools._cli.Refusal
         Naming the first record that is a copy of another (:func:`check_unique`),
         is of an arm the plan does not name, or of another protocol or settings
-        than its arm, of another particle count, of a seed outside the
+        than its arm, of another particle count or gravity probes
+        (``definitions.probe_levels``, where the record says), of a seed outside the
         registered ones (and their replacements), or poured at a commit that is
         not the registration's (:func:`registration_commit`) or a later one.
     """
@@ -180,9 +181,13 @@ def check_registered(records: dict[Path, dict], plan: Path, replaces: str | None
         if (r["protocol"], r["settings"]) != (spec["protocol"], spec["settings"]):
             refuse(f"record {path}: protocol {r['protocol']!r} with settings {r['settings']} is not arm {arm!r} "
                    f"of {plan} (protocol {spec['protocol']!r}, settings {spec['settings']})")
-        n = merge_settings(base, spec["settings"])["pour"]["n_particles"]
+        arm_settings = merge_settings(base, spec["settings"])
+        n, levels = arm_settings["pour"]["n_particles"], arm_settings["probe"]["levels"]
         if r["n_particles"] != n:
             refuse(f"record {path}: {r['n_particles']} particles; {plan} registers piles of {n}")
+        if r["definitions"].get("probe_levels", levels) != levels:
+            refuse(f"record {path}: probe.levels {r['definitions']['probe_levels']}; {plan} registers "
+                   f"probe.levels {levels}")
         missing = sum(not math.isfinite(q["quantities"].get(replaces, math.nan))
                       for q in records.values() if q["arm"] == arm) if replaces else 0
         if r["seed"] not in seeds and not seeds[-1] < r["seed"] <= seeds[-1] + missing:

@@ -30,7 +30,18 @@ written to ``docs/reproduction/calibration/ARM-seedS.json``:
 * ``cpu_s``: CPU seconds of the pour, the relaxation and the probes, each,
   from the summary lines of their logs (``definitions.cpu_from``; records
   made before that took them from Snakemake's benchmark files);
-* ``commit``: the checkout the pile was made in.
+* ``commit``: the checkout the pile was made in;
+* ``definitions.probe_levels``: the gravity probes the pile was given
+  (``probe.levels``; records made before it was written were probed at 0.10).
+
+A pile without the probe: ``probe: {levels: []}`` with ``outputs`` without
+``strain`` and ``fits`` (in the plan's ``piles`` file, or in every arm's
+``settings``) pours, relaxes and analyses the pile without the gravity probe
+after its relaxation.  Its record holds NaN for the quantities read from the
+probe (``strain@h``, ``gravity_xx``, ``gravity_yy``, ``gravity_gap``, the core
+moduli) and 0 for the probes' CPU; every other number is the one the pile
+gives with the probe (tests/test_calibration_probe_cut.py).  Settings whose pile
+cannot make its record are refused before any pile (:func:`record_problems`).
 
 ``FLOW_MIN``, ``OLD`` and ``START`` (:mod:`analysis.growth`) were fixed, and
 committed, before the first calibration pile was poured.  ``--table`` prints the table of the
@@ -68,7 +79,9 @@ from sim.config import SimConfig
 from sim.pour import pile_shapes
 from sim.release import SETTLED_SPEED, mean_diameter
 from sim.settings_file import SettingsDumper, read_settings_file
-from workflow.validation import merge_configs, validate_config
+from workflow.outputs import Outputs
+from workflow.piles import Piles
+from workflow.validation import check_problems, merge_configs, validate_config
 
 from ._cli import ToolParser, existing_file, output_file, positive_int, refuse, seed, shown
 from ._records import check_registered, check_unique, read_records, read_registration
@@ -79,11 +92,21 @@ CONFIG = REPO / "config" / "calibration.yaml"
 RECORDS = REPO / "docs" / "reproduction" / "calibration"
 #: Stages whose logs' CPU lines make the CPU time of a pile.
 JOBS = ("pour", "relax", "probe")
+#: The outputs whose fields a pile's record reads: the stress and the fabric (the flank fabric).
+RECORD_OUTPUTS = ("fields", "fabric")
 
 
 def arm_config(cal: dict, arm: str, seed: int) -> dict:
     """The workflow configuration of one calibration pile: the study's, the piles', the arm's protocol
-    alone with this seed, a film's frames (not the film), and the arm's settings."""
+    alone with this seed, a film's frames (not the film), and the arm's settings.
+
+    Raises
+    ------
+    ValueError
+        Naming the settings, their values and what is allowed, for a configuration the
+        workflow refuses (its checks of the settings and of the scene) or whose pile
+        cannot make its record (:func:`record_problems`).
+    """
     spec = cal["arms"][arm]
     cfg = merge_configs(read_settings_file(REPO / "config" / "config.yaml"), read_settings_file(REPO / cal["piles"]))
     cfg = merge_configs(cfg, {"pour": {"frame_interval": cal["frame_interval"]}})
@@ -91,7 +114,34 @@ def arm_config(cal: dict, arm: str, seed: int) -> dict:
     cfg["protocols"] = {spec["protocol"]: {"seeds": [seed]}}
     cfg["outputs"] = sorted(set(cfg["outputs"]) | {"film"})
     validate_config(cfg)
+    outputs = Outputs(Piles(cfg))
+    check_problems(outputs.problems(REPO) + record_problems(outputs), "arm")
     return cfg
+
+
+def record_problems(outputs: Outputs) -> list[str]:
+    """What keeps a pile of these outputs from its record, beyond the workflow's own checks.
+
+    Parameters
+    ----------
+    outputs : workflow.outputs.Outputs
+        The outputs of the pile's configuration.
+
+    Returns
+    -------
+    list of str
+        One message per problem, naming the setting, its value and what is allowed: an
+        output of :data:`RECORD_OUTPUTS` left out, or a gravity probe whose strain would
+        not be computed (the probe read by half).  Strain without a probe the
+        workflow refuses itself (:meth:`workflow.outputs.Outputs.problems`).
+    """
+    asked, levels = outputs.config["outputs"], outputs.config["probe"]["levels"]
+    problems = [f"outputs {asked}: a pile's record reads the {name}; add {name!r}"
+                for name in RECORD_OUTPUTS if not outputs.wants(name)]
+    if outputs.has_probes() and not outputs.wants("strain"):
+        problems.append(f"probe.levels {levels} with outputs {asked}: the record would read the probe without its "
+                        "strain; add 'strain', or give probe.levels [] for a pile without the probe")
+    return problems
 
 
 def slug(arm: str) -> str:
@@ -108,15 +158,18 @@ def targets(cfg: dict, protocol: str, seed: int) -> dict:
             "frames": f"{pile}/frames.nc", "relaxed": f"{pile}/relaxed.nc", "logs": f"{res}/logs"}
 
 
-def cpu_seconds(logs: Path, protocol: str, seed: int) -> dict:
+def cpu_seconds(logs: Path, protocol: str, seed: int, probed: bool) -> dict:
     """CPU seconds of each simulation stage of the pile (the probes summed), from the
     summary lines of their logs (:func:`analysis.run_times.stage_cpu_time`); NaN for a
-    stage whose log has none."""
+    stage whose log has none, 0 for the probes of a pile not `probed`."""
     out = {}
     for job in JOBS:
         files = sorted((logs / job / protocol).glob(f"seed{seed}.log")) + \
             sorted((logs / job / protocol).glob(f"seed{seed}_*.log"))
-        out[job] = float(sum(stage_cpu_time(f) for f in files)) if files else math.nan
+        if files:
+            out[job] = float(sum(stage_cpu_time(f) for f in files))
+        else:                                         # no log: unknown, unless no such stage ran
+            out[job] = 0.0 if job == "probe" and not probed else math.nan
     out["total"] = float(sum(out.values()))
     return out
 
@@ -181,7 +234,8 @@ def run_pile(cal: dict, arm: str, seed: int, records: Path) -> Path:
 
 
 def calibration_record(cal: dict, arm: str, seed: int, cfg: dict, protocol: str, work: Path, files: dict) -> dict:
-    """The record of one poured, relaxed, probed and analysed pile, read from its working directory."""
+    """The record of one poured, relaxed, probed (unless ``probe.levels`` is empty) and analysed
+    pile, read from its working directory (the module's docstring says what it holds)."""
     params = parse_params(json.dumps(cfg["analysis"]))
     path = {k: work / v for k, v in files.items()}
     q, inputs = pile_record(path["summary"], path["fields"], path["base_pressure"], params)
@@ -189,9 +243,11 @@ def calibration_record(cal: dict, arm: str, seed: int, cfg: dict, protocol: str,
               "settings": cal["arms"][arm]["settings"], "commit": commit_of(REPO),
               "growth": {**growth_record(path["frames"], cfg, protocol, seed),
                          **landing_record(path["frames"], path["relaxed"], cfg, seed)},
-              "quantities": q, "inputs": inputs, "cpu_s": cpu_seconds(path["logs"], protocol, seed),
+              "quantities": q, "inputs": inputs,
+              "cpu_s": cpu_seconds(path["logs"], protocol, seed, Outputs(Piles(cfg)).has_probes()),
               "definitions": {"flow_min": FLOW_MIN, "old_s": OLD, "start": START,
-                              "frame_interval": cal["frame_interval"], "cpu_from": CPU_FROM}}
+                              "frame_interval": cal["frame_interval"], "cpu_from": CPU_FROM,
+                              "probe_levels": cfg["probe"]["levels"]}}
     return record
 
 
